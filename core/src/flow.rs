@@ -1,0 +1,627 @@
+//! Normalising-flow samplers on the projected unit disk: the paper's conditional
+//! rational-quadratic spline flow ([`FlowSampler`], paper Eq. 3–4, `core/ARCHITECTURES.md`
+//! §3) and the affine-coupling flow baseline of Xie et al. 2019 ([`AffineFlowSampler`], §4).
+//!
+//! A flow is a bijection `T` between the disk point `ω⊥ = (x, y)` and a latent point `z`
+//! with a Gaussian base density `p_z`. The density on the **projected disk** (area measure) is
+//!
+//! ```text
+//! p(ω⊥) = p_z(T(ω⊥)) · |det ∂T/∂ω⊥|                                           (Eq. 3)
+//! ```
+//!
+//! computed in the *density direction* `ω⊥ → z` ([`Prepared::pdf_disk`],
+//! [`FlowPrepared::to_latent`]). Sampling runs the *sampling direction* `z → ω⊥`
+//! (Box–Muller, then the inverse couplings), then evaluates the density direction at the
+//! sampled point, reusing the one coupling evaluation both directions share: the pdf a
+//! sample reports is bit for bit [`Prepared::pdf_disk`] at its point. Samples that leave the
+//! open unit disk are refused (`None`); the density is 0 there, so it integrates over the
+//! disk to the probability that a sample lands inside.
+//!
+//! Per shading point, [`Sampler::prepare`] encodes the condition `c` once, runs the base
+//! network, and precomputes the condition's share of every coupling network's first layer;
+//! per sample only the 9 encoded inputs of the other coordinate and the remaining layers run.
+
+use glam::{Vec2, Vec3};
+
+use crate::gaussian;
+use crate::math;
+use crate::mlp::{self, Activation};
+use crate::sampler::{self, Prepared, Sample, Sampler, CONDITION_DIM, FEATURE_DIM};
+use crate::spline::Knots;
+use crate::warp;
+use crate::weights::Weights;
+
+// ---------------------------------------------------------------------------------------
+// Shared architecture constants
+// ---------------------------------------------------------------------------------------
+
+/// Frequency bands of the encoding of the coupling layers' "other coordinate" (release: 4).
+pub const OTHER_BANDS: usize = 4;
+/// Length of the encoded other coordinate: `1 + 2·OTHER_BANDS` = 9.
+pub const OTHER_DIM: usize = mlp::encoding_len(OTHER_BANDS);
+/// Inputs of every coupling network: the encoded condition then the encoded other
+/// coordinate (30 + 9 = 39).
+pub const COUPLING_INPUTS: usize = CONDITION_DIM + OTHER_DIM;
+/// Width of every hidden layer of the flows' networks.
+pub const HIDDEN: usize = 32;
+
+/// `enc4(v)`: the 9-value sinusoidal encoding of the coordinate a coupling is conditioned on.
+#[inline(always)]
+#[must_use]
+pub fn encode_other(v: f32) -> [f32; OTHER_DIM] {
+    let mut e = [0.0f32; OTHER_DIM];
+    mlp::encode_scalar::<OTHER_BANDS, OTHER_DIM>(v, &mut e, 0);
+    e
+}
+
+/// The condition's share of the first layer (`dense(39, 32)` at `offset`) of a coupling
+/// network: bias plus the product with inputs `0 .. 30`.
+#[inline(always)]
+fn condition_share<W: Weights>(w: &W, offset: u32, c: &[f32; CONDITION_DIM]) -> [f32; HIDDEN] {
+    let mut acc = mlp::bias::<W, COUPLING_INPUTS, HIDDEN>(w, offset);
+    mlp::accumulate_inputs::<W, CONDITION_DIM, HIDDEN>(w, offset, 0, c, &mut acc);
+    acc
+}
+
+/// First hidden layer of a coupling network from its precomputed condition share and the
+/// other coordinate `v` (before the activation).
+#[inline(always)]
+fn first_layer<W: Weights>(w: &W, offset: u32, share: &[f32; HIDDEN], v: f32) -> [f32; HIDDEN] {
+    let enc = encode_other(v);
+    let mut acc = *share;
+    mlp::accumulate_inputs::<W, OTHER_DIM, HIDDEN>(w, offset, CONDITION_DIM as u32, &enc, &mut acc);
+    acc
+}
+
+/// `true` when every element is finite.
+#[inline(always)]
+fn all_finite<const N: usize>(v: &[f32; N]) -> bool {
+    let mut k = 0;
+    while k < N {
+        if !math::is_finite(v[k]) {
+            return false;
+        }
+        k += 1;
+    }
+    true
+}
+
+/// `true` when `p` is finite and strictly inside the unit disk.
+#[inline(always)]
+fn inside_disk(p: Vec2) -> bool {
+    p.x * p.x + p.y * p.y < 1.0
+}
+
+/// [`warp::upper_hemisphere`], except that a direction already of unit length to f32
+/// precision (`|len² − 1| ≤ 4ε`, e.g. any `Sample::wo`) is used as is: renormalising it
+/// would only move `wo⊥` by an ulp, and the flows' densities are steep enough for that to
+/// change `pdf(sample.wo)` against `sample.pdf` by up to ~10⁻³ relative.
+#[inline(always)]
+fn unit_upper(wo: Vec3) -> Option<Vec3> {
+    let len2 = wo.x * wo.x + wo.y * wo.y + wo.z * wo.z;
+    if math::abs(len2 - 1.0) <= 4.0 * f32::EPSILON && wo.z > warp::MIN_COS_THETA {
+        Some(wo)
+    } else {
+        warp::upper_hemisphere(wo)
+    }
+}
+
+/// Solid-angle density `pdf_disk(wo⊥) · cos θo` of `P`, with [`unit_upper`].
+#[inline(always)]
+fn pdf_solid_angle<P: Prepared>(p: &P, wo: Vec3) -> f32 {
+    match unit_upper(wo) {
+        Some(w) => warp::disk_to_solid_angle(p.pdf_disk(warp::to_disk(w)), w.z),
+        None => 0.0,
+    }
+}
+
+/// `exp(log_pdf)` as a density: 0 for −∞, NaN or an overflow.
+#[inline(always)]
+fn density_from_log(log_pdf: f32) -> f32 {
+    let p = math::exp(log_pdf);
+    if p > 0.0 && math::is_finite(p) {
+        p
+    } else {
+        0.0
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Rational-quadratic spline flow (ARCHITECTURES.md §3)
+// ---------------------------------------------------------------------------------------
+
+/// Bins of every spline of [`FlowSampler`] (release: 20).
+pub const SPLINE_BINS: usize = 20;
+/// Tail bound `B` of every spline of [`FlowSampler`]: splines act on `[−1, 1]`.
+pub const TAIL_BOUND: f32 = 1.0;
+/// Raw outputs of a spline coupling network: 20 widths, 20 heights, 19 derivatives.
+pub const SPLINE_RAW_LEN: usize = Knots::<SPLINE_BINS>::RAW_LEN;
+/// Outputs of the base network: `[μx, μy, log σx, log σy]`.
+pub const BASE_OUTPUTS: usize = 4;
+
+/// Offset of the base network's `dense(30, 32)` (ReLU).
+pub const FLOW_BASE_L0: usize = 0;
+/// Offset of the base network's `dense(32, 4)`.
+pub const FLOW_BASE_L1: usize = FLOW_BASE_L0 + mlp::dense_len(CONDITION_DIM, HIDDEN);
+/// Parameters of the base network (1124).
+pub const FLOW_BASE_LEN: usize = FLOW_BASE_L1 + mlp::dense_len(HIDDEN, BASE_OUTPUTS);
+/// Offset of a spline coupling network's `dense(39, 32)` (LeakyReLU), relative to the network.
+pub const SPLINE_NET_L0: usize = 0;
+/// Offset of a spline coupling network's `dense(32, 32)` (LeakyReLU), relative to the network.
+pub const SPLINE_NET_L1: usize = SPLINE_NET_L0 + mlp::dense_len(COUPLING_INPUTS, HIDDEN);
+/// Offset of a spline coupling network's `dense(32, 59)`, relative to the network.
+pub const SPLINE_NET_L2: usize = SPLINE_NET_L1 + mlp::dense_len(HIDDEN, HIDDEN);
+/// Parameters of one spline coupling network (4283).
+pub const SPLINE_NET_LEN: usize = SPLINE_NET_L2 + mlp::dense_len(HIDDEN, SPLINE_RAW_LEN);
+/// Offset of coupling network 0 (transforms x, conditioned on y').
+pub const FLOW_COUPLING0: usize = FLOW_BASE_LEN;
+/// Offset of coupling network 1 (transforms y, conditioned on x).
+pub const FLOW_COUPLING1: usize = FLOW_COUPLING0 + SPLINE_NET_LEN;
+/// Parameters of [`FlowSampler`] (9690).
+pub const FLOW_PARAM_COUNT: usize = FLOW_COUPLING1 + SPLINE_NET_LEN;
+
+/// The spline of a coupling network at `offset`, for the other coordinate `v`.
+#[inline(always)]
+fn spline_knots<W: Weights>(
+    w: &W,
+    offset: u32,
+    share: &[f32; HIDDEN],
+    v: f32,
+) -> Knots<SPLINE_BINS> {
+    let mut h = first_layer(w, offset + SPLINE_NET_L0 as u32, share, v);
+    Activation::LeakyRelu.apply_all(&mut h);
+    let h = mlp::dense::<W, HIDDEN, HIDDEN>(
+        w,
+        offset + SPLINE_NET_L1 as u32,
+        &h,
+        Activation::LeakyRelu,
+    );
+    let raw = mlp::linear::<W, HIDDEN, SPLINE_RAW_LEN>(w, offset + SPLINE_NET_L2 as u32, &h);
+    Knots::from_raw(&raw, TAIL_BOUND)
+}
+
+/// The conditional rational-quadratic spline flow of the paper (Eq. 3–4): a diagonal
+/// Gaussian base predicted from the condition and two spline coupling layers
+/// (`core/ARCHITECTURES.md` §3). Densities are on the projected disk (area measure).
+#[derive(Copy, Clone, Debug)]
+pub struct FlowSampler<W> {
+    params: W,
+}
+
+impl<W: Weights> FlowSampler<W> {
+    /// Length of the flat parameter array: base, coupling 0, coupling 1 (9690).
+    pub const PARAM_COUNT: usize = FLOW_PARAM_COUNT;
+
+    /// A flow over `params` (layout in `core/ARCHITECTURES.md` §3), or `None` when
+    /// `params.len() != PARAM_COUNT`.
+    #[inline]
+    #[must_use]
+    pub fn new(params: W) -> Option<Self> {
+        if params.len() as usize == Self::PARAM_COUNT {
+            Some(FlowSampler { params })
+        } else {
+            None
+        }
+    }
+
+    /// The parameter array.
+    #[inline]
+    #[must_use]
+    pub fn params(&self) -> &W {
+        &self.params
+    }
+}
+
+/// [`FlowSampler`] prepared for one condition: the base Gaussian and the condition's share
+/// of both coupling networks' first layers.
+#[derive(Debug)]
+pub struct FlowPrepared<'s, W> {
+    params: &'s W,
+    /// Mean of the base Gaussian.
+    pub mu: Vec2,
+    /// Standard deviations of the base Gaussian (clamped `exp(log σ)`).
+    pub sigma: Vec2,
+    /// Condition's share (bias included) of coupling network 0's and 1's first layer.
+    share: [[f32; HIDDEN]; 2],
+}
+
+impl<W> Clone for FlowPrepared<'_, W> {
+    #[inline]
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<W> Copy for FlowPrepared<'_, W> {}
+
+impl<W: Weights> Sampler for FlowSampler<W> {
+    type Prepared<'s>
+        = FlowPrepared<'s, W>
+    where
+        W: 's;
+
+    fn prepare<'s>(&'s self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<FlowPrepared<'s, W>> {
+        let wi = sampler::check_condition(phi, wi)?;
+        let c = sampler::encode_condition(phi, wi);
+        let w = &self.params;
+        let h =
+            mlp::dense::<W, CONDITION_DIM, HIDDEN>(w, FLOW_BASE_L0 as u32, &c, Activation::Relu);
+        let o = mlp::linear::<W, HIDDEN, BASE_OUTPUTS>(w, FLOW_BASE_L1 as u32, &h);
+        let share = [
+            condition_share(w, FLOW_COUPLING0 as u32, &c),
+            condition_share(w, FLOW_COUPLING1 as u32, &c),
+        ];
+        if !all_finite(&o) || !all_finite(&share[0]) || !all_finite(&share[1]) {
+            return None;
+        }
+        Some(FlowPrepared {
+            params: w,
+            mu: Vec2::new(o[0], o[1]),
+            sigma: Vec2::new(
+                gaussian::sigma_from_log(o[2]),
+                gaussian::sigma_from_log(o[3]),
+            ),
+            share,
+        })
+    }
+}
+
+impl<W: Weights> FlowPrepared<'_, W> {
+    /// Density direction: the latent point `z = (x', y')` of disk point `p` and
+    /// `ln |det ∂z/∂p|`, or `None` when `p` is not strictly inside the unit disk.
+    ///
+    /// ```text
+    /// y' = RQ(y; coupling1(c, enc4(x))),  x' = RQ(x; coupling0(c, enc4(y')))
+    /// ```
+    #[inline]
+    #[must_use]
+    pub fn to_latent(&self, p: Vec2) -> Option<(Vec2, f32)> {
+        if !inside_disk(p) {
+            return None;
+        }
+        let k1 = spline_knots(self.params, FLOW_COUPLING1 as u32, &self.share[1], p.x);
+        Some(self.to_latent_with(p, &k1))
+    }
+
+    /// [`FlowPrepared::to_latent`] given coupling 1's spline `k1` at `x = p.x`.
+    #[inline(always)]
+    fn to_latent_with(&self, p: Vec2, k1: &Knots<SPLINE_BINS>) -> (Vec2, f32) {
+        let (yl, ld1) = k1.forward(p.y);
+        let k0 = spline_knots(self.params, FLOW_COUPLING0 as u32, &self.share[0], yl);
+        let (xl, ld0) = k0.forward(p.x);
+        (Vec2::new(xl, yl), ld0 + ld1)
+    }
+
+    /// Sampling direction: the disk-plane point `p` of latent point `z` (not necessarily
+    /// inside the disk) and `ln |det ∂p/∂z|`.
+    ///
+    /// ```text
+    /// x = RQ⁻¹(x'; coupling0(c, enc4(y'))),  y = RQ⁻¹(y'; coupling1(c, enc4(x)))
+    /// ```
+    #[inline]
+    #[must_use]
+    pub fn from_latent(&self, z: Vec2) -> (Vec2, f32) {
+        let (p, ld, _) = self.from_latent_with(z);
+        (p, ld)
+    }
+
+    /// [`FlowPrepared::from_latent`], also returning coupling 1's spline at `x`.
+    #[inline(always)]
+    fn from_latent_with(&self, z: Vec2) -> (Vec2, f32, Knots<SPLINE_BINS>) {
+        let k0 = spline_knots(self.params, FLOW_COUPLING0 as u32, &self.share[0], z.y);
+        let (x, li0) = k0.inverse(z.x);
+        let k1 = spline_knots(self.params, FLOW_COUPLING1 as u32, &self.share[1], x);
+        let (y, li1) = k1.inverse(z.y);
+        (Vec2::new(x, y), li0 + li1, k1)
+    }
+
+    /// `ln N(z; μ, diag σ²) + ld`, NaN → −∞.
+    #[inline(always)]
+    fn log_density(&self, z: Vec2, ld: f32) -> f32 {
+        let l = gaussian::log_normal_pdf(z, self.mu, self.sigma) + ld;
+        if l.is_nan() {
+            f32::NEG_INFINITY
+        } else {
+            l
+        }
+    }
+
+    /// `ln p(p)` on the projected disk (area measure): `ln N(z; μ, diag σ²) + ln |det ∂z/∂p|`
+    /// (Eq. 3). `−∞` outside the open unit disk; never NaN.
+    #[inline]
+    #[must_use]
+    pub fn log_pdf_disk(&self, p: Vec2) -> f32 {
+        match self.to_latent(p) {
+            Some((z, ld)) => self.log_density(z, ld),
+            None => f32::NEG_INFINITY,
+        }
+    }
+}
+
+impl<W: Weights> Prepared for FlowPrepared<'_, W> {
+    /// Box–Muller from `u`, `z = μ + σ ⊙ n`, then the inverse couplings.
+    ///
+    /// The reported pdf (solid angle; disk area in [`Sample::pdf_disk`]) is the density
+    /// direction's at the sampled point, reusing coupling 1's spline (its input `x` is the
+    /// same in both directions), so it equals [`Prepared::pdf_disk`] bit for bit. The
+    /// sampling direction's own log-det is the same number only up to f32 rounding, which
+    /// steep splines amplify (measured up to ~10⁻² relative): one extra coupling network
+    /// per sample buys exact agreement with `pdf` for MIS.
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        let u = sampler::sanitize_u2(u)?;
+        let z = self.mu + self.sigma * gaussian::box_muller(u);
+        let (p, _, k1) = self.from_latent_with(z);
+        if !inside_disk(p) {
+            return None;
+        }
+        let (z, ld) = self.to_latent_with(p, &k1);
+        Sample::from_disk(p, density_from_log(self.log_density(z, ld)))
+    }
+
+    /// Density on the projected disk (area measure), Eq. 3; 0 outside the open unit disk.
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        density_from_log(self.log_pdf_disk(p))
+    }
+
+    /// Density with respect to solid angle, `pdf_disk(wo⊥) · cos θo`; equal bit for bit to
+    /// [`Sample::pdf`] for a sampled `wo` (a unit `wo` is not renormalised).
+    #[inline]
+    fn pdf(&self, wo: Vec3) -> f32 {
+        pdf_solid_angle(self, wo)
+    }
+
+    /// The density direction, then the exact inverse of Box–Muller.
+    #[inline]
+    fn invert(&self, wo: Vec3) -> Option<Vec2> {
+        let w = unit_upper(wo)?;
+        let (z, _) = self.to_latent(warp::to_disk(w))?;
+        let n = (z - self.mu) / self.sigma;
+        if !math::is_finite(n.x) || !math::is_finite(n.y) {
+            return None;
+        }
+        Some(gaussian::invert_box_muller(n))
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Affine-coupling flow baseline (ARCHITECTURES.md §4)
+// ---------------------------------------------------------------------------------------
+
+/// Coupling layers of [`AffineFlowSampler`]; layer `l` transforms coordinate `l mod 2`.
+pub const AFFINE_LAYERS: usize = 4;
+/// Bound of the affine log-scale: `s = AFFINE_SCALE_BOUND · tanh(s_raw / AFFINE_SCALE_BOUND)`.
+pub const AFFINE_SCALE_BOUND: f32 = 4.0;
+/// Outputs of an affine coupling network: `[s_raw, t]`.
+pub const AFFINE_OUTPUTS: usize = 2;
+/// Offset of an affine coupling network's `dense(39, 32)` (ReLU), relative to the network.
+pub const AFFINE_NET_L0: usize = 0;
+/// Offset of an affine coupling network's `dense(32, 32)` (ReLU), relative to the network.
+pub const AFFINE_NET_L1: usize = AFFINE_NET_L0 + mlp::dense_len(COUPLING_INPUTS, HIDDEN);
+/// Offset of an affine coupling network's `dense(32, 2)`, relative to the network.
+pub const AFFINE_NET_L2: usize = AFFINE_NET_L1 + mlp::dense_len(HIDDEN, HIDDEN);
+/// Parameters of one affine coupling network (2402); network `l` starts at `l·AFFINE_NET_LEN`.
+pub const AFFINE_NET_LEN: usize = AFFINE_NET_L2 + mlp::dense_len(HIDDEN, AFFINE_OUTPUTS);
+/// Parameters of [`AffineFlowSampler`] (9608).
+pub const AFFINE_PARAM_COUNT: usize = AFFINE_LAYERS * AFFINE_NET_LEN;
+
+/// `(s, t)` of affine coupling network `l` for the other coordinate `v`.
+#[inline(always)]
+fn affine_params<W: Weights>(w: &W, l: usize, share: &[f32; HIDDEN], v: f32) -> (f32, f32) {
+    let offset = (l * AFFINE_NET_LEN) as u32;
+    let mut h = first_layer(w, offset + AFFINE_NET_L0 as u32, share, v);
+    Activation::Relu.apply_all(&mut h);
+    let h = mlp::dense::<W, HIDDEN, HIDDEN>(w, offset + AFFINE_NET_L1 as u32, &h, Activation::Relu);
+    let o = mlp::linear::<W, HIDDEN, AFFINE_OUTPUTS>(w, offset + AFFINE_NET_L2 as u32, &h);
+    let s = AFFINE_SCALE_BOUND * math::tanh(o[0] / AFFINE_SCALE_BOUND);
+    (s, o[1])
+}
+
+/// The affine-coupling flow baseline (Xie et al. 2019): a standard-normal base and four
+/// conditional affine couplings (`core/ARCHITECTURES.md` §4). Densities are on the
+/// projected disk (area measure).
+#[derive(Copy, Clone, Debug)]
+pub struct AffineFlowSampler<W> {
+    params: W,
+}
+
+impl<W: Weights> AffineFlowSampler<W> {
+    /// Length of the flat parameter array: four coupling networks (9608).
+    pub const PARAM_COUNT: usize = AFFINE_PARAM_COUNT;
+
+    /// An affine flow over `params` (layout in `core/ARCHITECTURES.md` §4), or `None` when
+    /// `params.len() != PARAM_COUNT`.
+    #[inline]
+    #[must_use]
+    pub fn new(params: W) -> Option<Self> {
+        if params.len() as usize == Self::PARAM_COUNT {
+            Some(AffineFlowSampler { params })
+        } else {
+            None
+        }
+    }
+
+    /// The parameter array.
+    #[inline]
+    #[must_use]
+    pub fn params(&self) -> &W {
+        &self.params
+    }
+}
+
+/// [`AffineFlowSampler`] prepared for one condition: the condition's share of every coupling
+/// network's first layer.
+#[derive(Debug)]
+pub struct AffineFlowPrepared<'s, W> {
+    params: &'s W,
+    share: [[f32; HIDDEN]; AFFINE_LAYERS],
+}
+
+impl<W> Clone for AffineFlowPrepared<'_, W> {
+    #[inline]
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<W> Copy for AffineFlowPrepared<'_, W> {}
+
+impl<W: Weights> Sampler for AffineFlowSampler<W> {
+    type Prepared<'s>
+        = AffineFlowPrepared<'s, W>
+    where
+        W: 's;
+
+    fn prepare<'s>(
+        &'s self,
+        phi: &[f32; FEATURE_DIM],
+        wi: Vec3,
+    ) -> Option<AffineFlowPrepared<'s, W>> {
+        let wi = sampler::check_condition(phi, wi)?;
+        let c = sampler::encode_condition(phi, wi);
+        let w = &self.params;
+        let mut share = [[0.0f32; HIDDEN]; AFFINE_LAYERS];
+        let mut l = 0;
+        while l < AFFINE_LAYERS {
+            share[l] = condition_share(w, (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32, &c);
+            if !all_finite(&share[l]) {
+                return None;
+            }
+            l += 1;
+        }
+        Some(AffineFlowPrepared { params: w, share })
+    }
+}
+
+impl<W: Weights> AffineFlowPrepared<'_, W> {
+    /// Density direction: the latent point `z` of disk point `p` and `ln |det ∂z/∂p|`, or
+    /// `None` when `p` is not strictly inside the unit disk. Layers `l = 0..3` in order:
+    /// `v_d ← v_d · exp(s) + t` with `d = l mod 2`.
+    #[inline]
+    #[must_use]
+    pub fn to_latent(&self, p: Vec2) -> Option<(Vec2, f32)> {
+        if !inside_disk(p) {
+            return None;
+        }
+        let st0 = affine_params(self.params, 0, &self.share[0], p.y);
+        Some(self.to_latent_with(p, st0))
+    }
+
+    /// [`AffineFlowPrepared::to_latent`] given layer 0's `(s, t)` at `y = p.y`.
+    #[inline(always)]
+    fn to_latent_with(&self, p: Vec2, st0: (f32, f32)) -> (Vec2, f32) {
+        let (s0, t0) = st0;
+        let mut x = p.x * math::exp(s0) + t0;
+        let mut y = p.y;
+        let mut ld = s0;
+        let mut l = 1;
+        while l < AFFINE_LAYERS {
+            if l % 2 == 0 {
+                let (s, t) = affine_params(self.params, l, &self.share[l], y);
+                x = x * math::exp(s) + t;
+                ld += s;
+            } else {
+                let (s, t) = affine_params(self.params, l, &self.share[l], x);
+                y = y * math::exp(s) + t;
+                ld += s;
+            }
+            l += 1;
+        }
+        (Vec2::new(x, y), ld)
+    }
+
+    /// Sampling direction: the disk-plane point of latent point `z` (not necessarily inside
+    /// the disk) and `ln |det ∂p/∂z|`. Layers `l = 3..0`: `v_d ← (v_d − t) · exp(−s)`.
+    #[inline]
+    #[must_use]
+    pub fn from_latent(&self, z: Vec2) -> (Vec2, f32) {
+        let (p, ld, _) = self.from_latent_with(z);
+        (p, ld)
+    }
+
+    /// [`AffineFlowPrepared::from_latent`], also returning layer 0's `(s, t)` (computed at the
+    /// final `y`).
+    #[inline(always)]
+    fn from_latent_with(&self, z: Vec2) -> (Vec2, f32, (f32, f32)) {
+        let (mut x, mut y) = (z.x, z.y);
+        let mut ld = 0.0f32;
+        let mut l = AFFINE_LAYERS - 1;
+        while l > 0 {
+            if l % 2 == 0 {
+                let (s, t) = affine_params(self.params, l, &self.share[l], y);
+                x = (x - t) * math::exp(-s);
+                ld -= s;
+            } else {
+                let (s, t) = affine_params(self.params, l, &self.share[l], x);
+                y = (y - t) * math::exp(-s);
+                ld -= s;
+            }
+            l -= 1;
+        }
+        let (s0, t0) = affine_params(self.params, 0, &self.share[0], y);
+        x = (x - t0) * math::exp(-s0);
+        ld -= s0;
+        (Vec2::new(x, y), ld, (s0, t0))
+    }
+
+    /// `ln N(z; 0, I) + ld`, NaN → −∞.
+    #[inline(always)]
+    fn log_density(z: Vec2, ld: f32) -> f32 {
+        let l = gaussian::log_normal_pdf(z, Vec2::ZERO, Vec2::ONE) + ld;
+        if l.is_nan() {
+            f32::NEG_INFINITY
+        } else {
+            l
+        }
+    }
+
+    /// `ln p(p)` on the projected disk (area measure): `ln N(z; 0, I) + ln |det ∂z/∂p|`.
+    /// `−∞` outside the open unit disk; never NaN.
+    #[inline]
+    #[must_use]
+    pub fn log_pdf_disk(&self, p: Vec2) -> f32 {
+        match self.to_latent(p) {
+            Some((z, ld)) => Self::log_density(z, ld),
+            None => f32::NEG_INFINITY,
+        }
+    }
+}
+
+impl<W: Weights> Prepared for AffineFlowPrepared<'_, W> {
+    /// Box–Muller from `u` (standard normal `z`), then the inverse couplings. The reported
+    /// pdf is the density direction's at the sampled point (reusing layer 0, whose input
+    /// `y` is the same in both directions), so it equals [`Prepared::pdf_disk`] bit for bit.
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        let u = sampler::sanitize_u2(u)?;
+        let (p, _, st0) = self.from_latent_with(gaussian::box_muller(u));
+        if !inside_disk(p) {
+            return None;
+        }
+        let (z, ld) = self.to_latent_with(p, st0);
+        Sample::from_disk(p, density_from_log(Self::log_density(z, ld)))
+    }
+
+    /// Density on the projected disk (area measure); 0 outside the open unit disk.
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        density_from_log(self.log_pdf_disk(p))
+    }
+
+    /// Density with respect to solid angle, `pdf_disk(wo⊥) · cos θo`; equal bit for bit to
+    /// [`Sample::pdf`] for a sampled `wo` (a unit `wo` is not renormalised).
+    #[inline]
+    fn pdf(&self, wo: Vec3) -> f32 {
+        pdf_solid_angle(self, wo)
+    }
+
+    /// The density direction, then the exact inverse of Box–Muller.
+    #[inline]
+    fn invert(&self, wo: Vec3) -> Option<Vec2> {
+        let w = unit_upper(wo)?;
+        let (z, _) = self.to_latent(warp::to_disk(w))?;
+        if !math::is_finite(z.x) || !math::is_finite(z.y) {
+            return None;
+        }
+        Some(gaussian::invert_box_muller(z))
+    }
+}

@@ -1,0 +1,50 @@
+//! # neusample — importance sampling for neural materials
+//!
+//! The runtime of *NeuSample: Importance Sampling for Neural Materials* (Xu et al.,
+//! SIGGRAPH 2023): learned samplers of outgoing directions `wo` conditioned on a material's
+//! per-texel feature vector φ and the incoming direction `wi`, with exact densities for
+//! multiple importance sampling.
+//!
+//! The crate is `#![no_std]`, does not allocate, and its hot path (prepare → sample → pdf)
+//! never panics and never returns NaN. The same code compiles for x86-64, embedded targets
+//! (thumbv7em, wasm32) and GPU shaders through rust-gpu.
+//!
+//! ## Measures
+//!
+//! Samplers live on the **projected unit disk** `wo⊥ = (wo.x, wo.y)` of the local shading
+//! frame (z = normal). [`Prepared::pdf_disk`] is a density with respect to disk area;
+//! [`Prepared::pdf`] and [`Sample::pdf`] are with respect to **solid angle**,
+//! `p_ω = p_disk · cos θo` ([`warp`]).
+#![cfg_attr(not(feature = "std"), no_std)]
+#![cfg_attr(docsrs, feature(doc_cfg))]
+
+#[cfg(feature = "alloc")]
+extern crate alloc;
+
+pub mod blob;
+pub mod error;
+pub mod flow;
+pub mod gaussian;
+pub mod histogram;
+pub mod lobes;
+pub mod math;
+pub mod mlp;
+pub mod sampler;
+pub mod spline;
+pub mod warp;
+pub mod weights;
+
+pub use error::{Error, Result};
+pub use flow::{AffineFlowPrepared, AffineFlowSampler, FlowPrepared, FlowSampler};
+pub use glam::{Vec2, Vec3};
+pub use histogram::{
+    DirectHistogramPrepared, DirectHistogramSampler, HistogramMixturePrepared,
+    HistogramMixtureSampler, Interpolation, Table2D,
+};
+pub use lobes::{
+    AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,
+    ImprovedBaselineSampler,
+};
+pub use sampler::{CosineSampler, Prepared, Sample, Sampler, FEATURE_DIM};
+pub use warp::Frame;
+pub use weights::{DType, Tensor, Weights};

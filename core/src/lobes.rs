@@ -1,0 +1,366 @@
+//! Analytic-lobe mixtures: the improved baseline (paper Eq. 1) and the analytic mixture
+//! (paper Eq. 2), both on the **projected unit disk** (`ARCHITECTURES.md` §1–2).
+//!
+//! A small MLP maps the encoded condition `encode_condition(φ, wi)` to the parameters of a
+//! mixture of a Lambertian lobe (the constant 1/π on the disk) and one or two Gaussians:
+//!
+//! ```text
+//! Eq. 1   p(ω⊥) = w_L/π · [|ω⊥| < 1] + w_G · N(ω⊥; μ, σ² I)
+//! Eq. 2   p(ω⊥) = w0/π · [|ω⊥| < 1] + w1 · N(ω⊥; μ1, diag σ1²) + w2 · N(ω⊥; μ2, diag σ2²)
+//! ```
+//!
+//! [`Sampler::prepare`] runs the network once and keeps only the lobe parameters; sampling
+//! picks a component (pbrt style, [`gaussian::select_component`]), draws the Lambert lobe
+//! with the concentric map and a Gaussian with Box–Muller, and reports the **full mixture
+//! density** at the drawn point (the same function as [`Prepared::pdf_disk`]), so `sample`
+//! and `pdf` can never disagree. Gaussian mass that falls outside the disk is refused
+//! (`None`): the density is 0 there and integrates over the disk to the mass inside.
+//!
+//! There is no `invert`: a mixture's sampling map is not injective (every component can reach
+//! the same direction), so [`Prepared::invert`] keeps its default `None`.
+
+use glam::{Vec2, Vec3};
+
+use crate::gaussian;
+use crate::math;
+use crate::mlp::{self, Activation};
+use crate::sampler::{
+    check_condition, encode_condition, sanitize_u2, Prepared, Sample, Sampler, CONDITION_DIM,
+    FEATURE_DIM,
+};
+use crate::warp;
+use crate::weights::Weights;
+
+/// Bound applied to every predicted Gaussian mean coordinate (NaN → −bound).
+///
+/// A trained model predicts means within a few units of the disk; the clamp only keeps
+/// non-finite network outputs from reaching the density (a Gaussian centred this far away
+/// has no mass on the disk anyway).
+pub const MEAN_BOUND: f32 = 1.0e4;
+
+/// Bound applied to every mixture logit before the softmax (NaN → −bound), so that an
+/// infinite or NaN logit cannot turn the weights into NaN.
+pub const LOGIT_BOUND: f32 = 1.0e30;
+
+/// Width of the hidden layers of both lobe networks.
+const HIDDEN: usize = 32;
+
+#[inline(always)]
+fn mean(x: f32) -> f32 {
+    math::clamp(x, -MEAN_BOUND, MEAN_BOUND)
+}
+
+#[inline(always)]
+fn logit(x: f32) -> f32 {
+    math::clamp(x, -LOGIT_BOUND, LOGIT_BOUND)
+}
+
+/// `[|p| < 1]`, false for non-finite `p`.
+#[inline(always)]
+fn inside_disk(p: Vec2) -> bool {
+    p.x * p.x + p.y * p.y < 1.0
+}
+
+/// Makes a density safe to return: non-finite or negative values become 0.
+#[inline(always)]
+fn finite_density(p: f32) -> f32 {
+    if p >= 0.0 && math::is_finite(p) {
+        p
+    } else {
+        0.0
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Improved baseline (Eq. 1)
+// ---------------------------------------------------------------------------------------
+
+/// Number of network outputs of the improved baseline: `[μx, μy, log σ, a_L, a_G]`.
+pub const BASELINE_OUTPUTS: usize = 5;
+
+const BASELINE_L0: usize = 0;
+const BASELINE_L1: usize = BASELINE_L0 + mlp::dense_len(CONDITION_DIM, HIDDEN);
+const BASELINE_L2: usize = BASELINE_L1 + mlp::dense_len(HIDDEN, HIDDEN);
+const BASELINE_L3: usize = BASELINE_L2 + mlp::dense_len(HIDDEN, HIDDEN);
+const BASELINE_END: usize = BASELINE_L3 + mlp::dense_len(HIDDEN, BASELINE_OUTPUTS);
+
+/// The improved baseline of paper §3.1 (Eq. 1): Lambert + one isotropic Gaussian on the
+/// projected disk, predicted by an MLP `30 → 32 → 32 → 32 → 5` (ReLU hidden, identity
+/// output) from `encode_condition(φ, wi)`. See `ARCHITECTURES.md` §1.
+#[derive(Copy, Clone, Debug)]
+pub struct ImprovedBaselineSampler<W> {
+    params: W,
+}
+
+impl<W: Weights> ImprovedBaselineSampler<W> {
+    /// Number of parameters: `dense(30,32) dense(32,32) dense(32,32) dense(32,5)` = 3269.
+    pub const PARAM_COUNT: usize = BASELINE_END;
+
+    /// A sampler over the flat parameter array `params`, or `None` when it does not hold
+    /// exactly [`Self::PARAM_COUNT`] values.
+    #[must_use]
+    pub fn new(params: W) -> Option<Self> {
+        if params.len() as usize == Self::PARAM_COUNT {
+            Some(ImprovedBaselineSampler { params })
+        } else {
+            None
+        }
+    }
+
+    /// The parameter array.
+    #[must_use]
+    pub fn params(&self) -> &W {
+        &self.params
+    }
+
+    /// The raw network outputs `[μx, μy, log σ, a_L, a_G]` for an encoded condition.
+    #[inline]
+    #[must_use]
+    pub fn forward(&self, c: &[f32; CONDITION_DIM]) -> [f32; BASELINE_OUTPUTS] {
+        let w = &self.params;
+        let h: [f32; HIDDEN] = mlp::dense(w, BASELINE_L0 as u32, c, Activation::Relu);
+        let h: [f32; HIDDEN] = mlp::dense(w, BASELINE_L1 as u32, &h, Activation::Relu);
+        let h: [f32; HIDDEN] = mlp::dense(w, BASELINE_L2 as u32, &h, Activation::Relu);
+        mlp::dense(w, BASELINE_L3 as u32, &h, Activation::Identity)
+    }
+}
+
+/// The improved baseline's lobes at one shading point (Eq. 1).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct ImprovedBaselinePrepared {
+    /// `(w_L, w_G)`, summing to 1.
+    weights: [f32; 2],
+    mu: Vec2,
+    sigma: f32,
+}
+
+impl ImprovedBaselinePrepared {
+    /// The lobes from raw network outputs `[μx, μy, log σ, a_L, a_G]`: `(w_L, w_G) =
+    /// softmax(a_L, a_G)`, `σ = exp(clamp(log σ, −7, 1))`. Non-finite outputs are clamped
+    /// ([`MEAN_BOUND`], [`LOGIT_BOUND`]) so the lobes are always finite.
+    #[inline]
+    #[must_use]
+    pub fn from_outputs(o: &[f32; BASELINE_OUTPUTS]) -> Self {
+        let mut weights = [logit(o[3]), logit(o[4])];
+        gaussian::softmax(&mut weights);
+        ImprovedBaselinePrepared {
+            weights,
+            mu: Vec2::new(mean(o[0]), mean(o[1])),
+            sigma: gaussian::sigma_from_log(o[2]),
+        }
+    }
+
+    /// Mixture weights `(w_L, w_G)`.
+    #[must_use]
+    pub fn weights(&self) -> [f32; 2] {
+        self.weights
+    }
+
+    /// Mean of the Gaussian lobe (projected disk coordinates).
+    #[must_use]
+    pub fn mean(&self) -> Vec2 {
+        self.mu
+    }
+
+    /// Standard deviation of the (isotropic) Gaussian lobe.
+    #[must_use]
+    pub fn sigma(&self) -> f32 {
+        self.sigma
+    }
+}
+
+impl<W: Weights> Sampler for ImprovedBaselineSampler<W> {
+    type Prepared<'s>
+        = ImprovedBaselinePrepared
+    where
+        Self: 's;
+
+    #[inline]
+    fn prepare(&self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<ImprovedBaselinePrepared> {
+        let wi = check_condition(phi, wi)?;
+        let o = self.forward(&encode_condition(phi, wi));
+        Some(ImprovedBaselinePrepared::from_outputs(&o))
+    }
+}
+
+impl Prepared for ImprovedBaselinePrepared {
+    /// Component 0 (Lambert) by the concentric map, component 1 (Gaussian) by Box–Muller;
+    /// the reported density is the full Eq. 1 mixture at the drawn point.
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        let u = sanitize_u2(u)?;
+        let (i, u0) = gaussian::select_component(&self.weights, u.x);
+        let v = Vec2::new(u0, u.y);
+        let p = if i == 0 {
+            warp::sample_uniform_disk_concentric(v)
+        } else {
+            self.mu + self.sigma * gaussian::box_muller(v)
+        };
+        Sample::from_disk(p, self.pdf_disk(p))
+    }
+
+    /// Eq. 1, with respect to area on the projected disk; 0 outside the open unit disk.
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        if !inside_disk(p) {
+            return 0.0;
+        }
+        let s = Vec2::splat(self.sigma);
+        finite_density(
+            self.weights[0] * math::INV_PI + self.weights[1] * gaussian::normal_pdf(p, self.mu, s),
+        )
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Analytic mixture (Eq. 2)
+// ---------------------------------------------------------------------------------------
+
+/// Number of network outputs of the analytic mixture:
+/// `[μ1x, μ1y, μ2x, μ2y, log σ1x, log σ1y, log σ2x, log σ2y, a0, a1, a2]`.
+pub const ANALYTIC_OUTPUTS: usize = 11;
+
+const ANALYTIC_L0: usize = 0;
+const ANALYTIC_L1: usize = ANALYTIC_L0 + mlp::dense_len(CONDITION_DIM, HIDDEN);
+const ANALYTIC_END: usize = ANALYTIC_L1 + mlp::dense_len(HIDDEN, ANALYTIC_OUTPUTS);
+
+/// The analytic mixture of paper §3.1 (Eq. 2): Lambert + two axis-aligned anisotropic
+/// Gaussians on the projected disk, predicted by an MLP `30 → 32 → 11` (ReLU hidden) from
+/// `encode_condition(φ, wi)`. See `ARCHITECTURES.md` §2.
+#[derive(Copy, Clone, Debug)]
+pub struct AnalyticMixtureSampler<W> {
+    params: W,
+}
+
+impl<W: Weights> AnalyticMixtureSampler<W> {
+    /// Number of parameters: `dense(30,32) dense(32,11)` = 1355.
+    pub const PARAM_COUNT: usize = ANALYTIC_END;
+
+    /// A sampler over the flat parameter array `params`, or `None` when it does not hold
+    /// exactly [`Self::PARAM_COUNT`] values.
+    #[must_use]
+    pub fn new(params: W) -> Option<Self> {
+        if params.len() as usize == Self::PARAM_COUNT {
+            Some(AnalyticMixtureSampler { params })
+        } else {
+            None
+        }
+    }
+
+    /// The parameter array.
+    #[must_use]
+    pub fn params(&self) -> &W {
+        &self.params
+    }
+
+    /// The raw network outputs (see [`ANALYTIC_OUTPUTS`]) for an encoded condition.
+    #[inline]
+    #[must_use]
+    pub fn forward(&self, c: &[f32; CONDITION_DIM]) -> [f32; ANALYTIC_OUTPUTS] {
+        let w = &self.params;
+        let h: [f32; HIDDEN] = mlp::dense(w, ANALYTIC_L0 as u32, c, Activation::Relu);
+        mlp::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity)
+    }
+}
+
+/// The analytic mixture's lobes at one shading point (Eq. 2).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct AnalyticMixturePrepared {
+    /// `(w0, w1, w2)` = (Lambert, Gaussian 1, Gaussian 2), summing to 1.
+    weights: [f32; 3],
+    mu: [Vec2; 2],
+    sigma: [Vec2; 2],
+}
+
+impl AnalyticMixturePrepared {
+    /// The lobes from raw network outputs (see [`ANALYTIC_OUTPUTS`]): `w = softmax(a)`,
+    /// `σ = exp(clamp(log σ, −7, 1))` per axis. Non-finite outputs are clamped
+    /// ([`MEAN_BOUND`], [`LOGIT_BOUND`]) so the lobes are always finite.
+    #[inline]
+    #[must_use]
+    pub fn from_outputs(o: &[f32; ANALYTIC_OUTPUTS]) -> Self {
+        let mut weights = [logit(o[8]), logit(o[9]), logit(o[10])];
+        gaussian::softmax(&mut weights);
+        AnalyticMixturePrepared {
+            weights,
+            mu: [
+                Vec2::new(mean(o[0]), mean(o[1])),
+                Vec2::new(mean(o[2]), mean(o[3])),
+            ],
+            sigma: [
+                Vec2::new(
+                    gaussian::sigma_from_log(o[4]),
+                    gaussian::sigma_from_log(o[5]),
+                ),
+                Vec2::new(
+                    gaussian::sigma_from_log(o[6]),
+                    gaussian::sigma_from_log(o[7]),
+                ),
+            ],
+        }
+    }
+
+    /// Mixture weights `(w0, w1, w2)` (Lambert, Gaussian 1, Gaussian 2).
+    #[must_use]
+    pub fn weights(&self) -> [f32; 3] {
+        self.weights
+    }
+
+    /// Means of the two Gaussian lobes.
+    #[must_use]
+    pub fn means(&self) -> [Vec2; 2] {
+        self.mu
+    }
+
+    /// Per-axis standard deviations of the two Gaussian lobes.
+    #[must_use]
+    pub fn sigmas(&self) -> [Vec2; 2] {
+        self.sigma
+    }
+}
+
+impl<W: Weights> Sampler for AnalyticMixtureSampler<W> {
+    type Prepared<'s>
+        = AnalyticMixturePrepared
+    where
+        Self: 's;
+
+    #[inline]
+    fn prepare(&self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<AnalyticMixturePrepared> {
+        let wi = check_condition(phi, wi)?;
+        let o = self.forward(&encode_condition(phi, wi));
+        Some(AnalyticMixturePrepared::from_outputs(&o))
+    }
+}
+
+impl Prepared for AnalyticMixturePrepared {
+    /// Component 0 (Lambert) by the concentric map, components 1 and 2 (Gaussians) by
+    /// Box–Muller; the reported density is the full Eq. 2 mixture at the drawn point.
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        let u = sanitize_u2(u)?;
+        let (i, u0) = gaussian::select_component(&self.weights, u.x);
+        let v = Vec2::new(u0, u.y);
+        let p = if i == 0 {
+            warp::sample_uniform_disk_concentric(v)
+        } else {
+            // i ∈ {1, 2}; clamp so the index is provably in range.
+            let g = if i >= 2 { 1 } else { 0 };
+            self.mu[g] + self.sigma[g] * gaussian::box_muller(v)
+        };
+        Sample::from_disk(p, self.pdf_disk(p))
+    }
+
+    /// Eq. 2, with respect to area on the projected disk; 0 outside the open unit disk.
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        if !inside_disk(p) {
+            return 0.0;
+        }
+        finite_density(
+            self.weights[0] * math::INV_PI
+                + self.weights[1] * gaussian::normal_pdf(p, self.mu[0], self.sigma[0])
+                + self.weights[2] * gaussian::normal_pdf(p, self.mu[1], self.sigma[1]),
+        )
+    }
+}

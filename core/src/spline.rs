@@ -1,0 +1,259 @@
+//! Monotonic rational-quadratic splines (Durkan et al. 2019, "Neural Spline Flows"), the
+//! element-wise bijection of the flow's coupling layers (paper Eq. 4).
+//!
+//! A spline with `K` bins maps `[−B, B]` onto itself through `K + 1` increasing knots
+//! `(x_k, y_k)` with positive derivatives `d_k`; outside `[−B, B]` it is the identity
+//! ("identity tails", log-det 0). Inside bin `k`, with `w = x_{k+1} − x_k`,
+//! `h = y_{k+1} − y_k`, `s = h / w` and `ξ = (x − x_k) / w ∈ [0, 1]`:
+//!
+//! ```text
+//! y = y_k + h (s ξ² + d_k ξ(1−ξ)) / (s + (d_{k+1} + d_k − 2s) ξ(1−ξ))             (Eq. 4)
+//! dy/dx = s² (d_{k+1} ξ² + 2s ξ(1−ξ) + d_k (1−ξ)²) / (s + (d_{k+1} + d_k − 2s) ξ(1−ξ))²
+//! ```
+//!
+//! The inverse solves `a ξ² + b ξ + c = 0` for the root `ξ = 2c / (−b − √(b² − 4ac))`
+//! (nflows' form, stable for `b ≥ 0`), written `(−b + √(b² − 4ac)) / 2a` when `b < 0`.
+//!
+//! # Constraints (the one place raw network outputs become knots)
+//!
+//! [`Knots::from_raw`] follows nflows' `unconstrained_rational_quadratic_spline`:
+//! `widths = MIN_BIN_WIDTH + (1 − K·MIN_BIN_WIDTH)·softmax(raw_w)`, knots the cumulative sum
+//! scaled to `[−B, B]` with both ends set exactly to `±B`; the same for heights;
+//! interior derivatives `MIN_DERIVATIVE + softplus(raw_d)`, boundary derivatives 1 (so the
+//! identity tails join with a continuous slope).
+//!
+//! # Numerical policy
+//!
+//! Every function here is total and returns finite, NaN-free numbers:
+//!
+//! * raw network outputs are clamped to `±`[`RAW_LIMIT`] before the constraints (NaN counts
+//!   as `−RAW_LIMIT`). No trained network comes near the limit, so training code need not
+//!   reproduce the clamp; it keeps every intermediate value finite for adversarial inputs;
+//! * the discriminant is clamped at 0 and `ξ` to `[0, 1]`; `y = +B` lies in the last bin;
+//! * both directions evaluate a bin from its nearer knot (the mirrored spline `ξ → 1 − ξ`
+//!   swaps `d_k` and `d_{k+1}`), so knots map exactly onto knots and `±B` onto `±B`; this is
+//!   the same function, only rounded differently, so training code need not copy it. In
+//!   f32 the spline is monotone up to rounding at the scale of `B` (where the two formulas
+//!   meet);
+//! * **non-finite input**: the input is first clamped to `[−f32::MAX, f32::MAX]`, NaN going
+//!   to `−f32::MAX`. So `±∞` and NaN come out as `±f32::MAX` / `−f32::MAX` with log-det 0
+//!   — a finite sentinel far outside any bounded domain. The spline does not report
+//!   failure; callers on a bounded domain (the flow samplers, whose points must lie in the
+//!   unit disk) refuse such points by their own range test.
+//!
+//! Bin search is a fixed-count linear scan over the `K − 1` interior knots (no early exit,
+//! index provably in `0..K`), which rust-gpu compiles as a plain loop.
+
+use crate::gaussian;
+use crate::math;
+
+/// Minimum bin width as a fraction of the interval `2B` (nflows' `DEFAULT_MIN_BIN_WIDTH`).
+pub const MIN_BIN_WIDTH: f32 = 1e-3;
+/// Minimum bin height as a fraction of the interval `2B` (nflows' `DEFAULT_MIN_BIN_HEIGHT`).
+pub const MIN_BIN_HEIGHT: f32 = 1e-3;
+/// Minimum knot derivative (nflows' `DEFAULT_MIN_DERIVATIVE`).
+pub const MIN_DERIVATIVE: f32 = 1e-3;
+/// Raw network outputs are clamped to `[−RAW_LIMIT, RAW_LIMIT]` (NaN → `−RAW_LIMIT`) before
+/// the constraints, which keeps every intermediate of [`Knots::forward`] and
+/// [`Knots::inverse`] finite (derivatives stay below ~10⁶).
+pub const RAW_LIMIT: f32 = 1e6;
+/// Smallest tail bound [`Knots::from_raw`] accepts (smaller ones are raised to it).
+pub const MIN_TAIL_BOUND: f32 = 1e-3;
+/// Largest tail bound [`Knots::from_raw`] accepts (larger ones are lowered to it).
+pub const MAX_TAIL_BOUND: f32 = 1e6;
+
+/// The knots of a `K`-bin rational-quadratic spline on `[−bound, bound]`, constrained from
+/// raw network outputs by [`Knots::from_raw`].
+///
+/// Bin `k` spans `[x[k], x[k+1]]` × `[y[k], y[k+1]]`, with the right end of the last bin
+/// `x[K] = y[K] = bound` implicit; likewise the right derivative of the last bin
+/// `d[K] = 1` is implicit. `x[0] = y[0] = −bound` and `d[0] = 1`.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Knots<const K: usize> {
+    /// Left x-knot of every bin (`x[0] = −bound`), strictly increasing.
+    pub x: [f32; K],
+    /// Left y-knot of every bin (`y[0] = −bound`), strictly increasing.
+    pub y: [f32; K],
+    /// Derivative at the left knot of every bin (`d[0] = 1`), positive.
+    pub d: [f32; K],
+    /// Tail bound `B`: the spline maps `[−B, B]` onto itself, identity outside.
+    pub bound: f32,
+}
+
+/// `v` clamped to `±RAW_LIMIT`, NaN → `−RAW_LIMIT`.
+#[inline(always)]
+fn sanitize_raw(v: f32) -> f32 {
+    math::clamp(v, -RAW_LIMIT, RAW_LIMIT)
+}
+
+/// Left knots of `K` bins on `[−B, B]` from raw bin sizes `raw[first .. first + K]`:
+/// `size = min + (1 − K·min)·softmax(raw)`, cumulative sum scaled to `[−B, B]`, left end
+/// exactly `−B` (the right end `+B` is implicit in [`Knots`]).
+#[inline(always)]
+fn cumulative_knots<const K: usize, const N: usize>(
+    raw: &[f32; N],
+    first: usize,
+    min_size: f32,
+    bound: f32,
+) -> [f32; K] {
+    let mut size = [0.0f32; K];
+    let mut k = 0;
+    while k < K {
+        size[k] = sanitize_raw(raw[first + k]);
+        k += 1;
+    }
+    gaussian::softmax::<K>(&mut size);
+    let scale = 1.0 - min_size * K as f32;
+    let mut knots = [0.0f32; K];
+    knots[0] = -bound;
+    let mut cum = 0.0f32;
+    k = 1;
+    while k < K {
+        cum += min_size + scale * size[k - 1];
+        knots[k] = 2.0 * bound * cum - bound;
+        k += 1;
+    }
+    knots
+}
+
+impl<const K: usize> Knots<K> {
+    /// Number of raw network outputs per spline: `K` widths, `K` heights, `K − 1` interior
+    /// derivatives.
+    pub const RAW_LEN: usize = 3 * K - 1;
+
+    /// Constrains raw network outputs into knots — the only place this happens.
+    ///
+    /// `raw` is laid out `[unnormalised widths (K), unnormalised heights (K), unnormalised
+    /// interior derivatives (K − 1)]`; `N` must equal [`Knots::RAW_LEN`] (checked at
+    /// compile time). `bound` is the tail bound `B`, clamped to
+    /// `[MIN_TAIL_BOUND, MAX_TAIL_BOUND]` (NaN → [`MIN_TAIL_BOUND`]) so that no bin
+    /// degenerates.
+    #[inline]
+    #[must_use]
+    pub fn from_raw<const N: usize>(raw: &[f32; N], bound: f32) -> Self {
+        const {
+            assert!(
+                K >= 1 && N == 3 * K - 1,
+                "raw spline parameters must be 3K − 1 values"
+            );
+        }
+        let bound = math::clamp(bound, MIN_TAIL_BOUND, MAX_TAIL_BOUND);
+        let x = cumulative_knots::<K, N>(raw, 0, MIN_BIN_WIDTH, bound);
+        let y = cumulative_knots::<K, N>(raw, K, MIN_BIN_HEIGHT, bound);
+        let mut d = [1.0f32; K];
+        let mut k = 1;
+        while k < K {
+            d[k] = MIN_DERIVATIVE + math::softplus(sanitize_raw(raw[2 * K + k - 1]));
+            k += 1;
+        }
+        Knots { x, y, d, bound }
+    }
+
+    /// The bin whose left knot in `knots` is the last one `≤ v` (0 when `v` is below every
+    /// interior knot). Fixed-count scan: the result is always in `0..K`.
+    #[inline(always)]
+    fn bin(knots: &[f32; K], v: f32) -> usize {
+        let mut bin = 0;
+        let mut k = 1;
+        while k < K {
+            if v >= knots[k] {
+                bin = k;
+            }
+            k += 1;
+        }
+        bin
+    }
+
+    /// `(x_k, x_{k+1}, y_k, y_{k+1}, d_k, d_{k+1})` of bin `k < K`.
+    #[inline(always)]
+    fn bin_params(&self, k: usize) -> (f32, f32, f32, f32, f32, f32) {
+        let (x1, y1, d1) = if k + 1 < K {
+            (self.x[k + 1], self.y[k + 1], self.d[k + 1])
+        } else {
+            (self.bound, self.bound, 1.0)
+        };
+        (self.x[k], x1, self.y[k], y1, self.d[k], d1)
+    }
+
+    /// `ln(dy/dx)` inside a bin at `ξ`, with `s = h/w` and the bin's end derivatives.
+    #[inline(always)]
+    fn log_derivative(xi: f32, s: f32, d0: f32, d1: f32) -> f32 {
+        let t = xi * (1.0 - xi);
+        let om = 1.0 - xi;
+        let den = s + (d1 + d0 - 2.0 * s) * t;
+        let num = s * s * (d1 * xi * xi + 2.0 * s * t + d0 * om * om);
+        math::ln(num / (den * den))
+    }
+
+    /// The spline `y = RQ(x)` (paper Eq. 4) and `ln |dy/dx|`.
+    ///
+    /// Identity with log-det 0 outside `[−B, B]`; see the module docs for non-finite `x`
+    /// (NaN → `(−f32::MAX, 0)`, `±∞` → `(±f32::MAX, 0)`).
+    #[inline]
+    #[must_use]
+    pub fn forward(&self, x: f32) -> (f32, f32) {
+        let x = math::clamp(x, -f32::MAX, f32::MAX);
+        if !(x >= -self.bound && x <= self.bound) {
+            return (x, 0.0);
+        }
+        let k = Self::bin(&self.x, x);
+        let (x0, x1, y0, y1, d0, d1) = self.bin_params(k);
+        let (w, h) = (x1 - x0, y1 - y0);
+        let s = h / w;
+        let xi = math::clamp((x - x0) / w, 0.0, 1.0);
+        let t = xi * (1.0 - xi);
+        let den = s + (d1 + d0 - 2.0 * s) * t;
+        // Eq. 4 measured from the nearer knot, so that both knots are hit exactly:
+        //   y − y_k     = h (s ξ² + d_k ξ(1−ξ)) / den,
+        //   y_{k+1} − y = h (s (1−ξ)² + d_{k+1} ξ(1−ξ)) / den.
+        let y = if xi <= 0.5 {
+            y0 + h * (s * xi * xi + d0 * t) / den
+        } else {
+            let om = 1.0 - xi;
+            y1 - h * (s * om * om + d1 * t) / den
+        };
+        (math::clamp(y, y0, y1), Self::log_derivative(xi, s, d0, d1))
+    }
+
+    /// The inverse spline `x = RQ⁻¹(y)` and `ln |dx/dy|` (= −`ln |dy/dx|` at `x`).
+    ///
+    /// Identity with log-det 0 outside `[−B, B]`; `y = +B` is handled by the last bin;
+    /// non-finite `y` as in [`Knots::forward`].
+    #[inline]
+    #[must_use]
+    pub fn inverse(&self, y: f32) -> (f32, f32) {
+        let y = math::clamp(y, -f32::MAX, f32::MAX);
+        if !(y >= -self.bound && y <= self.bound) {
+            return (y, 0.0);
+        }
+        let k = Self::bin(&self.y, y);
+        let (x0, x1, y0, y1, d0, d1) = self.bin_params(k);
+        let (w, h) = (x1 - x0, y1 - y0);
+        let s = h / w;
+        let e = d1 + d0 - 2.0 * s;
+        // Solve from the nearer knot (the mirrored spline swaps d_k and d_{k+1}): the
+        // knots are hit exactly and the root keeps its relative precision.
+        let lower = y - y0 <= y1 - y;
+        let (dy, da) = if lower { (y - y0, d0) } else { (y1 - y, d1) };
+        let a = h * (s - da) + dy * e;
+        let b = h * da - dy * e;
+        let c = -s * dy;
+        let root = math::safe_sqrt(b * b - 4.0 * a * c);
+        // The root 2c / (−b − √(b² − 4ac)) of a ξ² + b ξ + c = 0 (nflows). It cancels
+        // catastrophically when b < 0 (steep bins); there the same root is written
+        // (−b + √(b² − 4ac)) / 2a, a sum of positive terms. A zero denominator or rounding
+        // outside [0, 1] is clamped (NaN → 0).
+        let eta = if b >= 0.0 {
+            2.0 * c / (-b - root)
+        } else {
+            (root - b) / (2.0 * a)
+        };
+        let eta = math::clamp(eta, 0.0, 1.0);
+        let (x, xi) = if lower {
+            (x0 + eta * w, eta)
+        } else {
+            (x1 - eta * w, 1.0 - eta)
+        };
+        (math::clamp(x, x0, x1), -Self::log_derivative(xi, s, d0, d1))
+    }
+}

@@ -1,0 +1,51 @@
+//! Opens arbitrary bytes as a blob; when one opens, prepares, samples and evaluates pdfs on
+//! inputs taken from the tail of the fuzz input. Any panic, or a NaN/negative/infinite pdf,
+//! is a finding.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use neusample::blob::Blob;
+use neusample::{Prepared, Sampler, Vec2, Vec3};
+
+fn f32_at(d: &[u8], i: usize) -> f32 {
+    match d.get(4 * i..4 * i + 4) {
+        Some(b) => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        None => 0.5,
+    }
+}
+
+fuzz_target!(|data: &[u8]| {
+    // The first two bytes split the input into blob bytes and query bytes.
+    if data.len() < 2 {
+        return;
+    }
+    let split = u16::from_le_bytes([data[0], data[1]]) as usize;
+    let rest = &data[2..];
+    let (blob_bytes, query) = rest.split_at(split.min(rest.len()));
+    let Ok(blob) = Blob::open(blob_bytes) else {
+        return;
+    };
+    let Ok(sampler) = blob.sampler() else {
+        return;
+    };
+    let mut phi = [0.0f32; 8];
+    for (k, p) in phi.iter_mut().enumerate() {
+        *p = f32_at(query, k);
+    }
+    let wi = Vec3::new(f32_at(query, 8), f32_at(query, 9), f32_at(query, 10));
+    let Some(p) = sampler.prepare(&phi, wi) else {
+        return;
+    };
+    for j in 0..4 {
+        let u = Vec2::new(f32_at(query, 11 + 2 * j), f32_at(query, 12 + 2 * j));
+        if let Some(s) = p.sample(u) {
+            assert!(s.pdf.is_finite() && s.pdf > 0.0, "sample pdf {}", s.pdf);
+            let back = p.pdf(s.wo);
+            assert!(back.is_finite() && back >= 0.0);
+        }
+        let wo = Vec3::new(f32_at(query, 20 + 3 * j), f32_at(query, 21 + 3 * j), f32_at(query, 22 + 3 * j));
+        let pdf = p.pdf(wo);
+        assert!(pdf.is_finite() && pdf >= 0.0, "pdf {pdf}");
+        let _ = p.invert(wo);
+    }
+});

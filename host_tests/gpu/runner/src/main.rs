@@ -1,0 +1,631 @@
+//! Runs the neusample compute shaders on a Vulkan device (lavapipe on CI) and compares every
+//! output record with the CPU.
+//!
+//! The CPU reference is the *same* entry-point function of `neusample-gpu-shader`, compiled
+//! for the host: identical wrapper, core's code on both sides (on the host core takes its
+//! slice fast paths, on SPIR-V the portable loops).
+//!
+//! Usage: `neusample-gpu-runner <module.spv> [records per sampler]`. Exit status 0 when every
+//! sampler matches, 1 on a mismatch, 2 when Vulkan is unusable.
+//!
+//! # Tolerances (per record; see `Tol`)
+//!
+//! * flags (prepared / sampled) identical;
+//! * directions `wo`: absolute `wo_abs` per component;
+//! * densities (`pdf`, `pdf_disk`, `pdf(wo2)`, `pdf(wo)`): `|a − b| ≤ pdf_rel·max(|a|, |b|)
+//!   + 1e-6`.
+//!
+//! A record outside these is accepted only as a *discontinuity crossing*, and only if fewer
+//! than `MAX_CROSSING_FRACTION` of the records are: samplers with discrete choices (mixture
+//! component, histogram cell) or a disk boundary have sample maps and densities that jump,
+//! and a last-ulp difference in f32 arithmetic can put the GPU on the other side of a jump.
+//! Such a record passes when the CPU reproduces the GPU's values (within the tolerances)
+//! for an input moved by at most `CROSSING_DELTA` (u for sample values; wo2 for pdf(wo2)),
+//! or, for a flag difference, when the sample that exists lies within `EDGE_COS` of the
+//! horizon (the disk edge, where `from_disk` refuses it).
+
+mod vk;
+
+use std::time::Instant;
+
+use neusample_gpu_shader::kernel::{self, Params, IN_STRIDE, OUT_STRIDE};
+use neusample_gpu_shader::WORKGROUP_SIZE;
+use neusample_gpu_shader::UVec3;
+
+/// Largest allowed fraction of discontinuity crossings.
+const MAX_CROSSING_FRACTION: f64 = 2e-3;
+/// Largest input perturbation searched for a discontinuity crossing.
+const CROSSING_DELTA: f32 = 1e-5;
+/// `wo.z` below which a sample counts as at the disk edge.
+const EDGE_COS: f32 = 1e-3;
+
+/// Tolerances of one sampler.
+#[derive(Copy, Clone, Debug)]
+struct Tol {
+    wo_abs: f32,
+    pdf_rel: f32,
+}
+
+/// A CPU evaluation of the entry point over all records of `input`.
+type CpuFn<'a> = Box<dyn Fn(&[f32], &mut [f32]) + 'a>;
+
+struct Case<'a> {
+    label: &'static str,
+    entry: &'static str,
+    /// Extra buffers bound at 2, 3, …
+    buffers: Vec<&'a [f32]>,
+    params: Params,
+    tol: Tol,
+    cpu: CpuFn<'a>,
+}
+
+/// SplitMix64 → uniform f32 in [0, 1).
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn f32(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+    }
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.f32()
+    }
+    /// A cosine-distributed direction with z ≥ `min_z`.
+    fn hemisphere(&mut self, min_z: f32) -> [f32; 3] {
+        loop {
+            let x = self.range(-1.0, 1.0);
+            let y = self.range(-1.0, 1.0);
+            let r2 = x * x + y * y;
+            if r2 < 1.0 {
+                let z = (1.0 - r2).sqrt();
+                if z >= min_z {
+                    return [x, y, z];
+                }
+            }
+        }
+    }
+}
+
+/// Random parameters for an MLP with the given `(inputs, outputs)` layers, in core's layout
+/// (input-major weights then bias), PyTorch's default init `U(±1/√inputs)`, times `gain`.
+fn mlp_params(rng: &mut Rng, layers: &[(usize, usize)], gain: f32, out: &mut Vec<f32>) {
+    for &(i, o) in layers {
+        let a = gain / (i as f32).sqrt();
+        for _ in 0..i * o + o {
+            out.push(rng.range(-a, a));
+        }
+    }
+}
+
+/// Latent levels T of the test histogram mixture.
+const HM_LEVELS: u32 = 8;
+/// Cells per side N of the test histogram mixture.
+const HM_CELLS: u32 = 32;
+
+/// Baked histogram-mixture tables from random raw slices: per (basis, level) a sum of two
+/// Gaussian bumps with random centres and widths plus a little noise, so the densities have
+/// structure (and cell edges) everywhere, baked by core's own `bake_slices`.
+fn histogram_tables(rng: &mut Rng, levels: u32, cells: u32) -> neusample::histogram::BakedTables {
+    let (k, t, n) = (neusample::histogram::BASES, levels as usize, cells as usize);
+    let mut raw = Vec::with_capacity(k * t * n * n);
+    for _ in 0..k * t {
+        let mut bumps = [[0.0f32; 4]; 2];
+        for b in &mut bumps {
+            *b = [
+                rng.range(-0.7, 0.7),
+                rng.range(-0.7, 0.7),
+                rng.range(0.05, 0.5),
+                rng.range(0.2, 1.0),
+            ];
+        }
+        for r in 0..n {
+            for c in 0..n {
+                let x = -1.0 + (c as f32 + 0.5) * 2.0 / n as f32;
+                let y = -1.0 + (r as f32 + 0.5) * 2.0 / n as f32;
+                let mut v = 0.02 * rng.f32();
+                for b in &bumps {
+                    let d2 = (x - b[0]).powi(2) + (y - b[1]).powi(2);
+                    v += b[3] * (-0.5 * d2 / (b[2] * b[2])).exp();
+                }
+                raw.push(v);
+            }
+        }
+    }
+    neusample::histogram::bake_slices(&raw, k, t, n, neusample::DType::F32)
+}
+
+/// Input records: random conditions, u and second directions, with edge cases mixed in at
+/// fixed positions (invalid wi, φ, u, wo2; u at 0 and 1; grazing wi).
+fn make_input(n: usize, seed: u64) -> Vec<f32> {
+    let mut rng = Rng(seed);
+    let mut v = vec![0.0f32; n * IN_STRIDE];
+    for i in 0..n {
+        let r = &mut v[i * IN_STRIDE..(i + 1) * IN_STRIDE];
+        for k in 0..8 {
+            r[k] = rng.range(-1.5, 1.5);
+        }
+        let wi = rng.hemisphere(0.05);
+        r[kernel::IN_WI..kernel::IN_WI + 3].copy_from_slice(&wi);
+        r[kernel::IN_U] = rng.f32();
+        r[kernel::IN_U + 1] = rng.f32();
+        let wo2 = rng.hemisphere(0.0);
+        r[kernel::IN_WO2..kernel::IN_WO2 + 3].copy_from_slice(&wo2);
+        match i % 64 {
+            1 => r[kernel::IN_WI + 2] = -0.3,             // wi below the horizon
+            2 => r[kernel::IN_WI + 2] = 1e-3,             // grazing wi (renormalised)
+            3 => r[3] = f32::INFINITY,                    // bad φ
+            4 => r[kernel::IN_U] = f32::NAN,              // bad u
+            5 => r[kernel::IN_U + 1] = 1.5,               // u out of range
+            6 => {
+                r[kernel::IN_U] = 1.0;                    // u = 1 (clamped)
+                r[kernel::IN_U + 1] = 1.0;
+            }
+            7 => {
+                r[kernel::IN_U] = 0.0;                    // u = 0
+                r[kernel::IN_U + 1] = 0.0;
+            }
+            8 => r[kernel::IN_WO2 + 2] = -0.5,            // wo2 below the horizon
+            9 => r[kernel::IN_WO2] = f32::NAN,            // bad wo2
+            10 => r[kernel::IN_WI..kernel::IN_WI + 3].copy_from_slice(&[0.0, 0.0, 2.0]),
+            _ => {}
+        }
+    }
+    v
+}
+
+fn rel_diff(a: f32, b: f32) -> f32 {
+    let d = (a - b).abs();
+    if d == 0.0 {
+        return 0.0;
+    }
+    d / (a.abs().max(b.abs()).max(1e-6))
+}
+
+fn pdf_close(a: f32, b: f32, tol: Tol) -> bool {
+    (a - b).abs() <= tol.pdf_rel * a.abs().max(b.abs()) + 1e-6
+}
+
+#[derive(Default, Debug)]
+struct Stats {
+    prepared: usize,
+    sampled: usize,
+    max_wo_abs: f32,
+    max_pdf_rel: f32,
+    max_pdf_disk_rel: f32,
+    max_pdf_wo2_rel: f32,
+    max_pdf_recheck_rel: f32,
+    /// max over both sides of |pdf(wo) − sample pdf| / pdf (internal consistency).
+    max_self_rel: f32,
+    crossings: usize,
+    failures: usize,
+}
+
+/// Runs the CPU entry point on a single record.
+fn cpu_one(cpu: &CpuFn, rec: &[f32]) -> [f32; OUT_STRIDE] {
+    let mut out = [0.0f32; OUT_STRIDE];
+    cpu(rec, &mut out);
+    out
+}
+
+/// Does the CPU reproduce the GPU's record `g` for some input within `CROSSING_DELTA`?
+fn crossing(cpu: &CpuFn, rec: &[f32], g: &[f32], tol: Tol, sample_part: bool) -> bool {
+    let (a, b) = if sample_part {
+        (kernel::IN_U, kernel::IN_U + 1)
+    } else {
+        (kernel::IN_WO2, kernel::IN_WO2 + 1)
+    };
+    let deltas = [1e-7f32, 1e-6, CROSSING_DELTA];
+    for &d in &deltas {
+        for dx in [-1.0f32, 0.0, 1.0] {
+            for dy in [-1.0f32, 0.0, 1.0] {
+                let mut r = rec.to_vec();
+                r[a] += dx * d;
+                r[b] += dy * d;
+                let c = cpu_one(cpu, &r);
+                let ok = if sample_part {
+                    c[5] == g[5]
+                        && (0..3).all(|k| (c[k] - g[k]).abs() <= tol.wo_abs)
+                        && pdf_close(c[3], g[3], tol)
+                        && pdf_close(c[4], g[4], tol)
+                        && pdf_close(c[7], g[7], tol)
+                } else {
+                    pdf_close(c[6], g[6], tol)
+                };
+                if ok {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}
+
+fn compare(case: &Case, input: &[f32], gpu: &[f32], cpu_out: &[f32], verbose: bool) -> Stats {
+    let n = input.len() / IN_STRIDE;
+    let tol = case.tol;
+    let mut s = Stats::default();
+    let mut shown = 0;
+    for i in 0..n {
+        let rec = &input[i * IN_STRIDE..(i + 1) * IN_STRIDE];
+        let g = &gpu[i * OUT_STRIDE..(i + 1) * OUT_STRIDE];
+        let c = &cpu_out[i * OUT_STRIDE..(i + 1) * OUT_STRIDE];
+        let gf = g[5] as u32;
+        let cf = c[5] as u32;
+        let mut bad = false;
+        let mut crossed = false;
+        if cf & kernel::FLAG_PREPARED != 0 {
+            s.prepared += 1;
+        }
+        if cf & kernel::FLAG_SAMPLED != 0 {
+            s.sampled += 1;
+        }
+        if gf != cf {
+            // Only a sample at the disk edge may exist on one side and not on the other.
+            let edge = (gf ^ cf) == kernel::FLAG_SAMPLED && {
+                let z = if gf & kernel::FLAG_SAMPLED != 0 { g[2] } else { c[2] };
+                z < EDGE_COS
+            };
+            if edge || crossing(&case.cpu, rec, g, tol, true) {
+                crossed = true;
+            } else {
+                bad = true;
+            }
+        } else {
+            if cf & kernel::FLAG_PREPARED != 0 {
+                let d = rel_diff(g[6], c[6]);
+                if !pdf_close(g[6], c[6], tol) {
+                    if crossing(&case.cpu, rec, g, tol, false) {
+                        crossed = true;
+                    } else {
+                        bad = true;
+                    }
+                } else {
+                    s.max_pdf_wo2_rel = s.max_pdf_wo2_rel.max(d);
+                }
+            }
+            if cf & kernel::FLAG_SAMPLED != 0 {
+                let wo = (0..3).map(|k| (g[k] - c[k]).abs()).fold(0.0f32, f32::max);
+                let ok = wo <= tol.wo_abs
+                    && pdf_close(g[3], c[3], tol)
+                    && pdf_close(g[4], c[4], tol)
+                    && pdf_close(g[7], c[7], tol);
+                if ok {
+                    s.max_wo_abs = s.max_wo_abs.max(wo);
+                    s.max_pdf_rel = s.max_pdf_rel.max(rel_diff(g[3], c[3]));
+                    s.max_pdf_disk_rel = s.max_pdf_disk_rel.max(rel_diff(g[4], c[4]));
+                    s.max_pdf_recheck_rel = s.max_pdf_recheck_rel.max(rel_diff(g[7], c[7]));
+                } else if crossing(&case.cpu, rec, g, tol, true) {
+                    crossed = true;
+                } else {
+                    bad = true;
+                }
+                s.max_self_rel = s
+                    .max_self_rel
+                    .max(rel_diff(g[3], g[7]))
+                    .max(rel_diff(c[3], c[7]));
+            }
+        }
+        if crossed {
+            s.crossings += 1;
+        }
+        if bad {
+            s.failures += 1;
+        }
+        if (bad || (crossed && verbose)) && shown < 8 {
+            shown += 1;
+            eprintln!(
+                "  {} record {i}: {}\n    input {:?}\n    gpu {:?}\n    cpu {:?}",
+                case.label,
+                if bad { "MISMATCH" } else { "crossing" },
+                rec,
+                g,
+                c
+            );
+        }
+    }
+    s
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let Some(spv_path) = args.get(1) else {
+        eprintln!("usage: neusample-gpu-runner <module.spv> [records]");
+        std::process::exit(2);
+    };
+    let n: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(1 << 14);
+    let verbose = std::env::var_os("NEUSAMPLE_GPU_VERBOSE").is_some();
+    let spv = match std::fs::read(spv_path) {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("reading {spv_path}: {e}");
+            std::process::exit(2);
+        }
+    };
+    let t = Instant::now();
+    let ctx = match vk::Context::new(&spv, true) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("Vulkan unusable: {e}");
+            std::process::exit(2);
+        }
+    };
+    println!(
+        "device: {} (init {:.0} ms); module {} bytes; {n} records per sampler",
+        ctx.device_name,
+        t.elapsed().as_secs_f64() * 1e3,
+        spv.len()
+    );
+
+    // Weights: fixed seeds, shared by the GPU buffers and the CPU reference.
+    let mut rng = Rng(0x5eed_0001);
+    let mut flow_w = Vec::new();
+    mlp_params(&mut rng, &[(30, 32), (32, 4)], 1.0, &mut flow_w);
+    for _ in 0..2 {
+        mlp_params(&mut rng, &[(39, 32), (32, 32), (32, 59)], 1.0, &mut flow_w);
+    }
+    assert_eq!(flow_w.len(), neusample::FlowSampler::<&[f32]>::PARAM_COUNT);
+    let mut affine_w = Vec::new();
+    for _ in 0..4 {
+        mlp_params(&mut rng, &[(39, 32), (32, 32), (32, 2)], 1.0, &mut affine_w);
+    }
+    assert_eq!(
+        affine_w.len(),
+        neusample::AffineFlowSampler::<&[f32]>::PARAM_COUNT
+    );
+
+    let mut baseline_w = Vec::new();
+    mlp_params(&mut rng, &[(30, 32), (32, 32), (32, 32), (32, 5)], 1.0, &mut baseline_w);
+    assert_eq!(
+        baseline_w.len(),
+        neusample::ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT
+    );
+    let mut analytic_w = Vec::new();
+    mlp_params(&mut rng, &[(30, 32), (32, 11)], 1.0, &mut analytic_w);
+    assert_eq!(
+        analytic_w.len(),
+        neusample::AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT
+    );
+    let mut direct_w = Vec::new();
+    mlp_params(&mut rng, &[(30, 64), (64, 64), (64, 256)], 1.0, &mut direct_w);
+    assert_eq!(
+        direct_w.len(),
+        neusample::DirectHistogramSampler::<&[f32]>::PARAM_COUNT
+    );
+    let mut hm_w = Vec::new();
+    mlp_params(&mut rng, &[(10, 32), (32, 32), (32, 32), (32, 40)], 1.0, &mut hm_w);
+    assert_eq!(
+        hm_w.len(),
+        neusample::HistogramMixtureSampler::<&[f32]>::PARAM_COUNT
+    );
+    let (levels, cells) = (HM_LEVELS, HM_CELLS);
+    let tables = histogram_tables(&mut rng, levels, cells);
+    tables.validate().expect("baked tables are valid");
+
+    let p = |n: usize| Params {
+        n: n as u32,
+        ..Params::default()
+    };
+    let tight = Tol {
+        wo_abs: 1e-5,
+        pdf_rel: 1e-4,
+    };
+
+    /// A CPU closure calling the host build of an entry point over every record.
+    macro_rules! cpu {
+        ($entry:path $(, $buf:expr)*) => {
+            Box::new(move |input: &[f32], output: &mut [f32]| {
+                let n = input.len() / IN_STRIDE;
+                let params = Params { n: n as u32, ..Params::default() };
+                for i in 0..n {
+                    $entry(UVec3::new(i as u32, 0, 0), &params, input, output $(, $buf)*);
+                }
+            }) as CpuFn
+        };
+    }
+
+    let fw: &[f32] = &flow_w;
+    let aw: &[f32] = &affine_w;
+    let bw: &[f32] = &baseline_w;
+    let anw: &[f32] = &analytic_w;
+    let dw: &[f32] = &direct_w;
+    let hw: &[f32] = &hm_w;
+    let (tm, tt, tmg, tc): (&[f32], &[f32], &[f32], &[f32]) = (
+        &tables.mass,
+        &tables.table,
+        &tables.marginal,
+        &tables.conditional,
+    );
+    let hm_cpu = |interpolate: u32| -> CpuFn {
+        Box::new(move |input: &[f32], output: &mut [f32]| {
+            let n = input.len() / IN_STRIDE;
+            let params = Params {
+                n: n as u32,
+                levels,
+                cells,
+                interpolate,
+            };
+            for i in 0..n {
+                neusample_gpu_shader::histogram_mixture(
+                    UVec3::new(i as u32, 0, 0),
+                    &params,
+                    input,
+                    output,
+                    hw,
+                    tm,
+                    tt,
+                    tmg,
+                    tc,
+                );
+            }
+        })
+    };
+    let hm_params = |interpolate: u32| Params {
+        n: n as u32,
+        levels,
+        cells,
+        interpolate,
+    };
+    let cases = vec![
+        Case {
+            label: "cosine",
+            entry: "cosine",
+            buffers: vec![],
+            params: p(n),
+            tol: tight,
+            cpu: cpu!(neusample_gpu_shader::cosine),
+        },
+        Case {
+            label: "baseline",
+            entry: "baseline",
+            buffers: vec![bw],
+            params: p(n),
+            tol: tight,
+            cpu: cpu!(neusample_gpu_shader::baseline, bw),
+        },
+        Case {
+            label: "analytic",
+            entry: "analytic",
+            buffers: vec![anw],
+            params: p(n),
+            tol: tight,
+            cpu: cpu!(neusample_gpu_shader::analytic, anw),
+        },
+        Case {
+            label: "flow",
+            entry: "flow",
+            buffers: vec![fw],
+            params: p(n),
+            tol: tight,
+            cpu: cpu!(neusample_gpu_shader::flow, fw),
+        },
+        Case {
+            label: "affine_flow",
+            entry: "affine_flow",
+            buffers: vec![aw],
+            params: p(n),
+            tol: tight,
+            cpu: cpu!(neusample_gpu_shader::affine_flow, aw),
+        },
+        Case {
+            label: "direct_histogram",
+            entry: "direct_histogram",
+            buffers: vec![dw],
+            params: p(n),
+            tol: tight,
+            cpu: cpu!(neusample_gpu_shader::direct_histogram, dw),
+        },
+        Case {
+            label: "hist_mix_nearest",
+            entry: "histogram_mixture",
+            buffers: vec![hw, tm, tt, tmg, tc],
+            params: hm_params(0),
+            tol: tight,
+            cpu: hm_cpu(0),
+        },
+        Case {
+            label: "hist_mix_linear",
+            entry: "histogram_mixture",
+            buffers: vec![hw, tm, tt, tmg, tc],
+            params: hm_params(1),
+            tol: tight,
+            cpu: hm_cpu(1),
+        },
+    ];
+
+    // Debugging aid: `NEUSAMPLE_GPU_SMOKE=<entry>` only creates and dispatches that entry
+    // point with the flow weights at binding 2 and prints the first output record.
+    if let Ok(entry) = std::env::var("NEUSAMPLE_GPU_SMOKE") {
+        let input = make_input(n, 1);
+        let out = vec![0.0f32; n * OUT_STRIDE];
+        let mut push = Vec::new();
+        for v in [n as u32, 0, 0, 0] {
+            push.extend_from_slice(&v.to_le_bytes());
+        }
+        let bufs: Vec<&[f32]> = vec![&input, &out, fw];
+        let groups = (n as u32).div_ceil(WORKGROUP_SIZE);
+        match ctx.dispatch(&entry, &bufs, 1, n * OUT_STRIDE, &push, groups) {
+            Ok(d) => println!("{entry}: ok, first record {:?}", &d.output[..OUT_STRIDE]),
+            Err(e) => println!("{entry}: {e}"),
+        }
+        return;
+    }
+
+    let only: Option<Vec<String>> = std::env::var("NEUSAMPLE_GPU_ONLY")
+        .ok()
+        .map(|s| s.split(',').map(str::to_string).collect());
+    let mut failed = Vec::new();
+    println!(
+        "{:<20} {:>6} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>6} {:>4} {:>8} {:>8} {:>8}",
+        "sampler", "prep", "sampl", "wo abs", "pdf rel", "disk rel", "wo2 rel", "self rel",
+        "cross", "bad", "cpu ms", "gpu ms", "compile"
+    );
+    for (ci, case) in cases.iter().enumerate() {
+        if let Some(only) = &only {
+            if !only.iter().any(|o| o == case.label) {
+                continue;
+            }
+        }
+        let input = make_input(n, 0x1234_5678 + ci as u64);
+        let mut bufs: Vec<&[f32]> = vec![&input, &[]];
+        let out_init = vec![0.0f32; n * OUT_STRIDE];
+        bufs[1] = &out_init;
+        bufs.extend(case.buffers.iter().copied());
+        let mut push = Vec::new();
+        for v in [
+            case.params.n,
+            case.params.levels,
+            case.params.cells,
+            case.params.interpolate,
+        ] {
+            push.extend_from_slice(&v.to_le_bytes());
+        }
+        let groups = (n as u32).div_ceil(WORKGROUP_SIZE);
+        let d = match ctx.dispatch(case.entry, &bufs, 1, n * OUT_STRIDE, &push, groups) {
+            Ok(d) => d,
+            Err(e) => {
+                println!("{:<20} DISPATCH FAILED: {e}", case.label);
+                failed.push(case.label);
+                continue;
+            }
+        };
+        let t = Instant::now();
+        let mut cpu_out = vec![0.0f32; n * OUT_STRIDE];
+        (case.cpu)(&input, &mut cpu_out);
+        let cpu_ms = t.elapsed().as_secs_f64() * 1e3;
+        let s = compare(case, &input, &d.output, &cpu_out, verbose);
+        println!(
+            "{:<20} {:>6} {:>6} {:>9.2e} {:>9.2e} {:>9.2e} {:>9.2e} {:>9.2e} {:>6} {:>4} {:>8.1} {:>8.1} {:>8.1}",
+            case.label,
+            s.prepared,
+            s.sampled,
+            s.max_wo_abs,
+            s.max_pdf_rel,
+            s.max_pdf_disk_rel,
+            s.max_pdf_wo2_rel,
+            s.max_self_rel,
+            s.crossings,
+            s.failures,
+            cpu_ms,
+            d.second.as_secs_f64() * 1e3,
+            d.compile.as_secs_f64() * 1e3,
+        );
+        let too_many_crossings = s.crossings as f64 > MAX_CROSSING_FRACTION * n as f64;
+        if s.failures > 0 || too_many_crossings || s.sampled == 0 {
+            failed.push(case.label);
+        }
+        let _ = d.first;
+    }
+    println!("tolerances: wo ±{:.0e} abs, pdf {:.0e} rel (+1e-6 abs); crossings ≤ {:.1}% of records", tight.wo_abs, tight.pdf_rel, MAX_CROSSING_FRACTION * 100.0);
+    if failed.is_empty() {
+        println!("GPU CHECK PASSED: every sampler matches the CPU");
+    } else {
+        println!("GPU CHECK FAILED: {}", failed.join(", "));
+        std::process::exit(1);
+    }
+}

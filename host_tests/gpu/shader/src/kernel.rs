@@ -1,0 +1,85 @@
+//! The per-invocation work, shared by the SPIR-V entry points and the host reference.
+//!
+//! Written in the subset rust-gpu accepts: index loops, fixed-size arrays, no iterators, no
+//! sub-slices. Indices are checked by [`in_range`] before [`run`] is called.
+
+use neusample::{Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
+
+/// Floats per input record: φ (8), wi (3), u (2), wo2 (3).
+pub const IN_STRIDE: usize = 16;
+/// Floats per output record: wo (3), pdf, pdf_disk, flags, pdf(wo2), pdf(wo).
+pub const OUT_STRIDE: usize = 8;
+
+/// Offset of `wi` in an input record.
+pub const IN_WI: usize = FEATURE_DIM;
+/// Offset of `u` in an input record.
+pub const IN_U: usize = FEATURE_DIM + 3;
+/// Offset of `wo2` in an input record.
+pub const IN_WO2: usize = FEATURE_DIM + 5;
+
+/// `flags` bit: `prepare` returned `Some`.
+pub const FLAG_PREPARED: u32 = 1;
+/// `flags` bit: `sample` returned `Some`.
+pub const FLAG_SAMPLED: u32 = 2;
+
+/// Push constants shared by every entry point.
+#[derive(Copy, Clone, Debug, Default)]
+#[repr(C)]
+pub struct Params {
+    /// Number of records.
+    pub n: u32,
+    /// Histogram mixture: number of latent levels T.
+    pub levels: u32,
+    /// Histogram mixture: cells per side N.
+    pub cells: u32,
+    /// Histogram mixture: 1 = linear interpolation between levels, 0 = nearest level.
+    pub interpolate: u32,
+}
+
+/// `true` when record `i` lies inside both buffers (lengths in floats).
+#[inline]
+#[must_use]
+pub fn in_range(i: u32, input_len: usize, output_len: usize) -> bool {
+    let i = i as usize;
+    (i + 1) * IN_STRIDE <= input_len && (i + 1) * OUT_STRIDE <= output_len
+}
+
+/// Runs sampler `s` on record `i`: prepare, sample, and the densities; writes the output
+/// record. The caller guarantees [`in_range`].
+#[inline]
+pub fn run<S: Sampler>(s: &S, i: u32, input: &[f32], output: &mut [f32]) {
+    let b = i as usize * IN_STRIDE;
+    let mut phi = [0.0f32; FEATURE_DIM];
+    let mut k = 0;
+    while k < FEATURE_DIM {
+        phi[k] = input[b + k];
+        k += 1;
+    }
+    let wi = Vec3::new(input[b + IN_WI], input[b + IN_WI + 1], input[b + IN_WI + 2]);
+    let u = Vec2::new(input[b + IN_U], input[b + IN_U + 1]);
+    let wo2 = Vec3::new(input[b + IN_WO2], input[b + IN_WO2 + 1], input[b + IN_WO2 + 2]);
+
+    let mut rec = [0.0f32; OUT_STRIDE];
+    let mut flags = 0u32;
+    if let Some(p) = s.prepare(&phi, wi) {
+        flags |= FLAG_PREPARED;
+        rec[6] = p.pdf(wo2);
+        if let Some(smp) = p.sample(u) {
+            flags |= FLAG_SAMPLED;
+            rec[0] = smp.wo.x;
+            rec[1] = smp.wo.y;
+            rec[2] = smp.wo.z;
+            rec[3] = smp.pdf;
+            rec[4] = smp.pdf_disk;
+            rec[7] = p.pdf(smp.wo);
+        }
+    }
+    rec[5] = flags as f32;
+
+    let o = i as usize * OUT_STRIDE;
+    let mut k = 0;
+    while k < OUT_STRIDE {
+        output[o + k] = rec[k];
+        k += 1;
+    }
+}

@@ -1,0 +1,130 @@
+//! Compute-shader entry points around `neusample`'s samplers (rust-gpu → SPIR-V).
+//!
+//! Every entry point is a thin wrapper: it reads one condition (φ, wi), one random pair `u`
+//! and one extra direction `wo2` from the input buffer, runs core's
+//! `prepare → sample → pdf`, and writes the results to the output buffer. The same
+//! wrapper ([`kernel::run`]) is compiled for the host and used by the runner as the CPU
+//! reference, so the comparison exercises core's code on both sides.
+//!
+//! Buffer layouts (all flat `f32`, one record per invocation):
+//!
+//! ```text
+//! input  [IN_STRIDE = 16]:  φ0..φ7 | wi.x wi.y wi.z | u0 u1 | wo2.x wo2.y wo2.z
+//! output [OUT_STRIDE = 8]:  wo.x wo.y wo.z | pdf | pdf_disk | flags | pdf(wo2) | pdf(wo)
+//! ```
+//!
+//! `flags` = 1 (prepared) + 2 (sampled), stored as an exact small float. `pdf`/`pdf_disk`
+//! are the sample's solid-angle / projected-disk densities; the last slot re-evaluates
+//! `Prepared::pdf` at the sampled direction (must equal `pdf`); `pdf(wo2)` is the density
+//! of an unrelated direction, as MIS needs.
+#![cfg_attr(target_arch = "spirv", no_std)]
+#![deny(missing_docs)]
+
+pub mod kernel;
+
+use kernel::{Params, IN_STRIDE, OUT_STRIDE};
+pub use spirv_std::glam::UVec3;
+use spirv_std::spirv;
+
+/// Invocations per workgroup of every entry point (the host dispatches `⌈n / 64⌉` groups).
+pub const WORKGROUP_SIZE: u32 = 64;
+
+/// Cosine-hemisphere sampling (no weights).
+#[spirv(compute(threads(64)))]
+pub fn cosine(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(push_constant)] params: &Params,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] output: &mut [f32],
+) {
+    let i = id.x;
+    if i < params.n && kernel::in_range(i, input.len(), output.len()) {
+        kernel::run(&neusample::CosineSampler, i, input, output);
+    }
+}
+
+/// An entry point for a sampler built from one flat weight buffer at binding 2.
+macro_rules! weighted_entry {
+    ($(#[$doc:meta])* $name:ident, $sampler:ident) => {
+        $(#[$doc])*
+        #[spirv(compute(threads(64)))]
+        pub fn $name(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(push_constant)] params: &Params,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[f32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] output: &mut [f32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] weights: &[f32],
+        ) {
+            let i = id.x;
+            if i < params.n && kernel::in_range(i, input.len(), output.len()) {
+                let s = neusample::$sampler::new_unchecked(weights);
+                kernel::run(&s, i, input, output);
+            }
+        }
+    };
+}
+
+weighted_entry!(
+    /// Improved baseline: Lambert + isotropic Gaussian (paper Eq. 1).
+    baseline,
+    ImprovedBaselineSampler
+);
+weighted_entry!(
+    /// Analytic mixture: Lambert + two anisotropic Gaussians (paper Eq. 2).
+    analytic,
+    AnalyticMixtureSampler
+);
+weighted_entry!(
+    /// Direct 16 × 16 histogram baseline (Zhu et al. 2021).
+    direct_histogram,
+    DirectHistogramSampler
+);
+weighted_entry!(
+    /// Conditional rational-quadratic spline flow (paper Eq. 3–4).
+    flow,
+    FlowSampler
+);
+weighted_entry!(
+    /// Affine-coupling flow baseline (Xie et al. 2019).
+    affine_flow,
+    AffineFlowSampler
+);
+
+/// Histogram mixture (paper Eq. 5–6): network weights at binding 2, baked tables `mass`,
+/// `table`, `marginal`, `conditional` at 3–6; T, N and the interpolation in the push
+/// constants.
+#[spirv(compute(threads(64)))]
+pub fn histogram_mixture(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(push_constant)] params: &Params,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] output: &mut [f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] weights: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] mass: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] table: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] marginal: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] conditional: &[f32],
+) {
+    let i = id.x;
+    if i < params.n && kernel::in_range(i, input.len(), output.len()) {
+        let interpolation = if params.interpolate != 0 {
+            neusample::Interpolation::Linear
+        } else {
+            neusample::Interpolation::Nearest
+        };
+        let s = neusample::HistogramMixtureSampler::new_unchecked(
+            weights,
+            mass,
+            table,
+            marginal,
+            conditional,
+            params.levels,
+            params.cells,
+            interpolation,
+        );
+        kernel::run(&s, i, input, output);
+    }
+}
+
+// Keep the strides referenced on every target (they document the layout above).
+const _: () = assert!(IN_STRIDE == 16 && OUT_STRIDE == 8);

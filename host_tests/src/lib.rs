@@ -1,0 +1,206 @@
+//! Shared machinery of the host test suite: seeded RNGs, numerical integration of densities
+//! over the projected disk, and a χ² goodness-of-fit test of a sampler against its own pdf
+//! (after Mitsuba 3's `chi2` module: cells with small expected counts are pooled).
+
+use neusample::{Prepared, Vec2};
+use rand::{RngExt, SeedableRng};
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// The RNG every test uses: PCG64 from a fixed seed.
+pub type TestRng = rand_pcg::Pcg64Mcg;
+
+/// A seeded test RNG.
+#[must_use]
+pub fn rng(seed: u64) -> TestRng {
+    TestRng::seed_from_u64(seed)
+}
+
+/// A uniform `u ∈ [0, 1)²`.
+pub fn uniform2(rng: &mut TestRng) -> Vec2 {
+    Vec2::new(rng.random::<f32>(), rng.random::<f32>())
+}
+
+/// ∫ f over the square `[-1, 1]²`, by the midpoint rule on an `n × n` grid (f is expected to
+/// be 0 outside the disk).
+pub fn integrate_square(n: usize, mut f: impl FnMut(Vec2) -> f64) -> f64 {
+    let h = 2.0 / n as f64;
+    let mut sum = 0.0;
+    for r in 0..n {
+        let y = -1.0 + (r as f64 + 0.5) * h;
+        for c in 0..n {
+            let x = -1.0 + (c as f64 + 0.5) * h;
+            sum += f(Vec2::new(x as f32, y as f32));
+        }
+    }
+    sum * h * h
+}
+
+/// ∫ pdf_disk over the disk (the probability mass that lands inside it).
+pub fn disk_integral<P: Prepared>(p: &P, n: usize) -> f64 {
+    integrate_square(n, |q| f64::from(p.pdf_disk(q)))
+}
+
+/// Outcome of [`chi2_test`].
+#[derive(Clone, Debug)]
+pub struct Chi2Outcome {
+    /// The χ² statistic.
+    pub statistic: f64,
+    /// Degrees of freedom (pooled cells − 1).
+    pub dof: usize,
+    /// P-value of the statistic under the hypothesis that samples follow the pdf.
+    pub p_value: f64,
+    /// ∫ pdf_disk over the disk, from the cell integrals.
+    pub pdf_integral: f64,
+    /// Fraction of samples that landed inside the disk (`sample` returned `Some`).
+    pub inside_fraction: f64,
+}
+
+/// χ² test of `p.sample` against `p.pdf_disk` on a `res × res` grid over `[-1, 1]²` plus one
+/// cell for samples refused (`None`, mass outside the disk). Each cell's expected count is
+/// `samples · ∫cell pdf`, integrated with `sub × sub` midpoints; cells expecting fewer than
+/// `min_expected` samples are pooled (smallest first) until the pool reaches it.
+pub fn chi2_test<P: Prepared>(
+    p: &P,
+    rng: &mut TestRng,
+    res: usize,
+    sub: usize,
+    samples: usize,
+    min_expected: f64,
+) -> Chi2Outcome {
+    let cells = res * res;
+    let mut observed = vec![0f64; cells + 1];
+    let mut refused = 0usize;
+    for _ in 0..samples {
+        match p.sample(uniform2(rng)) {
+            Some(s) => {
+                let x = ((s.wo.x + 1.0) * 0.5 * res as f32).floor();
+                let y = ((s.wo.y + 1.0) * 0.5 * res as f32).floor();
+                let c = (x.clamp(0.0, (res - 1) as f32)) as usize;
+                let r = (y.clamp(0.0, (res - 1) as f32)) as usize;
+                observed[r * res + c] += 1.0;
+            }
+            None => refused += 1,
+        }
+    }
+    observed[cells] = refused as f64;
+
+    let h = 2.0 / res as f64;
+    let hs = h / sub as f64;
+    let mut expected = vec![0f64; cells + 1];
+    let mut integral = 0.0;
+    for r in 0..res {
+        for c in 0..res {
+            let mut acc = 0.0;
+            for i in 0..sub {
+                let y = -1.0 + r as f64 * h + (i as f64 + 0.5) * hs;
+                for j in 0..sub {
+                    let x = -1.0 + c as f64 * h + (j as f64 + 0.5) * hs;
+                    acc += f64::from(p.pdf_disk(Vec2::new(x as f32, y as f32)));
+                }
+            }
+            let mass = acc * hs * hs;
+            integral += mass;
+            expected[r * res + c] = mass * samples as f64;
+        }
+    }
+    // Quadrature error can put the integral at or above 1 while a few samples are refused;
+    // a floor of one expected sample keeps that cell from making the statistic infinite
+    // (pooling merges it with other small cells).
+    expected[cells] = ((1.0 - integral) * samples as f64).max(1.0);
+
+    let (statistic, pooled) = pooled_chi2(&observed, &expected, min_expected);
+    let dof = pooled.saturating_sub(1).max(1);
+    let p_value = ChiSquared::new(dof as f64)
+        .map(|d| d.sf(statistic))
+        .unwrap_or(0.0);
+    Chi2Outcome {
+        statistic,
+        dof,
+        p_value,
+        pdf_integral: integral,
+        inside_fraction: (samples - refused) as f64 / samples as f64,
+    }
+}
+
+/// χ² statistic with pooling of low-expectation cells; returns (statistic, number of cells
+/// after pooling). A cell with zero expectation but observations makes the statistic ∞.
+pub fn pooled_chi2(observed: &[f64], expected: &[f64], min_expected: f64) -> (f64, usize) {
+    let mut idx: Vec<usize> = (0..observed.len()).collect();
+    idx.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
+    let mut stat = 0.0;
+    let mut cells = 0;
+    let (mut pool_o, mut pool_e) = (0.0, 0.0);
+    for &i in &idx {
+        if expected[i] == 0.0 {
+            if observed[i] > 0.0 {
+                return (f64::INFINITY, cells.max(1));
+            }
+            continue;
+        }
+        if expected[i] < min_expected || pool_e > 0.0 && pool_e < min_expected {
+            pool_o += observed[i];
+            pool_e += expected[i];
+            if pool_e >= min_expected {
+                stat += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+                cells += 1;
+                pool_o = 0.0;
+                pool_e = 0.0;
+            }
+            continue;
+        }
+        stat += (observed[i] - expected[i]) * (observed[i] - expected[i]) / expected[i];
+        cells += 1;
+    }
+    if pool_e > 0.0 {
+        stat += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+        cells += 1;
+    }
+    (stat, cells)
+}
+
+/// Bonferroni-corrected significance level for `tests` tests at family level `alpha`.
+#[must_use]
+pub fn bonferroni(alpha: f64, tests: usize) -> f64 {
+    alpha / tests.max(1) as f64
+}
+
+/// Whether heavier statistical runs were asked for (`NEUSAMPLE_FULL_TESTS=1`).
+#[must_use]
+pub fn full_tests() -> bool {
+    std::env::var("NEUSAMPLE_FULL_TESTS").is_ok_and(|v| v == "1")
+}
+
+/// A small valid blob of `kind`: random parameters (N(0, 0.3²)-ish, seeded) and, for the
+/// histogram mixture, random baked tables (T = 4, N = 8, linear in t). Returns the bytes and
+/// the f32 parameters that were written.
+#[must_use]
+pub fn small_blob(
+    kind: neusample::blob::SamplerKind,
+    dtype: neusample::DType,
+    seed: u64,
+) -> (Vec<u8>, Vec<f32>) {
+    use neusample::blob::{BlobWriter, SamplerKind, TableInterpolation, TensorRole};
+    let mut r = rng(seed);
+    let params: Vec<f32> = (0..kind.param_count())
+        .map(|_| (r.random::<f32>() - 0.5) * 0.6)
+        .collect();
+    let mut w = BlobWriter::new(kind, dtype, "test blob");
+    if kind == SamplerKind::Cosine {
+        return (w.to_bytes(), params);
+    }
+    if kind == SamplerKind::HistogramMixture {
+        let (t, n) = (4u32, 8u32);
+        w = w.histogram_dims(t, n, TableInterpolation::Linear);
+        let k = neusample::histogram::BASES;
+        let raw: Vec<f32> = (0..k * (t * n * n) as usize)
+            .map(|_| r.random::<f32>())
+            .collect();
+        let baked = neusample::histogram::bake_slices(&raw, k, t as usize, n as usize, dtype);
+        w.tensor(TensorRole::Mass, &baked.mass)
+            .tensor(TensorRole::Table, &baked.table)
+            .tensor(TensorRole::Marginal, &baked.marginal)
+            .tensor(TensorRole::Conditional, &baked.conditional);
+    }
+    w.tensor(TensorRole::Params, &params);
+    (w.to_bytes(), params)
+}

@@ -1,0 +1,441 @@
+//! Ground-truth target densities: for a condition (φ, wi) of a material, the tabulated
+//! projected-disk density
+//!
+//! ```text
+//! p*(ω⊥ | φ, wi) ∝ Y(f(φ, wi, ω(ω⊥)))        (Y = luminance, ω(ω⊥) = (x, y, √(1 − |ω⊥|²)))
+//! ```
+//!
+//! which is the density of sampling ∝ BRDF·cos on the hemisphere, expressed on the disk
+//! (paper §3; `p_ω = p*·cos θo`). It is what the samplers are trained against and compared to
+//! (KL divergence, paper Fig. 7), and sampling it exactly gives the paper's "tabulated"
+//! near-optimal reference sampler (Fig. 10).
+//!
+//! # Discretisation (a choice, documented here)
+//!
+//! * An `R × R` grid of square cells over `[−1, 1]²`, row-major with rows = y (cell `(r, c)`
+//!   spans `x ∈ [−1 + c·h, −1 + (c+1)·h)`, `y` likewise with `r`, `h = 2/R`).
+//! * A cell's value is the mean of `Y(f)` over `s × s` stratified cell-centred points
+//!   (`s = 2` by default: the midpoints of the four quarter cells).
+//! * Following the release, `f` is set to 0 at points with `|ω⊥|² > 0.98` (grazing
+//!   directions, [`GRAZING_CUTOFF`]).
+//! * Only cells lying **entirely inside** the unit disk (farthest corner at radius ≤ 1) get a
+//!   non-zero density: the piecewise-constant density is then exactly 0 outside the disk,
+//!   every sample lands strictly inside it, and `sample` and `pdf` agree everywhere. With the
+//!   0.98 cut-off this drops only the sliver of cells straddling the circle (radius > 0.98).
+//! * Values are normalised so that `Σ density·h² = 1` (∫ over the disk = 1). If the function
+//!   is 0 everywhere (possible only at pathological conditions), the density is uniform over
+//!   the active cells and [`TargetPdf::degenerate`] says so.
+//!
+//! Sampling is pbrt-style (`PiecewiseConstant2D`): a row from the marginal CDF with `u.y`, a
+//! column from that row's conditional CDF with `u.x`, and the remapped `u` as the offset
+//! inside the cell, so the map `u ↦ ω⊥` is a bijection with an exact inverse
+//! ([`TargetPdf::invert`]).
+
+use glam::{Vec2, Vec3};
+use rand::{RngExt, SeedableRng};
+use rayon::prelude::*;
+
+use crate::materials::{luminance, Material, FEATURE_DIM};
+
+/// The release's grazing cut-off: `f = 0` where `|ω⊥|² >` this value.
+pub const GRAZING_CUTOFF: f32 = 0.98;
+
+/// Smallest `wi.z` drawn by [`random_condition`].
+pub const MIN_WI_Z: f32 = 0.05;
+
+/// Density floor used by [`TargetPdf::kl_from`] where `q` is 0 or not finite.
+pub const KL_Q_FLOOR: f64 = 1e-12;
+
+/// A condition `(uv, φ(uv), wi)` (local frame, `wi` unit, `wi.z ≥ MIN_WI_Z` when drawn by
+/// [`random_condition`]).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Condition {
+    /// Texture coordinate in `[0, 1)²`.
+    pub uv: Vec2,
+    /// The material's features at `uv`.
+    pub phi: [f32; FEATURE_DIM],
+    /// Incident direction (unit, above the horizon).
+    pub wi: Vec3,
+}
+
+/// A random incident direction: with probability 0.7 cosine-distributed, otherwise uniform in
+/// solid angle (so grazing directions are well covered), both restricted to
+/// `wi.z ≥` [`MIN_WI_Z`].
+pub fn random_wi(rng: &mut impl rand::Rng) -> Vec3 {
+    let pick: f32 = rng.random();
+    let u: f32 = rng.random();
+    let phi = std::f32::consts::TAU * rng.random::<f32>();
+    let zmin = MIN_WI_Z;
+    let z = if pick < 0.7 {
+        // Cosine-distributed on the cap z ≥ zmin: |ω⊥|² uniform in [0, 1 − zmin²].
+        (1.0 - u * (1.0 - zmin * zmin)).max(zmin * zmin).sqrt()
+    } else {
+        zmin + (1.0 - zmin) * u
+    };
+    let s = (1.0 - z * z).max(0.0).sqrt();
+    Vec3::new(s * phi.cos(), s * phi.sin(), z)
+}
+
+/// A random condition: `uv` uniform in `[0, 1)²`, `φ = m.features(uv)`, `wi` from
+/// [`random_wi`].
+pub fn random_condition(m: &dyn Material, rng: &mut impl rand::Rng) -> Condition {
+    let uv = Vec2::new(rng.random::<f32>(), rng.random::<f32>());
+    let wi = random_wi(rng);
+    Condition {
+        uv,
+        phi: m.features(uv),
+        wi,
+    }
+}
+
+/// Options of [`TargetPdf::with_options`].
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct TargetOptions {
+    /// Stratified points per cell and axis (`s × s` per cell), ≥ 1.
+    pub supersample: usize,
+    /// `f = 0` where `|ω⊥|² >` this (the release uses 0.98).
+    pub grazing_cutoff: f32,
+}
+
+impl Default for TargetOptions {
+    fn default() -> Self {
+        TargetOptions {
+            supersample: 2,
+            grazing_cutoff: GRAZING_CUTOFF,
+        }
+    }
+}
+
+/// The tabulated target density p*(ω⊥ | φ, wi) on the projected disk (module docs).
+#[derive(Clone, Debug)]
+pub struct TargetPdf {
+    res: usize,
+    /// Per cell, density w.r.t. disk area; rows = y.
+    density: Vec<f32>,
+    /// Normalised marginal CDF over rows, `res + 1` entries, 0 … 1.
+    marginal: Vec<f32>,
+    /// Per row, normalised conditional CDF over columns, `res + 1` entries each.
+    conditional: Vec<f32>,
+    /// `∫ Y(f) dω⊥` before normalisation (the luminance albedo `∫ Y(f) cos θo dωo`).
+    integral: f64,
+    degenerate: bool,
+}
+
+/// Whether cell `(r, c)` of an `res × res` grid lies entirely inside the closed unit disk.
+#[inline]
+#[must_use]
+pub fn cell_inside_disk(res: usize, r: usize, c: usize) -> bool {
+    let h = 2.0 / res as f64;
+    let far = |i: usize| {
+        let a = -1.0 + i as f64 * h;
+        let b = a + h;
+        if a.abs() > b.abs() {
+            a
+        } else {
+            b
+        }
+    };
+    let (x, y) = (far(c), far(r));
+    x * x + y * y <= 1.0
+}
+
+impl TargetPdf {
+    /// Tabulates p* at resolution `res` with the default options (2 × 2 points per cell,
+    /// cut-off 0.98).
+    #[must_use]
+    pub fn new(m: &dyn Material, c: &Condition, res: usize) -> TargetPdf {
+        Self::with_options(m, c, res, &TargetOptions::default())
+    }
+
+    /// Tabulates p* with explicit options.
+    #[must_use]
+    pub fn with_options(
+        m: &dyn Material,
+        c: &Condition,
+        res: usize,
+        opts: &TargetOptions,
+    ) -> TargetPdf {
+        let res = res.max(1);
+        let s = opts.supersample.max(1);
+        let h = 2.0 / res as f32;
+        let hs = h / s as f32;
+        let inv_ss = 1.0 / (s * s) as f32;
+        let mut values = vec![0f32; res * res];
+        for r in 0..res {
+            for col in 0..res {
+                if !cell_inside_disk(res, r, col) {
+                    continue;
+                }
+                let mut acc = 0.0f32;
+                for i in 0..s {
+                    let y = -1.0 + r as f32 * h + (i as f32 + 0.5) * hs;
+                    for j in 0..s {
+                        let x = -1.0 + col as f32 * h + (j as f32 + 0.5) * hs;
+                        let r2 = x * x + y * y;
+                        if r2 > opts.grazing_cutoff {
+                            continue;
+                        }
+                        let wo = Vec3::new(x, y, (1.0 - r2).max(0.0).sqrt());
+                        let l = luminance(m.eval(&c.phi, c.wi, wo));
+                        if l > 0.0 && l.is_finite() {
+                            acc += l;
+                        }
+                    }
+                }
+                values[r * res + col] = acc * inv_ss;
+            }
+        }
+        Self::from_values(res, values)
+    }
+
+    /// A table from non-negative cell values (unnormalised; rows = y). Values of cells not
+    /// entirely inside the disk, negative or non-finite values are set to 0.
+    #[must_use]
+    pub fn from_values(res: usize, mut values: Vec<f32>) -> TargetPdf {
+        let res = res.max(1);
+        values.resize(res * res, 0.0);
+        let area = (2.0 / res as f64).powi(2);
+        let mut total = 0.0f64;
+        for r in 0..res {
+            for c in 0..res {
+                let v = &mut values[r * res + c];
+                if !(v.is_finite() && *v > 0.0) || !cell_inside_disk(res, r, c) {
+                    *v = 0.0;
+                }
+                total += f64::from(*v);
+            }
+        }
+        let degenerate = !(total > 0.0 && total.is_finite());
+        if degenerate {
+            for r in 0..res {
+                for c in 0..res {
+                    values[r * res + c] = if cell_inside_disk(res, r, c) { 1.0 } else { 0.0 };
+                }
+            }
+            total = values.iter().map(|&v| f64::from(v)).sum();
+        }
+        let integral = if degenerate { 0.0 } else { total * area };
+        // Density: value / (total · area), so Σ density · area = 1.
+        let scale = 1.0 / (total * area);
+        let density: Vec<f32> = values.iter().map(|&v| (f64::from(v) * scale) as f32).collect();
+        let mut marginal = vec![0f32; res + 1];
+        let mut conditional = vec![0f32; res * (res + 1)];
+        let mut acc_rows = 0.0f64;
+        for r in 0..res {
+            let row = &values[r * res..(r + 1) * res];
+            let row_sum: f64 = row.iter().map(|&v| f64::from(v)).sum();
+            let cdf = &mut conditional[r * (res + 1)..(r + 1) * (res + 1)];
+            let mut acc = 0.0f64;
+            for c in 0..res {
+                acc += f64::from(row[c]);
+                cdf[c + 1] = if row_sum > 0.0 {
+                    (acc / row_sum) as f32
+                } else {
+                    (c + 1) as f32 / res as f32
+                };
+            }
+            cdf[res] = 1.0;
+            acc_rows += row_sum;
+            marginal[r + 1] = (acc_rows / total) as f32;
+        }
+        marginal[res] = 1.0;
+        TargetPdf {
+            res,
+            density,
+            marginal,
+            conditional,
+            integral,
+            degenerate,
+        }
+    }
+
+    /// Grid resolution R.
+    #[must_use]
+    pub fn res(&self) -> usize {
+        self.res
+    }
+
+    /// Per-cell density w.r.t. **area on the projected disk**, `R²` values, row-major with
+    /// rows = y; `Σ density · (2/R)² = 1`.
+    #[must_use]
+    pub fn density(&self) -> &[f32] {
+        &self.density
+    }
+
+    /// `∫_disk Y(f(φ, wi, ω(ω⊥))) dω⊥ = ∫ Y(f) cos θo dωo` of the discretised function before
+    /// normalisation (the luminance albedo at this condition); 0 when degenerate.
+    #[must_use]
+    pub fn integral(&self) -> f64 {
+        self.integral
+    }
+
+    /// True when the function was 0 everywhere and the density is uniform instead.
+    #[must_use]
+    pub fn degenerate(&self) -> bool {
+        self.degenerate
+    }
+
+    /// Row-major cell index of a point, `None` outside `[−1, 1)²` or for non-finite input.
+    #[inline]
+    #[must_use]
+    pub fn cell_of(&self, p: Vec2) -> Option<usize> {
+        if !(p.x >= -1.0 && p.x < 1.0 && p.y >= -1.0 && p.y < 1.0) {
+            return None;
+        }
+        let n = self.res as f32;
+        let c = (((p.x + 1.0) * 0.5 * n) as usize).min(self.res - 1);
+        let r = (((p.y + 1.0) * 0.5 * n) as usize).min(self.res - 1);
+        Some(r * self.res + c)
+    }
+
+    /// Piecewise-constant density at disk point `p` w.r.t. disk area; 0 outside the open unit
+    /// disk and for non-finite `p`.
+    #[inline]
+    #[must_use]
+    pub fn pdf(&self, p: Vec2) -> f32 {
+        if !(p.length_squared() < 1.0) {
+            return 0.0;
+        }
+        self.cell_of(p).map_or(0.0, |i| self.density[i])
+    }
+
+    /// Exact sample for `u ∈ [0, 1)²` (a row by `u.y`, a column by `u.x`, the remainders as the
+    /// offset inside the cell). `None` for `u` outside `[0, 1]²` or non-finite, or in the
+    /// measure-zero event of landing exactly on the circle.
+    #[must_use]
+    pub fn sample(&self, u: Vec2) -> Option<Vec2> {
+        let u = neusample::sampler::sanitize_u2(u)?;
+        let (r, dy) = sample_cdf(&self.marginal, u.y);
+        let row = &self.conditional[r * (self.res + 1)..(r + 1) * (self.res + 1)];
+        let (c, dx) = sample_cdf(row, u.x);
+        let h = 2.0 / self.res as f32;
+        let p = Vec2::new(
+            -1.0 + (c as f32 + dx) * h,
+            -1.0 + (r as f32 + dy) * h,
+        );
+        if p.length_squared() < 1.0 {
+            Some(p)
+        } else {
+            None
+        }
+    }
+
+    /// The `u` that [`TargetPdf::sample`] maps to `p`; `None` where the density is 0.
+    #[must_use]
+    pub fn invert(&self, p: Vec2) -> Option<Vec2> {
+        if !(self.pdf(p) > 0.0) {
+            return None;
+        }
+        let n = self.res as f32;
+        let gx = (p.x + 1.0) * 0.5 * n;
+        let gy = (p.y + 1.0) * 0.5 * n;
+        let c = (gx as usize).min(self.res - 1);
+        let r = (gy as usize).min(self.res - 1);
+        let (fx, fy) = ((gx - c as f32).clamp(0.0, 1.0), (gy - r as f32).clamp(0.0, 1.0));
+        let row = &self.conditional[r * (self.res + 1)..(r + 1) * (self.res + 1)];
+        let uy = self.marginal[r] + fy * (self.marginal[r + 1] - self.marginal[r]);
+        let ux = row[c] + fx * (row[c + 1] - row[c]);
+        Some(Vec2::new(ux.min(neusample::math::ONE_MINUS_EPSILON), uy.min(neusample::math::ONE_MINUS_EPSILON)))
+    }
+
+    /// `KL(p* ‖ q) = Σ_cells p*_c log(p*_c / q(m_c)) · h²` with `m_c` the cell midpoints and `q`
+    /// a density on the disk (area measure). `q ≤ 0` or non-finite counts as
+    /// [`KL_Q_FLOOR`]. In nats.
+    pub fn kl_from(&self, q: impl Fn(Vec2) -> f32) -> f64 {
+        let res = self.res;
+        let h = 2.0 / res as f64;
+        let mut kl = 0.0f64;
+        for r in 0..res {
+            for c in 0..res {
+                let p = f64::from(self.density[r * res + c]);
+                if p <= 0.0 {
+                    continue;
+                }
+                let m = Vec2::new(
+                    (-1.0 + (c as f64 + 0.5) * h) as f32,
+                    (-1.0 + (r as f64 + 0.5) * h) as f32,
+                );
+                let qv = f64::from(q(m));
+                let qv = if qv.is_finite() && qv > KL_Q_FLOOR { qv } else { KL_Q_FLOOR };
+                kl += p * (p / qv).ln();
+            }
+        }
+        kl * h * h
+    }
+}
+
+/// Samples a normalised CDF (`cdf[0] = 0`, `cdf[n] = 1`): the bin `i` with
+/// `cdf[i] ≤ u < cdf[i+1]` (skipping empty bins) and the remapped offset in `[0, 1)`.
+fn sample_cdf(cdf: &[f32], u: f32) -> (usize, f32) {
+    let n = cdf.len() - 1;
+    let i = cdf.partition_point(|&v| v <= u).clamp(1, n) - 1;
+    // Guard against landing in an empty bin through rounding at the top end.
+    let mut i = i;
+    while i > 0 && cdf[i + 1] <= cdf[i] {
+        i -= 1;
+    }
+    let w = cdf[i + 1] - cdf[i];
+    let d = if w > 0.0 { ((u - cdf[i]) / w).clamp(0.0, neusample::math::ONE_MINUS_EPSILON) } else { 0.5 };
+    (i, d)
+}
+
+impl neusample::Prepared for TargetPdf {
+    fn sample(&self, u: Vec2) -> Option<neusample::Sample> {
+        let p = TargetPdf::sample(self, u)?;
+        neusample::Sample::from_disk(p, TargetPdf::pdf(self, p))
+    }
+
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        TargetPdf::pdf(self, p)
+    }
+
+    fn invert(&self, wo: Vec3) -> Option<Vec2> {
+        let w = neusample::warp::upper_hemisphere(wo)?;
+        TargetPdf::invert(self, neusample::warp::to_disk(w))
+    }
+}
+
+/// SplitMix64 finaliser (seed mixing).
+#[inline]
+#[must_use]
+pub fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// The RNG of condition `index` of a batch with `seed`: independent of thread count and of
+/// the batch size (a batch of n is a prefix of a batch of m > n with the same seed).
+#[must_use]
+pub fn condition_rng(seed: u64, index: usize) -> rand_pcg::Pcg64Mcg {
+    rand_pcg::Pcg64Mcg::seed_from_u64(splitmix64(seed ^ splitmix64(index as u64)))
+}
+
+/// `n_conditions` random conditions (see [`condition_rng`]), without target densities.
+#[must_use]
+pub fn conditions(m: &dyn Material, n_conditions: usize, seed: u64) -> Vec<Condition> {
+    (0..n_conditions)
+        .into_par_iter()
+        .map(|i| random_condition(m, &mut condition_rng(seed, i)))
+        .collect()
+}
+
+/// `n_conditions` random conditions with their target densities at resolution `res`, in
+/// parallel (rayon); deterministic per seed whatever the thread count.
+#[must_use]
+pub fn batch(
+    m: &dyn Material,
+    n_conditions: usize,
+    res: usize,
+    seed: u64,
+) -> Vec<(Condition, TargetPdf)> {
+    (0..n_conditions)
+        .into_par_iter()
+        .map(|i| {
+            let c = random_condition(m, &mut condition_rng(seed, i));
+            let t = TargetPdf::new(m, &c, res);
+            (c, t)
+        })
+        .collect()
+}

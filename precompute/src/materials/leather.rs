@@ -1,0 +1,140 @@
+//! `model = "normal_mapped"`: leather-like isotropic GGX + diffuse under strong normal mapping
+//! (paper: Goat Leather, Cowhide Leather, Sheep Leather — one isotropic highlight that the
+//! normal map moves around).
+//!
+//! Texture: a cellular "grain" (periodic Worley cells, pillow-shaped tops, creases where two
+//! cells meet) plus fBm wrinkles give a height field `H(uv)`; the shading normal is
+//! `normalize(−∂H/∂u, −∂H/∂v, 1)`. Creases are darker, rougher and occluded.
+//!
+//! # φ layout
+//!
+//! | index | meaning                                    | range     |
+//! |-------|--------------------------------------------|-----------|
+//! | 0, 1  | shading normal `n.x`, `n.y`                 | `[−0.9, 0.9]`, `|(n.x, n.y)| ≤ 0.9` |
+//! | 2     | perceptual roughness `r` (`α = r²`)         | `[0, 1]`  |
+//! | 3–5   | diffuse albedo (RGB)                        | `[0, 1]`  |
+//! | 6     | specular level `s` (`F0 = 0.08 s`)          | `[0, 1]`  |
+//! | 7     | cavity `c` (multiplies f)                   | `[0, 1]`  |
+
+use glam::Vec2;
+use serde::Deserialize;
+
+use super::check;
+use super::microfacet::{alpha_from_roughness, ShadingFrame};
+use super::noise::{fbm, gradient_of, smoothstep, worley};
+use super::surface::{lerp3, signed, unit, Surface, SurfaceModel};
+use super::{File, FEATURE_DIM};
+
+/// `[params]` of a `normal_mapped` material.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Params {
+    /// Noise seed.
+    pub seed: u32,
+    /// Grain cells per uv unit (Worley frequency), 1..=256.
+    pub grain_cells: u32,
+    /// Bump strength of the grain (slope scale), 0..=3.
+    pub grain_depth: f32,
+    /// Wrinkle fBm base frequency (cells per uv unit), 1..=256.
+    pub wrinkle_freq: u32,
+    /// Wrinkle fBm octaves, 1..=8.
+    pub wrinkle_octaves: u32,
+    /// Bump strength of the wrinkles, 0..=3.
+    pub wrinkle_strength: f32,
+    /// Albedo of the cell tops.
+    pub color_top: [f32; 3],
+    /// Albedo in the creases.
+    pub color_crease: [f32; 3],
+    /// Extra per-cell albedo variation (relative), 0..=1.
+    #[serde(default)]
+    pub color_jitter: f32,
+    /// Perceptual roughness on the cell tops, 0..=1.
+    pub roughness_top: f32,
+    /// Perceptual roughness in the creases, 0..=1.
+    pub roughness_crease: f32,
+    /// Specular level `s` (`F0 = 0.08 s`), 0..=1.
+    pub specular: f32,
+}
+
+/// A `normal_mapped` material.
+#[derive(Clone, Debug)]
+pub struct Leather {
+    name: String,
+    p: Params,
+}
+
+impl Leather {
+    fn height(&self, uv: Vec2) -> f32 {
+        let p = &self.p;
+        let w = worley(uv, p.grain_cells, 0.9, p.seed);
+        let ridge = smoothstep(0.0, 0.35, w.f2 - w.f1);
+        let pillow = ridge * (1.0 - 0.8 * w.f1 * w.f1);
+        let wrinkles = fbm(uv, p.wrinkle_freq, p.wrinkle_octaves, 0.5, p.seed ^ 0xa5a5);
+        p.grain_depth * pillow / p.grain_cells as f32
+            + p.wrinkle_strength * wrinkles / p.wrinkle_freq as f32
+    }
+}
+
+impl SurfaceModel for Leather {
+    type Params = Params;
+
+    fn from_file(file: File<Params>) -> anyhow::Result<Self> {
+        let p = &file.params;
+        check::count("grain_cells", p.grain_cells, 1, 256)?;
+        check::range("grain_depth", p.grain_depth, 0.0, 3.0)?;
+        check::count("wrinkle_freq", p.wrinkle_freq, 1, 256)?;
+        check::count("wrinkle_octaves", p.wrinkle_octaves, 1, 8)?;
+        check::range("wrinkle_strength", p.wrinkle_strength, 0.0, 3.0)?;
+        check::range_n("color_top", &p.color_top, 0.0, 1.0)?;
+        check::range_n("color_crease", &p.color_crease, 0.0, 1.0)?;
+        check::range("color_jitter", p.color_jitter, 0.0, 1.0)?;
+        check::range("roughness_top", p.roughness_top, 0.0, 1.0)?;
+        check::range("roughness_crease", p.roughness_crease, 0.0, 1.0)?;
+        check::range("specular", p.specular, 0.0, 1.0)?;
+        Ok(Leather {
+            name: file.name,
+            p: file.params,
+        })
+    }
+
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {
+        let p = &self.p;
+        let h = 0.05 / (p.grain_cells.max(p.wrinkle_freq << (p.wrinkle_octaves - 1)) as f32);
+        let g = gradient_of(|q| self.height(q), uv, h);
+        let n = glam::Vec3::new(-g.x, -g.y, 1.0).normalize();
+        let w = worley(uv, p.grain_cells, 0.9, p.seed);
+        let crease = 1.0 - smoothstep(0.0, 0.35, w.f2 - w.f1);
+        let jitter = 1.0 + p.color_jitter * (super::noise::unit(w.id) - 0.5);
+        let albedo = lerp3(p.color_top, p.color_crease, crease).map(|c| (c * jitter).clamp(0.0, 1.0));
+        let r = p.roughness_top + (p.roughness_crease - p.roughness_top) * crease;
+        let cavity = 1.0 - 0.5 * crease;
+        let (nx, ny) = clamp_tilt(n.x, n.y);
+        [nx, ny, r, albedo[0], albedo[1], albedo[2], p.specular, cavity]
+    }
+
+    fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface {
+        let a = alpha_from_roughness(unit(phi[2]));
+        let f0 = 0.08 * unit(phi[6]);
+        let mut s = Surface::isotropic(a, [f0; 3], [unit(phi[3]), unit(phi[4]), unit(phi[5])]);
+        s.frame = ShadingFrame::new(signed(phi[0]), signed(phi[1]), 1.0, 0.0);
+        s.scale = unit(phi[7]);
+        s
+    }
+}
+
+/// Clamps a normal's `(x, y)` to length [`super::microfacet::MAX_TILT_XY`] (so φ holds exactly
+/// what the decoder uses).
+#[must_use]
+pub fn clamp_tilt(x: f32, y: f32) -> (f32, f32) {
+    let m = super::microfacet::MAX_TILT_XY;
+    let l = (x * x + y * y).sqrt();
+    if l > m {
+        (x * m / l, y * m / l)
+    } else {
+        (x, y)
+    }
+}

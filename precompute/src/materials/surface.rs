@@ -1,0 +1,188 @@
+//! The "standard surface" shared by most analytic models: a normal-mapped, optionally
+//! anisotropic GGX specular lobe (Schlick Fresnel, height-correlated Smith), an optional
+//! isotropic haze lobe, and a Fresnel-weighted Lambert base.
+//!
+//! ```text
+//! f = s · [ F(wi·h) · ((1 − w_h) DG(α_x, α_y) + w_h DG(α_h)) / (4 M_i M_o)
+//!         + ρ_d/π · (cos_s θi / M_i)(cos_s θo / M_o) · (1 − F̄(cos_s θi))(1 − F̄(cos_s θo)) ]
+//! ```
+//!
+//! with `M_i, M_o` the max-cosine normal-mapping denominators of [`super::microfacet`],
+//! `F̄` the scalar Schlick Fresnel of the mean `F0`, and `s ∈ [0, 1]` a cavity factor. Every
+//! term is symmetric in `wi` and `wo`, so the BRDF is reciprocal; the specular part reflects
+//! at most `F`, the diffuse part at most `ρ_d (1 − F̄(cos_s θi))`, so the white furnace stays
+//! ≤ 1 for `ρ_d ≤ 1`.
+//!
+//! A model is a [`SurfaceModel`]: a procedural feature texture plus a decoder from φ to a
+//! [`Surface`]; [`Textured`] turns it into a [`super::Material`].
+
+use glam::{Vec2, Vec3};
+use serde::de::DeserializeOwned;
+
+use super::microfacet::{ggx_dg, normalize_pair, schlick, schlick1, ShadingFrame, LAMBERT};
+use super::{File, Material, FEATURE_DIM};
+
+/// A decoded texel of the standard surface.
+#[derive(Copy, Clone, Debug)]
+pub struct Surface {
+    /// Shading frame (normal map and tangent).
+    pub frame: ShadingFrame,
+    /// GGX α along the tangent.
+    pub ax: f32,
+    /// GGX α along the bitangent.
+    pub ay: f32,
+    /// Specular reflectance at normal incidence (Schlick `F0`, RGB).
+    pub f0: [f32; 3],
+    /// Lambert albedo ρ_d (already without the metallic part).
+    pub diffuse: [f32; 3],
+    /// Weight of the isotropic haze lobe, `[0, 1]`.
+    pub haze: f32,
+    /// GGX α of the haze lobe.
+    pub haze_alpha: f32,
+    /// Cavity factor multiplying the whole BRDF, `[0, 1]`.
+    pub scale: f32,
+}
+
+impl Surface {
+    /// A plain isotropic surface in the geometric frame.
+    #[must_use]
+    pub fn isotropic(alpha: f32, f0: [f32; 3], diffuse: [f32; 3]) -> Self {
+        Surface {
+            frame: ShadingFrame::new(0.0, 0.0, 1.0, 0.0),
+            ax: alpha,
+            ay: alpha,
+            f0,
+            diffuse,
+            haze: 0.0,
+            haze_alpha: 1.0,
+            scale: 1.0,
+        }
+    }
+
+    /// Evaluates f (no cosine) for unit directions above the geometric horizon.
+    #[inline]
+    #[must_use]
+    pub fn eval_unit(&self, wi: Vec3, wo: Vec3) -> [f32; 3] {
+        let Some(l) = self.frame.local(wi, wo) else {
+            return [0.0; 3];
+        };
+        let (dg, cos_d) = ggx_dg(l.wi, l.wo, self.ax, self.ay);
+        let mut spec = dg;
+        if self.haze > 0.0 {
+            let (dgh, _) = ggx_dg(l.wi, l.wo, self.haze_alpha, self.haze_alpha);
+            spec = (1.0 - self.haze) * dg + self.haze * dgh;
+        }
+        spec *= l.inv_4mm * self.scale;
+        let fr = schlick(self.f0, cos_d);
+        let f0m = (self.f0[0] + self.f0[1] + self.f0[2]) * (1.0 / 3.0);
+        let kd = LAMBERT
+            * l.ci
+            * l.co
+            * (1.0 - schlick1(f0m, l.wi.z))
+            * (1.0 - schlick1(f0m, l.wo.z))
+            * self.scale;
+        [
+            fr[0] * spec + self.diffuse[0] * kd,
+            fr[1] * spec + self.diffuse[1] * kd,
+            fr[2] * spec + self.diffuse[2] * kd,
+        ]
+    }
+
+    /// Evaluates f (no cosine) for arbitrary directions: normalised here, 0 below the horizon.
+    #[inline]
+    #[must_use]
+    pub fn eval(&self, wi: Vec3, wo: Vec3) -> [f32; 3] {
+        match normalize_pair(wi, wo) {
+            Some((wi, wo)) => self.eval_unit(wi, wo),
+            None => [0.0; 3],
+        }
+    }
+}
+
+/// Anisotropic α pair from a perceptual roughness and an anisotropy `a ∈ [0, 1]`
+/// (Burley 2012: aspect `√(1 − 0.9 a)`, `α_x = r²/aspect`, `α_y = r²·aspect`).
+#[inline]
+#[must_use]
+pub fn aniso_alphas(roughness: f32, anisotropy: f32) -> (f32, f32) {
+    let a = super::microfacet::alpha_from_roughness(roughness);
+    let aspect = (1.0 - 0.9 * anisotropy.clamp(0.0, 1.0)).sqrt();
+    ((a / aspect).min(1.0), (a * aspect).max(super::microfacet::ALPHA_MIN))
+}
+
+/// `x` clamped to `[0, 1]` (NaN → 0).
+#[inline]
+#[must_use]
+pub fn unit(x: f32) -> f32 {
+    if x > 0.0 {
+        x.min(1.0)
+    } else {
+        0.0
+    }
+}
+
+/// `x` clamped to `[−1, 1]` (NaN → 0).
+#[inline]
+#[must_use]
+pub fn signed(x: f32) -> f32 {
+    if x.is_nan() {
+        0.0
+    } else {
+        x.clamp(-1.0, 1.0)
+    }
+}
+
+/// `a + (b − a) t` per channel.
+#[inline]
+#[must_use]
+pub fn lerp3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+    [
+        a[0] + (b[0] - a[0]) * t,
+        a[1] + (b[1] - a[1]) * t,
+        a[2] + (b[2] - a[2]) * t,
+    ]
+}
+
+/// A procedural feature texture plus a decoder from φ to a [`Surface`].
+pub trait SurfaceModel: Sized + Send + Sync {
+    /// The `[params]` table of the model's material files.
+    type Params: DeserializeOwned;
+    /// Validates a parsed file (errors name `params.<field>`).
+    fn from_file(file: File<Self::Params>) -> anyhow::Result<Self>;
+    /// Material name.
+    fn name(&self) -> &str;
+    /// φ(uv), `uv` already wrapped into `[0, 1)²`.
+    fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM];
+    /// The surface a φ describes (must accept any finite φ; clamps out-of-range values).
+    fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface;
+}
+
+/// A [`SurfaceModel`] as a [`Material`].
+#[derive(Clone, Debug)]
+pub struct Textured<M>(pub M);
+
+impl<M: SurfaceModel> Textured<M> {
+    /// Builds the material from a parsed file.
+    pub fn new(file: File<M::Params>) -> anyhow::Result<Self> {
+        Ok(Textured(M::from_file(file)?))
+    }
+}
+
+/// Replaces non-finite channels by 0 and clamps negatives to 0.
+#[inline]
+#[must_use]
+pub fn sanitize(rgb: [f32; 3]) -> [f32; 3] {
+    let c = |x: f32| if x > 0.0 && x.is_finite() { x } else { 0.0 };
+    [c(rgb[0]), c(rgb[1]), c(rgb[2])]
+}
+
+impl<M: SurfaceModel> Material for Textured<M> {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {
+        self.0.features(super::noise::wrap_uv(uv))
+    }
+    fn eval(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> [f32; 3] {
+        sanitize(self.0.decode(phi).eval(wi, wo))
+    }
+}

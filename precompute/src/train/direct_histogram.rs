@@ -1,0 +1,118 @@
+//! Direct histogram baseline (Zhu et al. 2021; `core/ARCHITECTURES.md` §5): MLP
+//! `30 → 64 → 64 → 256` predicting the logits of a 16 × 16 grid over `[−1, 1]²` (row = y
+//! index, column = x index). Cells entirely outside the unit disk are masked out, the others
+//! get softmax probabilities `P_rc`, and `p(ω⊥) = P_rc / cell_area` inside the disk.
+//!
+//! Trained by maximum likelihood of ground-truth samples (equivalently, cross-entropy
+//! between the target's cell masses and `P`).
+
+use burn::module::Module;
+use burn::tensor::activation;
+use burn::tensor::{Int, Tensor, TensorData};
+use glam::{Vec2, Vec3};
+use neusample::histogram::{cell_outside_disk, DIRECT_N};
+use neusample::sampler::{encode_condition, CONDITION_DIM};
+use neusample::FEATURE_DIM;
+
+use super::data::{mix_seed, rng_for, PointKind, Pool};
+use super::nn::{self, fit, mlp_f64, softmax_f64, tensor2, Act, Batch, Mlp};
+use super::TrainConfig;
+
+/// Grid resolution (cells per side).
+pub const GRID: usize = DIRECT_N;
+/// Layer sizes.
+pub const SIZES: [usize; 4] = [CONDITION_DIM, 64, 64, GRID * GRID];
+/// Logit offset of masked cells: `exp` of it underflows to exactly 0 in f32.
+const MASKED: f32 = -1.0e4;
+
+/// `true` for cells lying entirely outside the unit disk (core's mask).
+#[must_use]
+pub fn masked(r: usize, c: usize) -> bool {
+    cell_outside_disk(r as u32, c as u32, GRID as u32)
+}
+
+/// The cell index `r·16 + c` of a point of `[−1, 1]²`.
+#[must_use]
+pub fn cell_index(p: Vec2) -> usize {
+    let f = |v: f32| (((v + 1.0) * 0.5 * GRID as f32).floor().max(0.0) as usize).min(GRID - 1);
+    f(p.y) * GRID + f(p.x)
+}
+
+/// The network.
+#[derive(Module, Debug)]
+pub struct DirectHistogram {
+    /// `30 → 64 → 64 → 256`.
+    pub net: Mlp,
+}
+
+/// Per-point log density `[b, s]` of the network `net` at the batch points.
+fn log_pdf(net: &Mlp, batch: &Batch) -> Tensor<2> {
+    let device = batch.x.device();
+    let mask: Vec<f32> = (0..GRID * GRID)
+        .map(|i| if masked(i / GRID, i % GRID) { MASKED } else { 0.0 })
+        .collect();
+    let mask = tensor2(mask, 1, GRID * GRID, &device);
+    let ln_area = (2.0f32 / GRID as f32).powi(2).ln();
+    let logits = net.forward(batch.cond.clone(), Act::Relu) + mask;
+    let logp = activation::log_softmax(logits, 1);
+    let idx: Vec<i64> = batch
+        .host
+        .x
+        .iter()
+        .zip(&batch.host.y)
+        .map(|(&x, &y)| cell_index(Vec2::new(x, y)) as i64)
+        .collect();
+    let idx = Tensor::<2, Int>::from_data(TensorData::new(idx, [batch.b, batch.s]), &device);
+    logp.gather(1, idx) - ln_area
+}
+
+/// Per-point log density `[b, s]` of the training graph for exported parameters.
+pub fn graph_log_pdf(params: &[f32], batch: &Batch) -> Tensor<2> {
+    log_pdf(&Mlp::from_flat(&SIZES, params, &batch.x.device()), batch)
+}
+
+/// Trains the direct histogram; returns `(params, loss history)`.
+pub fn train(pool: &mut Pool<'_>, cfg: &TrainConfig) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+    let device = nn::train_device();
+    let mut rng = rng_for(mix_seed(cfg.seed, 0xd1e), 0, 0);
+    let model = DirectHistogram {
+        net: Mlp::new(&SIZES, 0.1, &mut rng, &device),
+    };
+    let (model, history) = fit(
+        model,
+        "direct-histogram",
+        cfg,
+        pool,
+        PointKind::FromTarget,
+        (cfg.batch_conditions, cfg.samples_per_condition),
+        |m: &DirectHistogram, batch: &Batch| log_pdf(&m.net, batch).mean().neg(),
+    )?;
+    let mut params = Vec::new();
+    model.net.export(&mut params);
+    Ok((params, history))
+}
+
+/// Density (projected-disk area measure) of a trained direct histogram at `p`, in f64 from
+/// the exported parameters; `wi` must already be normalised. 0 outside the open unit disk.
+#[must_use]
+pub fn pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+    if !(p.length_squared() < 1.0) {
+        return 0.0;
+    }
+    let c: Vec<f64> = encode_condition(phi, wi)
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect();
+    let mut at = 0;
+    let o = mlp_f64(params, &mut at, &SIZES, Act::Relu, &c);
+    let open: Vec<usize> = (0..GRID * GRID)
+        .filter(|&i| !masked(i / GRID, i % GRID))
+        .collect();
+    let logits: Vec<f64> = open.iter().map(|&i| o[i]).collect();
+    let prob = softmax_f64(&logits);
+    let cell = cell_index(p);
+    let area = (2.0 / GRID as f64).powi(2);
+    open.iter()
+        .position(|&i| i == cell)
+        .map_or(0.0, |j| prob[j] / area)
+}

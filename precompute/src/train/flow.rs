@@ -1,0 +1,276 @@
+//! Flows (`core/ARCHITECTURES.md` §3–4), trained by maximum likelihood of ground-truth
+//! samples in the density direction `ω⊥ → z`:
+//!
+//! * the paper's conditional RQ-spline flow (Eq. 3–4): base network `30 → 32 → 4`
+//!   (diagonal Gaussian), coupling 1 transforms y given `[c, enc4(x)]`, then coupling 0
+//!   transforms x given `[c, enc4(y')]`, each `39 → 32 → 32 → 59` with LeakyReLU(0.01);
+//! * the affine-coupling baseline (Xie et al. 2019): four layers `39 → 32 → 32 → 2` (ReLU),
+//!   layer `l` transforms coordinate `l mod 2`, `v ← v·eˢ + t`, `s = 4 tanh(s_raw/4)`,
+//!   standard normal base.
+//!
+//! The condition's share of each coupling network's first layer is computed once per
+//! condition and broadcast over its samples, like the runtime's `prepare`.
+
+use burn::module::Module;
+use burn::tensor::Tensor;
+use glam::{Vec2, Vec3};
+use neusample::flow::{
+    AFFINE_LAYERS, AFFINE_NET_LEN, AFFINE_OUTPUTS, AFFINE_SCALE_BOUND, BASE_OUTPUTS,
+    COUPLING_INPUTS, FLOW_BASE_LEN, FLOW_COUPLING0, FLOW_COUPLING1, HIDDEN, OTHER_BANDS,
+    SPLINE_BINS, SPLINE_NET_LEN, SPLINE_RAW_LEN, TAIL_BOUND,
+};
+use neusample::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
+use neusample::sampler::{encode_condition, CONDITION_DIM};
+use neusample::FEATURE_DIM;
+
+use super::data::{mix_seed, rng_for, PointKind, Pool};
+use super::nn::{self, encode, encode_f64, fit, mlp_f64, Act, Batch, Mlp};
+use super::spline::{rq_forward, rq_forward_f64};
+use super::TrainConfig;
+
+const LN_TWO_PI: f32 = 1.837_877_1;
+
+/// Layer sizes of the flow's base network.
+pub const BASE_SIZES: [usize; 3] = [CONDITION_DIM, HIDDEN, BASE_OUTPUTS];
+/// Layer sizes of a spline coupling network.
+pub const SPLINE_NET_SIZES: [usize; 4] = [COUPLING_INPUTS, HIDDEN, HIDDEN, SPLINE_RAW_LEN];
+/// Layer sizes of an affine coupling network.
+pub const AFFINE_NET_SIZES: [usize; 4] = [COUPLING_INPUTS, HIDDEN, HIDDEN, AFFINE_OUTPUTS];
+
+const _: () = {
+    assert!(nn::mlp_len(&BASE_SIZES) == FLOW_BASE_LEN);
+    assert!(nn::mlp_len(&SPLINE_NET_SIZES) == SPLINE_NET_LEN);
+    assert!(nn::mlp_len(&AFFINE_NET_SIZES) == AFFINE_NET_LEN);
+    assert!(FLOW_COUPLING1 == FLOW_COUPLING0 + SPLINE_NET_LEN);
+};
+
+/// Runs a coupling network on `[b·s]` points: the condition part of the first layer from
+/// `cond` `[b, 30]`, broadcast over the `s` points, plus the encoded other coordinate
+/// `other` `[b, s]`. Returns the raw outputs `[b·s, O]`.
+fn coupling(net: &Mlp, cond: &Tensor<2>, other: Tensor<2>, act: Act) -> Tensor<2> {
+    let [b, s] = other.dims();
+    let share = cond.clone().matmul(net.first_weight_rows(0, CONDITION_DIM)) + net.first_bias();
+    let e = encode(other.reshape([b * s, 1]), OTHER_BANDS);
+    let part = e.matmul(net.first_weight_rows(CONDITION_DIM, COUPLING_INPUTS - CONDITION_DIM));
+    let h = part.reshape([b, s, HIDDEN]) + share.unsqueeze_dim::<3>(1);
+    let h = Mlp::hidden_act(h.reshape([b * s, HIDDEN]), act);
+    net.forward_from(1, h, act)
+}
+
+/// The RQ-spline flow.
+#[derive(Module, Debug)]
+pub struct SplineFlow {
+    /// Base network `30 → 32 → 4`.
+    pub base: Mlp,
+    /// Coupling network 0 (transforms x).
+    pub c0: Mlp,
+    /// Coupling network 1 (transforms y).
+    pub c1: Mlp,
+}
+
+impl SplineFlow {
+    /// The flow from exported parameters.
+    pub fn from_flat(params: &[f32], device: &burn::tensor::Device) -> Self {
+        SplineFlow {
+            base: Mlp::from_flat(&BASE_SIZES, &params[..FLOW_BASE_LEN], device),
+            c0: Mlp::from_flat(&SPLINE_NET_SIZES, &params[FLOW_COUPLING0..], device),
+            c1: Mlp::from_flat(&SPLINE_NET_SIZES, &params[FLOW_COUPLING1..], device),
+        }
+    }
+
+    /// Per-point log density `[b, s]`.
+    pub fn log_pdf(&self, batch: &Batch) -> Tensor<2> {
+        let (b, s) = (batch.b, batch.s);
+        let raw1 = coupling(&self.c1, &batch.cond, batch.x.clone(), Act::Leaky);
+        let (yl, ld1) = rq_forward(
+            batch.y.clone().reshape([b * s, 1]),
+            raw1,
+            SPLINE_BINS,
+            TAIL_BOUND,
+        );
+        let yl = yl.reshape([b, s]);
+        let raw0 = coupling(&self.c0, &batch.cond, yl.clone(), Act::Leaky);
+        let (xl, ld0) = rq_forward(
+            batch.x.clone().reshape([b * s, 1]),
+            raw0,
+            SPLINE_BINS,
+            TAIL_BOUND,
+        );
+        let xl = xl.reshape([b, s]);
+        let o = self.base.forward(batch.cond.clone(), Act::Relu);
+        let mx = o.clone().narrow(1, 0, 1);
+        let my = o.clone().narrow(1, 1, 1);
+        let lsx = o.clone().narrow(1, 2, 1).clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
+        let lsy = o.narrow(1, 3, 1).clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
+        let dx = (xl - mx) * lsx.clone().neg().exp();
+        let dy = (yl - my) * lsy.clone().neg().exp();
+        let lbase = (dx.powi_scalar(2) + dy.powi_scalar(2)) * (-0.5) - LN_TWO_PI - lsx - lsy;
+        lbase + (ld0 + ld1).reshape([b, s])
+    }
+}
+
+/// The affine-coupling flow.
+#[derive(Module, Debug)]
+pub struct AffineFlow {
+    /// Coupling networks, layer 0..3.
+    pub nets: Vec<Mlp>,
+}
+
+impl AffineFlow {
+    /// The flow from exported parameters.
+    pub fn from_flat(params: &[f32], device: &burn::tensor::Device) -> Self {
+        AffineFlow {
+            nets: (0..AFFINE_LAYERS)
+                .map(|l| Mlp::from_flat(&AFFINE_NET_SIZES, &params[l * AFFINE_NET_LEN..], device))
+                .collect(),
+        }
+    }
+
+    /// Per-point log density `[b, s]`.
+    pub fn log_pdf(&self, batch: &Batch) -> Tensor<2> {
+        let (b, s) = (batch.b, batch.s);
+        let mut x = batch.x.clone();
+        let mut y = batch.y.clone();
+        let mut ld: Option<Tensor<2>> = None;
+        for (l, net) in self.nets.iter().enumerate() {
+            let other = if l % 2 == 0 { y.clone() } else { x.clone() };
+            let o = coupling(net, &batch.cond, other, Act::Relu);
+            let sc = (o.clone().narrow(1, 0, 1) / AFFINE_SCALE_BOUND).tanh() * AFFINE_SCALE_BOUND;
+            let sc = sc.reshape([b, s]);
+            let t = o.narrow(1, 1, 1).reshape([b, s]);
+            if l % 2 == 0 {
+                x = x * sc.clone().exp() + t;
+            } else {
+                y = y * sc.clone().exp() + t;
+            }
+            ld = Some(match ld {
+                Some(acc) => acc + sc,
+                None => sc,
+            });
+        }
+        let lbase = (x.powi_scalar(2) + y.powi_scalar(2)) * (-0.5) - LN_TWO_PI;
+        match ld {
+            Some(ld) => lbase + ld,
+            None => lbase,
+        }
+    }
+}
+
+/// Trains the RQ-spline flow; returns `(params, loss history)`.
+pub fn train_spline(pool: &mut Pool<'_>, cfg: &TrainConfig) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+    let device = nn::train_device();
+    let mut rng = rng_for(mix_seed(cfg.seed, 0xf10e), 0, 0);
+    // Small output layers start the couplings near a uniform spline and the base near N(0, I).
+    let model = SplineFlow {
+        base: Mlp::new(&BASE_SIZES, 0.1, &mut rng, &device),
+        c0: Mlp::new(&SPLINE_NET_SIZES, 0.1, &mut rng, &device),
+        c1: Mlp::new(&SPLINE_NET_SIZES, 0.1, &mut rng, &device),
+    };
+    let (model, history) = fit(
+        model,
+        "flow",
+        cfg,
+        pool,
+        PointKind::FromTarget,
+        (cfg.batch_conditions, cfg.samples_per_condition),
+        |m: &SplineFlow, batch: &Batch| m.log_pdf(batch).mean().neg(),
+    )?;
+    let mut params = Vec::with_capacity(FLOW_COUPLING1 + SPLINE_NET_LEN);
+    model.base.export(&mut params);
+    model.c0.export(&mut params);
+    model.c1.export(&mut params);
+    Ok((params, history))
+}
+
+/// Trains the affine-coupling flow; returns `(params, loss history)`.
+pub fn train_affine(pool: &mut Pool<'_>, cfg: &TrainConfig) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+    let device = nn::train_device();
+    let mut rng = rng_for(mix_seed(cfg.seed, 0xaff1), 0, 0);
+    let model = AffineFlow {
+        nets: (0..AFFINE_LAYERS)
+            .map(|_| Mlp::new(&AFFINE_NET_SIZES, 0.1, &mut rng, &device))
+            .collect(),
+    };
+    let (model, history) = fit(
+        model,
+        "affine-flow",
+        cfg,
+        pool,
+        PointKind::FromTarget,
+        (cfg.batch_conditions, cfg.samples_per_condition),
+        |m: &AffineFlow, batch: &Batch| m.log_pdf(batch).mean().neg(),
+    )?;
+    let mut params = Vec::with_capacity(AFFINE_LAYERS * AFFINE_NET_LEN);
+    for net in &model.nets {
+        net.export(&mut params);
+    }
+    Ok((params, history))
+}
+
+fn coupling_f64(params: &[f32], offset: usize, c: &[f64], other: f64, act: Act) -> Vec<f64> {
+    let mut input = c.to_vec();
+    encode_f64(other, OTHER_BANDS, &mut input);
+    let mut at = offset;
+    let sizes = if act == Act::Leaky {
+        &SPLINE_NET_SIZES
+    } else {
+        &AFFINE_NET_SIZES
+    };
+    mlp_f64(params, &mut at, sizes, act, &input)
+}
+
+fn condition_f64(phi: &[f32; FEATURE_DIM], wi: Vec3) -> Vec<f64> {
+    encode_condition(phi, wi)
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect()
+}
+
+/// Density (projected-disk area measure) of a trained RQ-spline flow at `p`, in f64 from the
+/// exported parameters; `wi` must already be normalised. 0 outside the open unit disk.
+#[must_use]
+pub fn spline_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+    if !(p.length_squared() < 1.0) {
+        return 0.0;
+    }
+    let c = condition_f64(phi, wi);
+    let (x, y) = (f64::from(p.x), f64::from(p.y));
+    let bound = f64::from(TAIL_BOUND);
+    let raw1 = coupling_f64(params, FLOW_COUPLING1, &c, x, Act::Leaky);
+    let (yl, ld1) = rq_forward_f64(y, &raw1, SPLINE_BINS, bound);
+    let raw0 = coupling_f64(params, FLOW_COUPLING0, &c, yl, Act::Leaky);
+    let (xl, ld0) = rq_forward_f64(x, &raw0, SPLINE_BINS, bound);
+    let mut at = 0;
+    let o = mlp_f64(params, &mut at, &BASE_SIZES, Act::Relu, &c);
+    let clamp = |v: f64| v.clamp(f64::from(LOG_SIGMA_MIN), f64::from(LOG_SIGMA_MAX));
+    let (lsx, lsy) = (clamp(o[2]), clamp(o[3]));
+    let dx = (xl - o[0]) / lsx.exp();
+    let dy = (yl - o[1]) / lsy.exp();
+    let lp = -0.5 * (dx * dx + dy * dy) - (std::f64::consts::TAU).ln() - lsx - lsy + ld0 + ld1;
+    lp.exp()
+}
+
+/// Density (projected-disk area measure) of a trained affine flow at `p` (see
+/// [`spline_pdf_f64`]).
+#[must_use]
+pub fn affine_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+    if !(p.length_squared() < 1.0) {
+        return 0.0;
+    }
+    let c = condition_f64(phi, wi);
+    let (mut x, mut y) = (f64::from(p.x), f64::from(p.y));
+    let mut ld = 0.0;
+    let bound = f64::from(AFFINE_SCALE_BOUND);
+    for l in 0..AFFINE_LAYERS {
+        let other = if l % 2 == 0 { y } else { x };
+        let o = coupling_f64(params, l * AFFINE_NET_LEN, &c, other, Act::Relu);
+        let s = bound * (o[0] / bound).tanh();
+        if l % 2 == 0 {
+            x = x * s.exp() + o[1];
+        } else {
+            y = y * s.exp() + o[1];
+        }
+        ld += s;
+    }
+    (-0.5 * (x * x + y * y) - (std::f64::consts::TAU).ln() + ld).exp()
+}

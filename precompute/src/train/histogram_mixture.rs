@@ -1,0 +1,356 @@
+//! Histogram mixture (paper Eq. 5–7; `core/ARCHITECTURES.md` §6).
+//!
+//! Training model: the condition network `10 → 32 → 32 → 32 → 40` (the runtime's) gives per
+//! basis `k` a logit `a_k`, a rotation `ρ_k` and a latent code `t_k = sigmoid(τ_k)`; a larger
+//! basis network `H(q, t, k)` (input `[enc6(q.x), enc6(q.y), enc3(t), one-hot(k)]`, 3 hidden
+//! ReLU layers of 64, softplus output) stands for the basis histograms. The model density is
+//!
+//! ```text
+//! p(ω⊥) = Σ_k softmax(a)_k · H(R_kᵀ ω⊥, t_k, k)                                   (Eq. 5–6)
+//! ```
+//!
+//! fitted with the L2 loss of Eq. 7 at random points (half uniform on the disk, half drawn
+//! from p*), divided by the batch's mean p*² so the scale does not depend on how peaked the
+//! material is, plus the quantisation term `λ ‖t − round(t·(T−1))/(T−1)‖²`.
+//!
+//! Baking evaluates `H(·, t_j, k)` on every `(k, level j)` slice of an `N × N` grid (the mean
+//! over `ss × ss` points per cell; cells entirely outside the disk are 0), records the slice
+//! total `mass[k, j] = Σ_cells value · cell_area` and divides the slice by it. With
+//! `w_k ∝ softmax(a)_k · mass[k, t]`, the runtime's density is then exactly the normalised,
+//! cell-averaged training model.
+
+use burn::module::Module;
+use burn::tensor::activation;
+use burn::tensor::Tensor;
+use glam::{Vec2, Vec3};
+use neusample::histogram::{self, cell_outside_disk, Interpolation, BASES};
+use neusample::sampler::{raw_condition, RAW_CONDITION_DIM};
+use neusample::{DType, FEATURE_DIM};
+
+use super::data::{mix_seed, rng_for, PointKind, Pool};
+use super::nn::{self, encode, fit, mlp_f64, softmax_f64, tensor2, to_host, Act, Batch, Mlp};
+use super::TrainConfig;
+
+/// Layer sizes of the condition network (the runtime's).
+pub const COND_SIZES: [usize; 5] = [RAW_CONDITION_DIM, 32, 32, 32, 4 * BASES];
+/// Frequency bands of the encoding of each rotated coordinate.
+pub const Q_BANDS: usize = 6;
+/// Frequency bands of the encoding of the latent code.
+pub const T_BANDS: usize = 3;
+const Q_IN: usize = 2 * (1 + 2 * Q_BANDS);
+const T_IN: usize = 1 + 2 * T_BANDS;
+/// Width of the basis network's hidden layers.
+pub const BASIS_HIDDEN: usize = 64;
+/// Layer sizes of the basis network (training only; baked into tables).
+pub const BASIS_SIZES: [usize; 5] = [Q_IN + T_IN + BASES, BASIS_HIDDEN, BASIS_HIDDEN, BASIS_HIDDEN, 1];
+
+/// The baked tables of a histogram mixture (`core/ARCHITECTURES.md` §6), with what is needed
+/// to re-bake them.
+#[derive(Clone, Debug)]
+pub struct BakedTables {
+    /// mass, table, marginal and conditional as core builds them
+    /// ([`neusample::histogram::try_bake_slices`], f32 storage).
+    pub baked: histogram::BakedTables,
+    /// How the runtime reads the latent axis.
+    pub interpolation: Interpolation,
+    /// The raw slices `K × T × N × N` (cell means of the basis network) given to
+    /// `bake_slices`; re-bake them for another storage type (f16 rounds before the sums).
+    pub raw: Vec<f32>,
+    /// The trained basis network (runtime layout), for diagnostics.
+    pub basis_params: Vec<f32>,
+}
+
+impl BakedTables {
+    /// Re-bakes the raw slices for `storage` (f16 values and matching running sums).
+    pub fn rebake(&self, storage: DType) -> anyhow::Result<histogram::BakedTables> {
+        let b = &self.baked;
+        histogram::try_bake_slices(
+            &self.raw,
+            b.bases as usize,
+            b.t_levels as usize,
+            b.resolution as usize,
+            storage,
+        )
+            .map_err(|e| anyhow::anyhow!("baking the histogram mixture: {e}"))
+    }
+}
+
+/// The training model.
+#[derive(Module, Debug)]
+pub struct HistogramMixture {
+    /// Condition network `10 → 32 → 32 → 32 → 40`.
+    pub cond: Mlp,
+    /// Basis network `H(q, t, k)`.
+    pub basis: Mlp,
+}
+
+/// The basis network's first-layer contribution of `(t, k)` plus its bias, for `t` `[m, K]`:
+/// `[m, K, hidden]`.
+fn basis_tk_share(basis: &Mlp, t: Tensor<2>) -> Tensor<3> {
+    let [m, k] = t.dims();
+    let et = encode(t.reshape([m * k, 1]), T_BANDS);
+    let tpart = et
+        .matmul(basis.first_weight_rows(Q_IN, T_IN))
+        .reshape([m, k, BASIS_HIDDEN]);
+    let kpart = basis.first_weight_rows(Q_IN + T_IN, BASES).unsqueeze_dim::<3>(0);
+    tpart + kpart + basis.first_bias().unsqueeze_dim::<3>(0)
+}
+
+/// The basis network's first-layer contribution of rotated points `(qx, qy)` (columns
+/// `[r, 1]`): `[r, hidden]`.
+fn basis_q_part(basis: &Mlp, qx: Tensor<2>, qy: Tensor<2>) -> Tensor<2> {
+    let eq = Tensor::cat(vec![encode(qx, Q_BANDS), encode(qy, Q_BANDS)], 1);
+    eq.matmul(basis.first_weight_rows(0, Q_IN))
+}
+
+/// Layers after the first, from the first layer's pre-activation `[r, hidden]`, with the
+/// softplus output: `[r, 1]`.
+fn basis_rest(basis: &Mlp, pre: Tensor<2>) -> Tensor<2> {
+    let h = Mlp::hidden_act(pre, Act::Relu);
+    activation::softplus(basis.forward_from(1, h, Act::Relu), 1.0)
+}
+
+struct Heads {
+    /// softmax(a) `[b, K]`.
+    weights: Tensor<2>,
+    cos: Tensor<2>,
+    sin: Tensor<2>,
+    /// Latent codes `[b, K]`.
+    t: Tensor<2>,
+}
+
+fn heads(cond: &Mlp, raw: Tensor<2>) -> Heads {
+    let b = raw.dims()[0];
+    let o = cond.forward(raw, Act::Relu).reshape([b, BASES, 4]);
+    let get = |j: usize| o.clone().narrow(2, j, 1).reshape([b, BASES]);
+    let (rx, ry) = (get(1), get(2));
+    let inv = (rx.clone().powi_scalar(2) + ry.clone().powi_scalar(2) + 1e-30)
+        .sqrt()
+        .recip();
+    Heads {
+        weights: activation::softmax(get(0), 1),
+        cos: rx * inv.clone(),
+        sin: ry * inv,
+        t: activation::sigmoid(get(3)),
+    }
+}
+
+impl HistogramMixture {
+    /// Training-model density `[b, s]` at the batch points and the latent codes `[b, K]`.
+    fn density(&self, batch: &Batch) -> (Tensor<2>, Tensor<2>) {
+        let (b, s) = (batch.b, batch.s);
+        let h = heads(&self.cond, batch.raw.clone());
+        let x = batch.x.clone().unsqueeze_dim::<3>(2);
+        let y = batch.y.clone().unsqueeze_dim::<3>(2);
+        let c = h.cos.clone().unsqueeze_dim::<3>(1);
+        let sn = h.sin.clone().unsqueeze_dim::<3>(1);
+        // q = R_kᵀ ω⊥ for every (condition, point, basis): [b, s, K].
+        let qx = x.clone() * c.clone() + y.clone() * sn.clone();
+        let qy = y * c - x * sn;
+        let n = b * s * BASES;
+        let qpart = basis_q_part(&self.basis, qx.reshape([n, 1]), qy.reshape([n, 1]))
+            .reshape([b, s, BASES, BASIS_HIDDEN]);
+        let share = basis_tk_share(&self.basis, h.t.clone()).unsqueeze_dim::<4>(1);
+        let pre = (qpart + share).reshape([n, BASIS_HIDDEN]);
+        let hk = basis_rest(&self.basis, pre).reshape([b, s, BASES]);
+        let p = (hk * h.weights.unsqueeze_dim::<3>(1)).sum_dim(2).reshape([b, s]);
+        (p, h.t)
+    }
+}
+
+/// Trains the histogram mixture and bakes its tables; returns `(params, tables, history)`.
+pub fn train(
+    pool: &mut Pool<'_>,
+    cfg: &TrainConfig,
+) -> anyhow::Result<(Vec<f32>, BakedTables, Vec<f32>)> {
+    anyhow::ensure!(cfg.hist_t_levels >= 2, "hist_t_levels must be at least 2");
+    anyhow::ensure!(cfg.hist_res >= 1, "hist_res must be at least 1");
+    let device = nn::train_device();
+    let mut rng = rng_for(mix_seed(cfg.seed, 0x4157), 0, 0);
+    let model = HistogramMixture {
+        cond: Mlp::new(&COND_SIZES, 1.0, &mut rng, &device),
+        basis: Mlp::new(&BASIS_SIZES, 1.0, &mut rng, &device),
+    };
+    let levels = (cfg.hist_t_levels - 1) as f32;
+    let lambda = cfg.hist_quant_weight;
+    let (model, history) = fit(
+        model,
+        "histogram-mixture",
+        cfg,
+        pool,
+        PointKind::Regression,
+        (cfg.hist_batch_conditions, cfg.hist_points_per_condition),
+        |m: &HistogramMixture, batch: &Batch| {
+            let target = batch.target.clone().expect("regression batches carry p*");
+            let (p, t) = m.density(batch);
+            let scale = target.clone().powi_scalar(2).mean().detach() + 1e-12;
+            let l2 = (p - target).powi_scalar(2).mean() / scale;
+            let tq = (t.clone().detach() * levels).round() / levels;
+            l2 + (t - tq).powi_scalar(2).mean() * lambda
+        },
+    )?;
+    let mut params = Vec::new();
+    model.cond.export(&mut params);
+    let mut basis_params = Vec::new();
+    model.basis.export(&mut basis_params);
+    let interpolation = if cfg.interpolate_t {
+        Interpolation::Linear
+    } else {
+        Interpolation::Nearest
+    };
+    let tables = bake(
+        &basis_params,
+        cfg.hist_t_levels,
+        cfg.hist_res,
+        cfg.hist_supersample.max(1),
+        interpolation,
+    )?;
+    Ok((params, tables, history))
+}
+
+/// Bakes the basis network into `K × T × N × N` raw slices (see the module docs) and builds
+/// the normalised tables and running sums with core's `bake_slices` (f32 storage).
+pub fn bake(
+    basis_params: &[f32],
+    t_levels: usize,
+    res: usize,
+    supersample: usize,
+    interpolation: Interpolation,
+) -> anyhow::Result<BakedTables> {
+    let device = nn::infer_device();
+    let basis = Mlp::from_flat(&BASIS_SIZES, basis_params, &device);
+    let ss = supersample.max(1);
+    let cell = 2.0 / res as f32;
+    // Points: ss × ss per cell, cells in row-major order (only those touching the disk).
+    let open: Vec<usize> = (0..res * res)
+        .filter(|&i| !cell_outside_disk((i / res) as u32, (i % res) as u32, res as u32))
+        .collect();
+    let mut qx = Vec::with_capacity(open.len() * ss * ss);
+    let mut qy = Vec::with_capacity(open.len() * ss * ss);
+    for &i in &open {
+        let (r, c) = (i / res, i % res);
+        for a in 0..ss {
+            for bb in 0..ss {
+                qx.push(-1.0 + cell * (c as f32 + (bb as f32 + 0.5) / ss as f32));
+                qy.push(-1.0 + cell * (r as f32 + (a as f32 + 0.5) / ss as f32));
+            }
+        }
+    }
+    let np = qx.len();
+    let qpart = basis_q_part(
+        &basis,
+        tensor2(qx, np, 1, &device),
+        tensor2(qy, np, 1, &device),
+    );
+    let tl: Vec<f32> = (0..t_levels)
+        .map(|j| j as f32 / (t_levels - 1) as f32)
+        .collect();
+    // [T, K, hidden] → slice order (k, j).
+    let share = basis_tk_share(&basis, tensor2(tl, t_levels, 1, &device).repeat_dim(1, BASES))
+        .swap_dims(0, 1)
+        .reshape([BASES * t_levels, BASIS_HIDDEN]);
+    let slices = BASES * t_levels;
+    let mut raw = vec![0.0f32; slices * res * res];
+    let chunk = (1usize << 17).div_ceil(np.max(1)).clamp(1, slices);
+    let qpart3 = qpart.unsqueeze_dim::<3>(0);
+    let mut first = 0;
+    while first < slices {
+        let m = chunk.min(slices - first);
+        let sh = share.clone().narrow(0, first, m).unsqueeze_dim::<3>(1);
+        let pre = (qpart3.clone() + sh).reshape([m * np, BASIS_HIDDEN]);
+        let vals = to_host(basis_rest(&basis, pre));
+        for sl in 0..m {
+            let out = &mut raw[(first + sl) * res * res..(first + sl + 1) * res * res];
+            for (o, &i) in open.iter().enumerate() {
+                let at = sl * np + o * ss * ss;
+                let mean: f64 =
+                    vals[at..at + ss * ss].iter().map(|&v| f64::from(v)).sum::<f64>()
+                        / (ss * ss) as f64;
+                out[i] = mean as f32;
+            }
+        }
+        first += m;
+    }
+    let baked = histogram::try_bake_slices(&raw, BASES, t_levels, res, DType::F32)
+    .map_err(|e| anyhow::anyhow!("baking the histogram mixture: {e}"))?;
+    Ok(BakedTables {
+        baked,
+        interpolation,
+        raw,
+        basis_params: basis_params.to_vec(),
+    })
+}
+
+/// Density (projected-disk area measure) of the baked histogram mixture at `p` — the model
+/// the runtime evaluates: condition network in f64 from `params`, then the tables. `wi` must
+/// already be normalised. 0 outside the open unit disk.
+#[must_use]
+pub fn pdf_f64(
+    params: &[f32],
+    tables: &BakedTables,
+    phi: &[f32; FEATURE_DIM],
+    wi: Vec3,
+    p: Vec2,
+) -> f64 {
+    if !(p.length_squared() < 1.0) {
+        return 0.0;
+    }
+    let r: Vec<f64> = raw_condition(phi, wi)
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect();
+    let mut at = 0;
+    let o = mlp_f64(params, &mut at, &COND_SIZES, Act::Relu, &r);
+    let a: Vec<f64> = (0..BASES).map(|k| o[4 * k]).collect();
+    let sm = softmax_f64(&a);
+    let b = &tables.baked;
+    let (tn, n) = (b.t_levels as usize, b.resolution as usize);
+    let slice = n * n;
+    let mut num = 0.0;
+    let mut den = 0.0;
+    for k in 0..BASES {
+        let (rx, ry, tau) = (o[4 * k + 1], o[4 * k + 2], o[4 * k + 3]);
+        let len = (rx * rx + ry * ry).sqrt();
+        let (cs, sn) = if len * len < 1e-24 {
+            (1.0, 0.0)
+        } else {
+            (rx / len, ry / len)
+        };
+        let (px, py) = (f64::from(p.x), f64::from(p.y));
+        let q = Vec2::new((cs * px + sn * py) as f32, (-sn * px + cs * py) as f32);
+        let t = 1.0 / (1.0 + (-tau).exp());
+        let sc = t * (tn - 1) as f64;
+        let levels: [(usize, f64); 2] = if tables.interpolation == Interpolation::Linear {
+            let j0 = (sc.floor() as usize).min(tn - 2);
+            let f = sc - j0 as f64;
+            [(j0, 1.0 - f), (j0 + 1, f)]
+        } else {
+            [(((sc + 0.5).floor() as usize).min(tn - 1), 1.0), (0, 0.0)]
+        };
+        // The runtime reads each basis on the closed square (cells outside the disk are 0).
+        let cell = if q.x.abs() <= 1.0 && q.y.abs() <= 1.0 {
+            let f = |v: f32| (((v + 1.0) * 0.5 * n as f32).floor().max(0.0) as usize).min(n - 1);
+            Some(f(q.y) * n + f(q.x))
+        } else {
+            None
+        };
+        // Interpolated weight and histogram of basis k.
+        let mk: f64 = levels
+            .iter()
+            .map(|&(j, f)| f * f64::from(b.mass[k * tn + j]))
+            .sum();
+        if let Some(c) = cell {
+            let hk: f64 = levels
+                .iter()
+                .map(|&(j, f)| f * f64::from(b.table[(k * tn + j) * slice + c]))
+                .sum();
+            num += sm[k] * mk * hk;
+        }
+        den += sm[k] * mk;
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
+}

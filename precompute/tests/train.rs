@@ -1,0 +1,280 @@
+//! Training: every method learns (its loss falls in a short run), exports the runtime's
+//! layout, and the runtime samplers built from the exported arrays reproduce the trained
+//! model's density (`model_pdf_disk`) and the training graph to 1e−3 relative.
+//!
+//! Heavier runs (default configurations, KL on materials) are gated by
+//! `NEUSAMPLE_FULL_TESTS=1`.
+
+use std::collections::HashMap;
+use std::sync::{Mutex, OnceLock};
+
+use neusample::flow::{AffineFlowSampler, FlowSampler};
+use neusample::histogram::{DirectHistogramSampler, HistogramMixtureSampler};
+use neusample::lobes::{AnalyticMixtureSampler, ImprovedBaselineSampler};
+use neusample::{Prepared, Sampler, Vec2, Vec3};
+use neusample_precompute::train::{
+    self, graph_log_pdf, model_pdf_disk, train_with, Method, SyntheticSource, TargetSource,
+    TrainConfig, Trained,
+};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
+fn full_tests() -> bool {
+    std::env::var("NEUSAMPLE_FULL_TESTS").is_ok_and(|v| v == "1")
+}
+
+/// Quick-trained models on the synthetic target, shared between tests.
+fn quick(method: Method) -> Trained {
+    static CACHE: OnceLock<Mutex<HashMap<Method, Trained>>> = OnceLock::new();
+    let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
+    if let Some(t) = cache.lock().unwrap().get(&method) {
+        return t.clone();
+    }
+    let t = train_with(&SyntheticSource, method, &TrainConfig::quick()).unwrap();
+    cache.lock().unwrap().insert(method, t.clone());
+    t
+}
+
+fn mean(v: &[f32]) -> f64 {
+    v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len() as f64
+}
+
+/// Runtime density at `p` of the sampler built from `t`'s exported arrays.
+fn core_pdf(t: &Trained, phi: &[f32; 8], wi: Vec3, p: Vec2) -> f32 {
+    let w: &[f32] = &t.params;
+    match t.method {
+        Method::Baseline => ImprovedBaselineSampler::new(w)
+            .expect("baseline parameter count")
+            .prepare(phi, wi)
+            .map_or(0.0, |s| s.pdf_disk(p)),
+        Method::Analytic => AnalyticMixtureSampler::new(w)
+            .expect("analytic parameter count")
+            .prepare(phi, wi)
+            .map_or(0.0, |s| s.pdf_disk(p)),
+        Method::Flow => FlowSampler::new(w)
+            .expect("flow parameter count")
+            .prepare(phi, wi)
+            .map_or(0.0, |s| s.pdf_disk(p)),
+        Method::AffineFlow => AffineFlowSampler::new(w)
+            .expect("affine parameter count")
+            .prepare(phi, wi)
+            .map_or(0.0, |s| s.pdf_disk(p)),
+        Method::DirectHistogram => DirectHistogramSampler::new(w)
+            .expect("direct histogram parameter count")
+            .prepare(phi, wi)
+            .map_or(0.0, |s| s.pdf_disk(p)),
+        Method::HistogramMixture => {
+            let tables = t.tables.as_ref().expect("histogram mixture has tables");
+            let b = &tables.baked;
+            HistogramMixtureSampler::new(
+                w,
+                b.mass.as_slice(),
+                b.table.as_slice(),
+                b.marginal.as_slice(),
+                b.conditional.as_slice(),
+                b.t_levels,
+                b.resolution,
+                tables.interpolation,
+            )
+            .expect("histogram mixture shapes")
+            .prepare(phi, wi)
+            .map_or(0.0, |s| s.pdf_disk(p))
+        }
+    }
+}
+
+fn expected_len(m: Method) -> usize {
+    match m {
+        Method::Baseline => ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT,
+        Method::Analytic => AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT,
+        Method::Flow => FlowSampler::<&[f32]>::PARAM_COUNT,
+        Method::AffineFlow => AffineFlowSampler::<&[f32]>::PARAM_COUNT,
+        Method::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
+        Method::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
+    }
+}
+
+/// Random test points of a condition: half from its target, half uniform on the disk.
+fn test_points(target: &neusample_precompute::groundtruth::TargetPdf, rng: &mut Pcg64) -> Vec<Vec2> {
+    let mut pts = Vec::new();
+    while pts.len() < 40 {
+        let p = if pts.len() % 2 == 0 {
+            target.sample(Vec2::new(rng.random(), rng.random()))
+        } else {
+            Some(Vec2::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
+        };
+        if let Some(p) = p.filter(|p| p.length_squared() < 0.999) {
+            pts.push(p);
+        }
+    }
+    pts
+}
+
+fn rel_err(a: f64, b: f64) -> f64 {
+    (a - b).abs() / a.abs().max(b.abs()).max(1e-6)
+}
+
+/// The shared checks for one method.
+fn check(method: Method) {
+    let t = quick(method);
+    assert_eq!(t.method, method);
+    assert_eq!(t.params.len(), expected_len(method), "{method}: parameter count");
+    assert!(t.params.iter().all(|v| v.is_finite()), "{method}: finite params");
+
+    // The loss falls.
+    let h = &t.loss_history;
+    assert_eq!(h.len(), TrainConfig::quick().steps);
+    let k = 20;
+    let (first, last) = (mean(&h[..k]), mean(&h[h.len() - k..]));
+    eprintln!("{method}: loss {first:.4} → {last:.4} in {:.2} s", t.seconds);
+    if method == Method::HistogramMixture {
+        assert!(last < 0.8 * first, "{method}: loss {first} → {last}");
+    } else {
+        assert!(last < first - 0.1, "{method}: loss {first} → {last}");
+    }
+
+    // Runtime ≡ model_pdf_disk ≡ training graph at random conditions and points.
+    let gts = SyntheticSource.draw(6, 32, 777).unwrap();
+    let mut rng = Pcg64::seed_from_u64(5);
+    let (mut worst_core, mut worst_graph, mut n) = (0.0f64, 0.0f64, 0);
+    for g in &gts {
+        let pts = test_points(&g.target, &mut rng);
+        let graph = graph_log_pdf(method, &t.params, &g.phi, g.wi, &pts);
+        for (i, &p) in pts.iter().enumerate() {
+            let model = f64::from(model_pdf_disk(&t, &g.phi, g.wi, p));
+            let core = f64::from(core_pdf(&t, &g.phi, g.wi, p));
+            assert!(model > 0.0, "{method}: model density 0 at {p}");
+            let e = rel_err(core, model);
+            worst_core = worst_core.max(e);
+            assert!(e < 1e-3, "{method}: core {core} vs model {model} at {p} (φ {:?}, wi {})", g.phi, g.wi);
+            if let Some(graph) = &graph {
+                let gv = f64::from(graph[i]).exp();
+                let e = rel_err(gv, model);
+                worst_graph = worst_graph.max(e);
+                assert!(e < 1e-3, "{method}: graph {gv} vs model {model} at {p}");
+            }
+            n += 1;
+        }
+    }
+    eprintln!(
+        "{method}: {n} points, worst relative error core/model {worst_core:.2e}, graph/model {worst_graph:.2e}"
+    );
+}
+
+#[test]
+fn baseline_learns_and_matches_runtime() {
+    check(Method::Baseline);
+}
+
+#[test]
+fn analytic_learns_and_matches_runtime() {
+    check(Method::Analytic);
+}
+
+#[test]
+fn flow_learns_and_matches_runtime() {
+    check(Method::Flow);
+}
+
+#[test]
+fn affine_flow_learns_and_matches_runtime() {
+    check(Method::AffineFlow);
+}
+
+#[test]
+fn direct_histogram_learns_and_matches_runtime() {
+    check(Method::DirectHistogram);
+}
+
+#[test]
+fn histogram_mixture_learns_and_matches_runtime() {
+    check(Method::HistogramMixture);
+    let t = quick(Method::HistogramMixture);
+    let tables = t.tables.as_ref().unwrap();
+    tables.baked.validate().expect("baked tables validate");
+    let cfg = TrainConfig::quick();
+    let b = &tables.baked;
+    assert_eq!(
+        (b.bases, b.t_levels, b.resolution),
+        (10, cfg.hist_t_levels as u32, cfg.hist_res as u32)
+    );
+    // Both read modes of the latent axis give a density that integrates to ≤ 1 on the disk
+    // (boundary cells lose the part outside the disk) and close to 1.
+    let gts = SyntheticSource.draw(3, 32, 99).unwrap();
+    for g in &gts {
+        let n = 200;
+        let h = 2.0 / n as f64;
+        let mut total = 0.0;
+        for r in 0..n {
+            for c in 0..n {
+                let p = Vec2::new((-1.0 + (c as f64 + 0.5) * h) as f32, (-1.0 + (r as f64 + 0.5) * h) as f32);
+                total += f64::from(model_pdf_disk(&t, &g.phi, g.wi, p)) * h * h;
+            }
+        }
+        assert!(total > 0.9 && total < 1.001, "integral {total}");
+    }
+}
+
+#[test]
+fn names_round_trip() {
+    for m in Method::ALL {
+        assert_eq!(m.to_string().parse::<Method>().unwrap(), m);
+    }
+    assert!("histogram".parse::<Method>().is_err());
+}
+
+#[test]
+fn training_is_reproducible() {
+    let mut cfg = TrainConfig::quick();
+    cfg.steps = 30;
+    let a = train_with(&SyntheticSource, Method::Flow, &cfg).unwrap();
+    let b = train_with(&SyntheticSource, Method::Flow, &cfg).unwrap();
+    assert!(a.params.iter().zip(&b.params).all(|(x, y)| x.to_bits() == y.to_bits()));
+    assert_eq!(a.loss_history, b.loss_history);
+    cfg.seed = 2;
+    let c = train_with(&SyntheticSource, Method::Flow, &cfg).unwrap();
+    assert!(a.params != c.params);
+}
+
+/// Default-size training of every method on the synthetic target and on built-in materials,
+/// reporting ms/step and KL(p* ‖ p). Slow (minutes): full tests only.
+#[test]
+fn default_training_kl() {
+    if !full_tests() {
+        return;
+    }
+    let methods: Vec<Method> = match std::env::var("NEUSAMPLE_TRAIN_METHODS") {
+        Ok(s) => s.split(',').map(|m| m.parse().unwrap()).collect(),
+        Err(_) => Method::ALL.to_vec(),
+    };
+    let materials: Vec<String> = match std::env::var("NEUSAMPLE_TRAIN_MATERIALS") {
+        Ok(s) => s.split(',').map(str::to_string).collect(),
+        Err(_) => vec!["synthetic".into(), "goat_leather".into()],
+    };
+    for name in &materials {
+        let material = (name != "synthetic")
+            .then(|| neusample_precompute::materials::builtin(name).unwrap());
+        let source: Box<dyn TargetSource + '_> = match &material {
+            Some(m) => Box::new(train::MaterialSource::new(m.as_ref())),
+            None => Box::new(SyntheticSource),
+        };
+        for &m in &methods {
+            let mut cfg = TrainConfig::default_for(m);
+            if let Ok(s) = std::env::var("NEUSAMPLE_TRAIN_STEPS") {
+                cfg.steps = s.parse().unwrap();
+            }
+            let t = train_with(source.as_ref(), m, &cfg).unwrap();
+            let kl = train::mean_kl(&t, source.as_ref(), 64, 64, 12345).unwrap();
+            let ms = 1000.0 * t.seconds / cfg.steps as f64;
+            eprintln!(
+                "{name:>16} {m:>18}: {} steps in {:.1} s ({ms:.1} ms/step incl. data), final loss {:.4}, KL {kl:.4}",
+                cfg.steps,
+                t.seconds,
+                mean(&t.loss_history[t.loss_history.len() - 50..])
+            );
+        }
+    }
+}
