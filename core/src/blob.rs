@@ -459,7 +459,9 @@ impl<'a> Blob<'a> {
     /// Copies a tensor, widened to f32, into `out` (which must have exactly its length):
     /// how a host fills GPU storage buffers or builds a fast f32 copy of an f16 blob.
     pub fn widen_into(&self, role: TensorRole, out: &mut [f32]) -> Result<()> {
-        let t = self.tensor(role).ok_or(Error::TensorMissing { role: role.name() })?;
+        let t = self
+            .tensor(role)
+            .ok_or(Error::TensorMissing { role: role.name() })?;
         if out.len() != t.len() as usize {
             return Err(Error::TensorShape {
                 role: role.name(),
@@ -542,7 +544,9 @@ impl<'a> Blob<'a> {
     pub fn sampler(&self) -> Result<AnySampler<'a>> {
         Ok(match self.header.kind {
             SamplerKind::Cosine => AnySampler::Cosine(CosineSampler),
-            SamplerKind::ImprovedBaseline => AnySampler::ImprovedBaseline(self.improved_baseline()?),
+            SamplerKind::ImprovedBaseline => {
+                AnySampler::ImprovedBaseline(self.improved_baseline()?)
+            }
             SamplerKind::AnalyticMixture => AnySampler::AnalyticMixture(self.analytic_mixture()?),
             SamplerKind::Flow => AnySampler::Flow(self.flow()?),
             SamplerKind::AffineFlow => AnySampler::AffineFlow(self.affine_flow()?),

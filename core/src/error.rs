@@ -104,7 +104,10 @@ impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Error::Truncated { needed, got } => {
-                write!(f, "blob truncated: needs at least {needed} bytes, has {got}")
+                write!(
+                    f,
+                    "blob truncated: needs at least {needed} bytes, has {got}"
+                )
             }
             Error::BadMagic => write!(f, "not a neusample blob (bad magic)"),
             Error::UnsupportedVersion { found, supported } => write!(
@@ -147,10 +150,16 @@ impl fmt::Display for Error {
                 write!(f, "tensor `{role}` lies outside the data section")
             }
             Error::TensorDType { role, found } => {
-                write!(f, "tensor `{role}` has element type {found:?}, not allowed there")
+                write!(
+                    f,
+                    "tensor `{role}` has element type {found:?}, not allowed there"
+                )
             }
             Error::NonFinite { role, index } => {
-                write!(f, "tensor `{role}` has a NaN or infinite value at index {index}")
+                write!(
+                    f,
+                    "tensor `{role}` has a NaN or infinite value at index {index}"
+                )
             }
             Error::TableNotNormalized { role, index } => write!(
                 f,

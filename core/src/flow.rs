@@ -92,29 +92,6 @@ fn inside_disk(p: Vec2) -> bool {
     p.x * p.x + p.y * p.y < 1.0
 }
 
-/// [`warp::upper_hemisphere`], except that a direction already of unit length to f32
-/// precision (`|len² − 1| ≤ 4ε`, e.g. any `Sample::wo`) is used as is: renormalising it
-/// would only move `wo⊥` by an ulp, and the flows' densities are steep enough for that to
-/// change `pdf(sample.wo)` against `sample.pdf` by up to ~10⁻³ relative.
-#[inline(always)]
-fn unit_upper(wo: Vec3) -> Option<Vec3> {
-    let len2 = wo.x * wo.x + wo.y * wo.y + wo.z * wo.z;
-    if math::abs(len2 - 1.0) <= 4.0 * f32::EPSILON && wo.z > warp::MIN_COS_THETA {
-        Some(wo)
-    } else {
-        warp::upper_hemisphere(wo)
-    }
-}
-
-/// Solid-angle density `pdf_disk(wo⊥) · cos θo` of `P`, with [`unit_upper`].
-#[inline(always)]
-fn pdf_solid_angle<P: Prepared>(p: &P, wo: Vec3) -> f32 {
-    match unit_upper(wo) {
-        Some(w) => warp::disk_to_solid_angle(p.pdf_disk(warp::to_disk(w)), w.z),
-        None => 0.0,
-    }
-}
-
 /// `exp(log_pdf)` as a density: 0 for −∞, NaN or an overflow.
 #[inline(always)]
 fn density_from_log(log_pdf: f32) -> f32 {
@@ -279,12 +256,12 @@ impl<W: Weights> FlowPrepared<'_, W> {
             return None;
         }
         let k1 = spline_knots(self.params, FLOW_COUPLING1 as u32, &self.share[1], p.x);
-        Some(self.to_latent_with(p, &k1))
+        Some(self.latent_with_k1(p, &k1))
     }
 
     /// [`FlowPrepared::to_latent`] given coupling 1's spline `k1` at `x = p.x`.
     #[inline(always)]
-    fn to_latent_with(&self, p: Vec2, k1: &Knots<SPLINE_BINS>) -> (Vec2, f32) {
+    fn latent_with_k1(&self, p: Vec2, k1: &Knots<SPLINE_BINS>) -> (Vec2, f32) {
         let (yl, ld1) = k1.forward(p.y);
         let k0 = spline_knots(self.params, FLOW_COUPLING0 as u32, &self.share[0], yl);
         let (xl, ld0) = k0.forward(p.x);
@@ -300,13 +277,13 @@ impl<W: Weights> FlowPrepared<'_, W> {
     #[inline]
     #[must_use]
     pub fn from_latent(&self, z: Vec2) -> (Vec2, f32) {
-        let (p, ld, _) = self.from_latent_with(z);
+        let (p, ld, _) = self.point_and_k1(z);
         (p, ld)
     }
 
     /// [`FlowPrepared::from_latent`], also returning coupling 1's spline at `x`.
     #[inline(always)]
-    fn from_latent_with(&self, z: Vec2) -> (Vec2, f32, Knots<SPLINE_BINS>) {
+    fn point_and_k1(&self, z: Vec2) -> (Vec2, f32, Knots<SPLINE_BINS>) {
         let k0 = spline_knots(self.params, FLOW_COUPLING0 as u32, &self.share[0], z.y);
         let (x, li0) = k0.inverse(z.x);
         let k1 = spline_knots(self.params, FLOW_COUPLING1 as u32, &self.share[1], x);
@@ -350,11 +327,11 @@ impl<W: Weights> Prepared for FlowPrepared<'_, W> {
     fn sample(&self, u: Vec2) -> Option<Sample> {
         let u = sampler::sanitize_u2(u)?;
         let z = self.mu + self.sigma * gaussian::box_muller(u);
-        let (p, _, k1) = self.from_latent_with(z);
+        let (p, _, k1) = self.point_and_k1(z);
         if !inside_disk(p) {
             return None;
         }
-        let (z, ld) = self.to_latent_with(p, &k1);
+        let (z, ld) = self.latent_with_k1(p, &k1);
         Sample::from_disk(p, density_from_log(self.log_density(z, ld)))
     }
 
@@ -364,17 +341,10 @@ impl<W: Weights> Prepared for FlowPrepared<'_, W> {
         density_from_log(self.log_pdf_disk(p))
     }
 
-    /// Density with respect to solid angle, `pdf_disk(wo⊥) · cos θo`; equal bit for bit to
-    /// [`Sample::pdf`] for a sampled `wo` (a unit `wo` is not renormalised).
-    #[inline]
-    fn pdf(&self, wo: Vec3) -> f32 {
-        pdf_solid_angle(self, wo)
-    }
-
     /// The density direction, then the exact inverse of Box–Muller.
     #[inline]
     fn invert(&self, wo: Vec3) -> Option<Vec2> {
-        let w = unit_upper(wo)?;
+        let w = warp::upper_hemisphere(wo)?;
         let (z, _) = self.to_latent(warp::to_disk(w))?;
         let n = (z - self.mu) / self.sigma;
         if !math::is_finite(n.x) || !math::is_finite(n.y) {
@@ -503,12 +473,12 @@ impl<W: Weights> AffineFlowPrepared<'_, W> {
             return None;
         }
         let st0 = affine_params(self.params, 0, &self.share[0], p.y);
-        Some(self.to_latent_with(p, st0))
+        Some(self.latent_with_layer0(p, st0))
     }
 
     /// [`AffineFlowPrepared::to_latent`] given layer 0's `(s, t)` at `y = p.y`.
     #[inline(always)]
-    fn to_latent_with(&self, p: Vec2, st0: (f32, f32)) -> (Vec2, f32) {
+    fn latent_with_layer0(&self, p: Vec2, st0: (f32, f32)) -> (Vec2, f32) {
         let (s0, t0) = st0;
         let mut x = p.x * math::exp(s0) + t0;
         let mut y = p.y;
@@ -534,14 +504,14 @@ impl<W: Weights> AffineFlowPrepared<'_, W> {
     #[inline]
     #[must_use]
     pub fn from_latent(&self, z: Vec2) -> (Vec2, f32) {
-        let (p, ld, _) = self.from_latent_with(z);
+        let (p, ld, _) = self.point_and_layer0(z);
         (p, ld)
     }
 
     /// [`AffineFlowPrepared::from_latent`], also returning layer 0's `(s, t)` (computed at the
     /// final `y`).
     #[inline(always)]
-    fn from_latent_with(&self, z: Vec2) -> (Vec2, f32, (f32, f32)) {
+    fn point_and_layer0(&self, z: Vec2) -> (Vec2, f32, (f32, f32)) {
         let (mut x, mut y) = (z.x, z.y);
         let mut ld = 0.0f32;
         let mut l = AFFINE_LAYERS - 1;
@@ -593,11 +563,11 @@ impl<W: Weights> Prepared for AffineFlowPrepared<'_, W> {
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
         let u = sampler::sanitize_u2(u)?;
-        let (p, _, st0) = self.from_latent_with(gaussian::box_muller(u));
+        let (p, _, st0) = self.point_and_layer0(gaussian::box_muller(u));
         if !inside_disk(p) {
             return None;
         }
-        let (z, ld) = self.to_latent_with(p, st0);
+        let (z, ld) = self.latent_with_layer0(p, st0);
         Sample::from_disk(p, density_from_log(Self::log_density(z, ld)))
     }
 
@@ -607,17 +577,10 @@ impl<W: Weights> Prepared for AffineFlowPrepared<'_, W> {
         density_from_log(self.log_pdf_disk(p))
     }
 
-    /// Density with respect to solid angle, `pdf_disk(wo⊥) · cos θo`; equal bit for bit to
-    /// [`Sample::pdf`] for a sampled `wo` (a unit `wo` is not renormalised).
-    #[inline]
-    fn pdf(&self, wo: Vec3) -> f32 {
-        pdf_solid_angle(self, wo)
-    }
-
     /// The density direction, then the exact inverse of Box–Muller.
     #[inline]
     fn invert(&self, wo: Vec3) -> Option<Vec2> {
-        let w = unit_upper(wo)?;
+        let w = warp::upper_hemisphere(wo)?;
         let (z, _) = self.to_latent(warp::to_disk(w))?;
         if !math::is_finite(z.x) || !math::is_finite(z.y) {
             return None;

@@ -86,14 +86,22 @@ pub fn softmax<const N: usize>(x: &mut [f32; N]) {
     i = 0;
     while i < N {
         // NaN compares false: treat it as −∞ (weight 0).
-        let e = if x[i] >= m - 80.0 { math::exp(x[i] - m) } else { 0.0 };
+        let e = if x[i] >= m - 80.0 {
+            math::exp(x[i] - m)
+        } else {
+            0.0
+        };
         x[i] = e;
         sum += e;
         i += 1;
     }
     i = 0;
     while i < N {
-        x[i] = if sum > 0.0 { x[i] / sum } else { 1.0 / N as f32 };
+        x[i] = if sum > 0.0 {
+            x[i] / sum
+        } else {
+            1.0 / N as f32
+        };
         i += 1;
     }
 }

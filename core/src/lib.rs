@@ -15,6 +15,37 @@
 //! frame (z = normal). [`Prepared::pdf_disk`] is a density with respect to disk area;
 //! [`Prepared::pdf`] and [`Sample::pdf`] are with respect to **solid angle**,
 //! `p_ω = p_disk · cos θo` ([`warp`]).
+//!
+//! ## A renderer's view
+//!
+//! ```
+//! use neusample::blob::{Blob, BlobWriter, SamplerKind, TensorRole};
+//! use neusample::{DType, Prepared, Sampler, Vec2, Vec3};
+//!
+//! # let params = vec![0.0f32; SamplerKind::AnalyticMixture.param_count()];
+//! # let mut w = BlobWriter::new(SamplerKind::AnalyticMixture, DType::F32, "doc");
+//! # w.tensor(TensorRole::Params, &params);
+//! # let bytes = w.to_bytes();
+//! // Once, when the material loads: validate the blob and build its sampler.
+//! let blob = Blob::open(&bytes)?;
+//! let sampler = blob.sampler()?;
+//!
+//! // At a shading point: the material's feature vector φ and the incoming direction wi,
+//! // both in the local shading frame (z = normal, wi pointing away from the surface).
+//! let phi = [0.1f32; 8];
+//! let wi = Vec3::new(0.3, -0.2, 0.93);
+//! if let Some(prepared) = sampler.prepare(&phi, wi) {
+//!     // BSDF sampling: a direction and its solid-angle density (divide f·cos by it).
+//!     if let Some(s) = prepared.sample(Vec2::new(0.25, 0.75)) {
+//!         assert!(s.wo.z > 0.0 && s.pdf > 0.0);
+//!         // The density of the same direction, e.g. for MIS weights: the same number.
+//!         assert_eq!(prepared.pdf(s.wo), s.pdf);
+//!     }
+//!     // Light sampling picked another direction: its BSDF-sampling density for MIS.
+//!     let _p_light = prepared.pdf(Vec3::new(0.0, 0.6, 0.8));
+//! }
+//! # Ok::<(), neusample::Error>(())
+//! ```
 #![cfg_attr(not(feature = "std"), no_std)]
 #![cfg_attr(docsrs, feature(doc_cfg))]
 

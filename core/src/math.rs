@@ -155,7 +155,11 @@ pub fn is_finite(x: f32) -> bool {
 #[must_use]
 pub fn sanitize_u(u: f32) -> Option<f32> {
     if u >= 0.0 && u <= 1.0 {
-        Some(if u < ONE_MINUS_EPSILON { u } else { ONE_MINUS_EPSILON })
+        Some(if u < ONE_MINUS_EPSILON {
+            u
+        } else {
+            ONE_MINUS_EPSILON
+        })
     } else {
         None
     }

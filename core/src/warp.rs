@@ -53,7 +53,11 @@ impl Frame {
             return Frame::from_normal(n);
         }
         let t = t * (1.0 / math::sqrt(len2));
-        Frame { t, b: n.cross(t), n }
+        Frame {
+            t,
+            b: n.cross(t),
+            n,
+        }
     }
 
     /// World → local.
@@ -80,7 +84,13 @@ pub fn upper_hemisphere(w: Vec3) -> Option<Vec3> {
     if !(len2 > 0.0) || !math::is_finite(len2) {
         return None;
     }
-    let w = w * (1.0 / math::sqrt(len2));
+    // Directions that are already unit length to rounding are used as given: renormalising
+    // them would move a sampled direction by an ulp and change its density slightly.
+    let w = if math::abs(len2 - 1.0) <= 4.0 * f32::EPSILON {
+        w
+    } else {
+        w * (1.0 / math::sqrt(len2))
+    };
     if w.z > MIN_COS_THETA && math::is_finite(w.z) {
         Some(w)
     } else {

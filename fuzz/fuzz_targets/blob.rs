@@ -14,15 +14,39 @@ fn f32_at(d: &[u8], i: usize) -> f32 {
     }
 }
 
-fuzz_target!(|data: &[u8]| {
-    // The first two bytes split the input into blob bytes and query bytes.
-    if data.len() < 2 {
+/// Makes `total_len` and the trailing CRC-32 consistent, so that the fuzzer explores the
+/// header and tensor validation instead of stopping at the checksum.
+fn fix_checksum(b: &mut [u8]) {
+    if b.len() < 24 {
         return;
     }
-    let split = u16::from_le_bytes([data[0], data[1]]) as usize;
-    let rest = &data[2..];
-    let (blob_bytes, query) = rest.split_at(split.min(rest.len()));
-    let Ok(blob) = Blob::open(blob_bytes) else {
+    let n = b.len();
+    b[12..16].copy_from_slice(&(n as u32).to_le_bytes());
+    let mut c = !0u32;
+    for &x in &b[..n - 4] {
+        c ^= u32::from(x);
+        for _ in 0..8 {
+            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+        }
+    }
+    b[n - 4..].copy_from_slice(&(!c).to_le_bytes());
+}
+
+fuzz_target!(|data: &[u8]| {
+    // Byte 0: mode (bit 0: fix the checksum); bytes 1–2: length of the blob part; the rest
+    // is the blob followed by the query (φ, wi, u, wo as little-endian f32).
+    if data.len() < 3 {
+        return;
+    }
+    let fix = data[0] & 1 == 1;
+    let split = u16::from_le_bytes([data[1], data[2]]) as usize;
+    let rest = &data[3..];
+    let (blob_part, query) = rest.split_at(split.min(rest.len()));
+    let mut owned = blob_part.to_vec();
+    if fix {
+        fix_checksum(&mut owned);
+    }
+    let Ok(blob) = Blob::open(&owned) else {
         return;
     };
     let Ok(sampler) = blob.sampler() else {

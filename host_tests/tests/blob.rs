@@ -29,7 +29,11 @@ fn crc32(data: &[u8]) -> u32 {
     for &b in data {
         c ^= u32::from(b);
         for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0xEDB8_8320
+            } else {
+                c >> 1
+            };
         }
     }
     !c
@@ -61,7 +65,10 @@ fn every_kind_round_trips_in_f32_and_f16() {
                 assert_eq!(widened[i], expect);
                 max_err = max_err.max((widened[i] - p).abs());
             }
-            eprintln!("{kind:?} {dtype:?}: {} params, max |stored − original| = {max_err:e}", params.len());
+            eprintln!(
+                "{kind:?} {dtype:?}: {} params, max |stored − original| = {max_err:e}",
+                params.len()
+            );
             // The sampler works straight from the blob.
             let s = blob.sampler().unwrap();
             let p = s.prepare(&[0.1; 8], Vec3::new(0.3, 0.2, 0.9)).unwrap();
@@ -71,7 +78,10 @@ fn every_kind_round_trips_in_f32_and_f16() {
                 if let Some(smp) = p.sample(uniform2(&mut r)) {
                     any = true;
                     let back = p.pdf(smp.wo);
-                    assert!((back - smp.pdf).abs() <= 1e-4 * smp.pdf.max(1.0), "{kind:?}");
+                    assert!(
+                        (back - smp.pdf).abs() <= 1e-4 * smp.pdf.max(1.0),
+                        "{kind:?}"
+                    );
                 }
             }
             assert!(any, "{kind:?}: no sample landed in the disk");
@@ -87,12 +97,18 @@ fn aligned_f32_tensors_are_zero_copy() {
     let aligned: &mut [u8] = bytemuck_cast(&mut store);
     aligned[..bytes.len()].copy_from_slice(&bytes);
     let blob = Blob::open(&aligned[..bytes.len()]).unwrap();
-    assert!(matches!(blob.tensor(TensorRole::Params), Some(neusample::Tensor::F32(_))));
+    assert!(matches!(
+        blob.tensor(TensorRole::Params),
+        Some(neusample::Tensor::F32(_))
+    ));
     // And at an odd address the same blob is read unaligned, still in place.
     let mut odd = vec![0u8; bytes.len() + 1];
     odd[1..].copy_from_slice(&bytes);
     let blob = Blob::open(&odd[1..]).unwrap();
-    assert!(matches!(blob.tensor(TensorRole::Params), Some(neusample::Tensor::F32Bytes(_))));
+    assert!(matches!(
+        blob.tensor(TensorRole::Params),
+        Some(neusample::Tensor::F32Bytes(_))
+    ));
 }
 
 fn bytemuck_cast(v: &mut [u128]) -> &mut [u8] {
@@ -102,7 +118,11 @@ fn bytemuck_cast(v: &mut [u128]) -> &mut [u8] {
 
 #[test]
 fn truncation_at_every_length_is_a_typed_error() {
-    for kind in [SamplerKind::Cosine, SamplerKind::AnalyticMixture, SamplerKind::HistogramMixture] {
+    for kind in [
+        SamplerKind::Cosine,
+        SamplerKind::AnalyticMixture,
+        SamplerKind::HistogramMixture,
+    ] {
         let (bytes, _) = small_blob(kind, DType::F16, 11);
         for len in 0..bytes.len() {
             match Blob::open(&bytes[..len]) {
@@ -127,12 +147,18 @@ fn wrong_magic_version_and_kind() {
     b[8] = 2;
     assert_eq!(
         Blob::open(&b).unwrap_err(),
-        Error::UnsupportedVersion { found: 2, supported: 1 }
+        Error::UnsupportedVersion {
+            found: 2,
+            supported: 1
+        }
     );
     let blob = Blob::open(&bytes).unwrap();
     assert_eq!(
         blob.histogram_mixture().unwrap_err(),
-        Error::WrongKind { expected: SamplerKind::HistogramMixture, found: SamplerKind::Flow }
+        Error::WrongKind {
+            expected: SamplerKind::HistogramMixture,
+            found: SamplerKind::Flow
+        }
     );
     assert!(blob.flow().is_ok());
     // Trailing garbage is refused.
@@ -149,32 +175,68 @@ fn wrong_dimensions_are_refused() {
     w.header_mut().feature_dim = 9;
     assert!(matches!(
         Blob::open(&w.to_bytes()),
-        Err(Error::DimensionMismatch { what: "feature_dim", expected: 8, found: 9 })
+        Err(Error::DimensionMismatch {
+            what: "feature_dim",
+            expected: 8,
+            found: 9
+        })
     ));
     let mut w = BlobWriter::new(SamplerKind::Flow, DType::F32, "");
     w.tensor(TensorRole::Params, &params[1..]);
     w.header_mut().param_count -= 1;
-    assert!(matches!(Blob::open(&w.to_bytes()), Err(Error::DimensionMismatch { what: "param_count", .. })));
+    assert!(matches!(
+        Blob::open(&w.to_bytes()),
+        Err(Error::DimensionMismatch {
+            what: "param_count",
+            ..
+        })
+    ));
     // A tensor shorter than the header says.
     let mut w = BlobWriter::new(SamplerKind::Flow, DType::F32, "");
     w.tensor(TensorRole::Params, &params[1..]);
-    assert!(matches!(Blob::open(&w.to_bytes()), Err(Error::TensorShape { role: "params", .. })));
+    assert!(matches!(
+        Blob::open(&w.to_bytes()),
+        Err(Error::TensorShape { role: "params", .. })
+    ));
     // Missing tensor.
     let w = BlobWriter::new(SamplerKind::Flow, DType::F32, "");
-    assert!(matches!(Blob::open(&w.to_bytes()), Err(Error::HeaderInvalid | Error::TensorMissing { .. })));
+    assert!(matches!(
+        Blob::open(&w.to_bytes()),
+        Err(Error::HeaderInvalid | Error::TensorMissing { .. })
+    ));
     // Zero and huge table dimensions.
     for (t, n) in [(0, 8), (4, 0), (100_000, 8), (4, 1 << 20)] {
         let (bytes, _) = small_blob(SamplerKind::HistogramMixture, DType::F32, 1);
         let blob = Blob::open(&bytes).unwrap();
-        let mut w = BlobWriter::new(SamplerKind::HistogramMixture, DType::F32, "")
-            .histogram_dims(t, n, TableInterpolation::Linear);
-        for role in [TensorRole::Params, TensorRole::Mass, TensorRole::Table, TensorRole::Marginal, TensorRole::Conditional] {
-            let mut v = vec![0f32; blob.tensor(role).map(|t| { use neusample::Weights; t.len() as usize }).unwrap()];
+        let mut w = BlobWriter::new(SamplerKind::HistogramMixture, DType::F32, "").histogram_dims(
+            t,
+            n,
+            TableInterpolation::Linear,
+        );
+        for role in [
+            TensorRole::Params,
+            TensorRole::Mass,
+            TensorRole::Table,
+            TensorRole::Marginal,
+            TensorRole::Conditional,
+        ] {
+            let mut v = vec![
+                0f32;
+                blob.tensor(role)
+                    .map(|t| {
+                        use neusample::Weights;
+                        t.len() as usize
+                    })
+                    .unwrap()
+            ];
             blob.widen_into(role, &mut v).unwrap();
             w.tensor(role, &v);
         }
         assert!(
-            matches!(Blob::open(&w.to_bytes()), Err(Error::DimensionMismatch { .. })),
+            matches!(
+                Blob::open(&w.to_bytes()),
+                Err(Error::DimensionMismatch { .. })
+            ),
             "t={t} n={n}"
         );
     }
@@ -194,7 +256,14 @@ fn non_finite_weights_are_refused() {
             if bad.is_finite() && !overflows {
                 assert!(r.is_ok());
             } else {
-                assert_eq!(r.unwrap_err(), Error::NonFinite { role: "params", index: 17 }, "{bad} {dtype:?}");
+                assert_eq!(
+                    r.unwrap_err(),
+                    Error::NonFinite {
+                        role: "params",
+                        index: 17
+                    },
+                    "{bad} {dtype:?}"
+                );
             }
         }
     }
@@ -211,40 +280,56 @@ fn unnormalized_tables_are_refused() {
         blob.widen_into(role, &mut v).unwrap();
         v
     };
-    let rebuild = |table: &[f32], marginal: &[f32], conditional: &[f32]| {
-        let mut w = BlobWriter::new(SamplerKind::HistogramMixture, DType::F32, "")
-            .histogram_dims(h.t_levels, h.resolution, h.interpolation);
-        w.tensor(TensorRole::Params, &get(TensorRole::Params))
-            .tensor(TensorRole::Mass, &get(TensorRole::Mass))
-            .tensor(TensorRole::Table, table)
-            .tensor(TensorRole::Marginal, marginal)
-            .tensor(TensorRole::Conditional, conditional);
-        Blob::open(&w.to_bytes()).map(|_| ())
-    };
-    let (table, marginal, conditional) =
-        (get(TensorRole::Table), get(TensorRole::Marginal), get(TensorRole::Conditional));
+    let rebuild =
+        |table: &[f32], marginal: &[f32], conditional: &[f32]| {
+            let mut w = BlobWriter::new(SamplerKind::HistogramMixture, DType::F32, "")
+                .histogram_dims(h.t_levels, h.resolution, h.interpolation);
+            w.tensor(TensorRole::Params, &get(TensorRole::Params))
+                .tensor(TensorRole::Mass, &get(TensorRole::Mass))
+                .tensor(TensorRole::Table, table)
+                .tensor(TensorRole::Marginal, marginal)
+                .tensor(TensorRole::Conditional, conditional);
+            Blob::open(&w.to_bytes()).map(|_| ())
+        };
+    let (table, marginal, conditional) = (
+        get(TensorRole::Table),
+        get(TensorRole::Marginal),
+        get(TensorRole::Conditional),
+    );
     assert!(rebuild(&table, &marginal, &conditional).is_ok());
     // Scale one slice: no longer integrates to 1.
     let n = h.resolution as usize;
     let mut t2 = table.clone();
     let i = t2.iter().position(|&v| v > 0.0).unwrap();
     t2[i] *= 3.0;
-    assert!(matches!(rebuild(&t2, &marginal, &conditional), Err(Error::TableNotNormalized { .. })));
+    assert!(matches!(
+        rebuild(&t2, &marginal, &conditional),
+        Err(Error::TableNotNormalized { .. })
+    ));
     // Negative value with the slice still summing to 1.
     let mut t3 = table.clone();
     let j = (i + 1..i + n).find(|&j| t3[j] > 0.0).unwrap_or(i);
     t3[i] += 1.0;
     t3[j] -= 1.0;
     if j != i {
-        assert!(matches!(rebuild(&t3, &marginal, &conditional), Err(Error::TableNotNormalized { .. })));
+        assert!(matches!(
+            rebuild(&t3, &marginal, &conditional),
+            Err(Error::TableNotNormalized { .. })
+        ));
     }
     // CDF inconsistent with the table.
     let mut c2 = conditional.clone();
     c2[0] += 0.5;
-    assert!(matches!(rebuild(&table, &marginal, &c2), Err(Error::TableNotNormalized { .. })));
+    assert!(matches!(
+        rebuild(&table, &marginal, &c2),
+        Err(Error::TableNotNormalized { .. })
+    ));
     let mut m2 = marginal.clone();
     m2[0] *= 0.5;
-    assert!(matches!(rebuild(&table, &m2, &conditional), Err(Error::TableNotNormalized { .. })));
+    assert!(matches!(
+        rebuild(&table, &m2, &conditional),
+        Err(Error::TableNotNormalized { .. })
+    ));
 }
 
 proptest! {
@@ -283,5 +368,27 @@ proptest! {
                 }
             }
         }
+    }
+}
+
+/// Writes the seed corpus of the fuzz target (`fuzz/corpus/blob`): one small blob of every
+/// kind in the fuzz input format (mode byte, u16 blob length, blob, query floats).
+/// Run with `cargo test -p neusample-host-tests --test blob -- --ignored write_fuzz_corpus`.
+#[test]
+#[ignore]
+fn write_fuzz_corpus() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/corpus/blob");
+    std::fs::create_dir_all(&dir).unwrap();
+    for kind in SamplerKind::ALL {
+        let (bytes, _) = small_blob(kind, DType::F16, 3);
+        assert!(bytes.len() < 65536);
+        let mut input = vec![1u8];
+        input.extend_from_slice(&(bytes.len() as u16).to_le_bytes());
+        input.extend_from_slice(&bytes);
+        let query: [f32; 32] = core::array::from_fn(|i| ((i as f32) * 0.37).sin() * 0.5 + 0.25);
+        for q in query {
+            input.extend_from_slice(&q.to_le_bytes());
+        }
+        std::fs::write(dir.join(kind.name()), input).unwrap();
     }
 }

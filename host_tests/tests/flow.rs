@@ -171,7 +171,7 @@ fn ref_rq_forward(raw: &[f64], x: f64) -> (f64, f64) {
     };
     let cw = knots(&raw[..K]);
     let ch = knots(&raw[K..2 * K]);
-    let mut d = vec![1.0; K + 1];
+    let mut d = [1.0; K + 1];
     for k in 1..K {
         let r = raw[2 * K + k - 1];
         d[k] = 1e-3 + if r > 30.0 { r } else { r.exp().ln_1p() };
@@ -340,14 +340,16 @@ fn exercise<P: Prepared>(p: &P, rng: &mut TestRng) {
     ];
     for &a in &us {
         for &b in &us {
-            match p.sample(Vec2::new(a, b)) {
-                Some(s) => {
-                    assert!(s.pdf.is_finite() && s.pdf > 0.0 && s.wo.is_finite() && s.wo.z > 0.0);
-                    assert!(s.pdf_disk.is_finite() && s.pdf_disk > 0.0);
-                    assert!((s.wo.length() - 1.0).abs() < 1e-5);
-                }
-                // Invalid u, or a valid u whose sample leaves the disk.
-                None => {}
+            let valid = |v: f32| (0.0..=1.0).contains(&v);
+            let sample = p.sample(Vec2::new(a, b));
+            if !(valid(a) && valid(b)) {
+                assert!(sample.is_none(), "u = ({a}, {b}) must be refused");
+            }
+            // A valid u may still be refused when its sample leaves the disk.
+            if let Some(s) = sample {
+                assert!(s.pdf.is_finite() && s.pdf > 0.0 && s.wo.is_finite() && s.wo.z > 0.0);
+                assert!(s.pdf_disk.is_finite() && s.pdf_disk > 0.0);
+                assert!((s.wo.length() - 1.0).abs() < 1e-5);
             }
         }
     }
