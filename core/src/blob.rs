@@ -289,8 +289,14 @@ impl<'a> Blob<'a> {
             }
             return Err(Error::BadMagic);
         }
-        if bytes[..8] != MAGIC {
-            return Err(Error::BadMagic);
+        // Element-wise: `[u8] == [u8; N]` lowers to the `raw_eq` intrinsic, which rust-gpu
+        // does not implement (ICE), and this crate is compiled for SPIR-V too.
+        let mut k = 0;
+        while k < MAGIC.len() {
+            if bytes[k] != MAGIC[k] {
+                return Err(Error::BadMagic);
+            }
+            k += 1;
         }
         if got < 12 {
             return Err(Error::Truncated { needed: min, got });

@@ -21,6 +21,8 @@
 //! network, and precomputes the condition's share of every coupling network's first layer;
 //! per sample only the 9 encoded inputs of the other coordinate and the remaining layers run.
 
+use core::marker::PhantomData;
+
 use glam::{Vec2, Vec3};
 
 use crate::gaussian;
@@ -169,6 +171,16 @@ impl<W: Weights> FlowSampler<W> {
     /// Length of the flat parameter array: base, coupling 0, coupling 1 (9690).
     pub const PARAM_COUNT: usize = FLOW_PARAM_COUNT;
 
+    /// A sampler over `params` without the length check of [`Self::new`], for GPU shaders
+    /// (`Option<Self>` with a borrowed `W` cannot be tested by rust-gpu). Not `unsafe`:
+    /// reads past the end of a short array give 0.0, so wrong densities but never a panic
+    /// or NaN. Check `params.len() == PARAM_COUNT` on the host.
+    #[inline]
+    #[must_use]
+    pub const fn new_unchecked(params: W) -> Self {
+        FlowSampler { params }
+    }
+
     /// A flow over `params` (layout in `core/ARCHITECTURES.md` §3), or `None` when
     /// `params.len() != PARAM_COUNT`.
     #[inline]
@@ -193,7 +205,9 @@ impl<W: Weights> FlowSampler<W> {
 /// of both coupling networks' first layers.
 #[derive(Debug)]
 pub struct FlowPrepared<'s, W> {
-    params: &'s W,
+    /// A copy of the sampler's weights handle (see `sampler::Held`).
+    params: sampler::Held<W>,
+    _sampler: PhantomData<&'s W>,
     /// Mean of the base Gaussian.
     pub mu: Vec2,
     /// Standard deviations of the base Gaussian (clamped `exp(log σ)`).
@@ -202,15 +216,20 @@ pub struct FlowPrepared<'s, W> {
     share: [[f32; HIDDEN]; 2],
 }
 
-impl<W> Clone for FlowPrepared<'_, W> {
+impl<W: Copy> Clone for FlowPrepared<'_, W> {
     #[inline]
     fn clone(&self) -> Self {
-        *self
+        FlowPrepared {
+            params: self.params.clone(),
+            _sampler: PhantomData,
+            mu: self.mu,
+            sigma: self.sigma,
+            share: self.share,
+        }
     }
 }
-impl<W> Copy for FlowPrepared<'_, W> {}
 
-impl<W: Weights> Sampler for FlowSampler<W> {
+impl<W: Weights + Copy> Sampler for FlowSampler<W> {
     type Prepared<'s>
         = FlowPrepared<'s, W>
     where
@@ -231,7 +250,8 @@ impl<W: Weights> Sampler for FlowSampler<W> {
             return None;
         }
         Some(FlowPrepared {
-            params: w,
+            params: sampler::Held::new(self.params),
+            _sampler: PhantomData,
             mu: Vec2::new(o[0], o[1]),
             sigma: Vec2::new(
                 gaussian::sigma_from_log(o[2]),
@@ -242,7 +262,7 @@ impl<W: Weights> Sampler for FlowSampler<W> {
     }
 }
 
-impl<W: Weights> FlowPrepared<'_, W> {
+impl<W: Weights + Copy> FlowPrepared<'_, W> {
     /// Density direction: the latent point `z = (x', y')` of disk point `p` and
     /// `ln |det ∂z/∂p|`, or `None` when `p` is not strictly inside the unit disk.
     ///
@@ -255,7 +275,12 @@ impl<W: Weights> FlowPrepared<'_, W> {
         if !inside_disk(p) {
             return None;
         }
-        let k1 = spline_knots(self.params, FLOW_COUPLING1 as u32, &self.share[1], p.x);
+        let k1 = spline_knots(
+            &self.params.get(),
+            FLOW_COUPLING1 as u32,
+            &self.share[1],
+            p.x,
+        );
         Some(self.latent_with_k1(p, &k1))
     }
 
@@ -263,7 +288,12 @@ impl<W: Weights> FlowPrepared<'_, W> {
     #[inline(always)]
     fn latent_with_k1(&self, p: Vec2, k1: &Knots<SPLINE_BINS>) -> (Vec2, f32) {
         let (yl, ld1) = k1.forward(p.y);
-        let k0 = spline_knots(self.params, FLOW_COUPLING0 as u32, &self.share[0], yl);
+        let k0 = spline_knots(
+            &self.params.get(),
+            FLOW_COUPLING0 as u32,
+            &self.share[0],
+            yl,
+        );
         let (xl, ld0) = k0.forward(p.x);
         (Vec2::new(xl, yl), ld0 + ld1)
     }
@@ -284,9 +314,14 @@ impl<W: Weights> FlowPrepared<'_, W> {
     /// [`FlowPrepared::from_latent`], also returning coupling 1's spline at `x`.
     #[inline(always)]
     fn point_and_k1(&self, z: Vec2) -> (Vec2, f32, Knots<SPLINE_BINS>) {
-        let k0 = spline_knots(self.params, FLOW_COUPLING0 as u32, &self.share[0], z.y);
+        let k0 = spline_knots(
+            &self.params.get(),
+            FLOW_COUPLING0 as u32,
+            &self.share[0],
+            z.y,
+        );
         let (x, li0) = k0.inverse(z.x);
-        let k1 = spline_knots(self.params, FLOW_COUPLING1 as u32, &self.share[1], x);
+        let k1 = spline_knots(&self.params.get(), FLOW_COUPLING1 as u32, &self.share[1], x);
         let (y, li1) = k1.inverse(z.y);
         (Vec2::new(x, y), li0 + li1, k1)
     }
@@ -314,7 +349,7 @@ impl<W: Weights> FlowPrepared<'_, W> {
     }
 }
 
-impl<W: Weights> Prepared for FlowPrepared<'_, W> {
+impl<W: Weights + Copy> Prepared for FlowPrepared<'_, W> {
     /// Box–Muller from `u`, `z = μ + σ ⊙ n`, then the inverse couplings.
     ///
     /// The reported pdf (solid angle; disk area in [`Sample::pdf_disk`]) is the density
@@ -399,6 +434,16 @@ impl<W: Weights> AffineFlowSampler<W> {
     /// Length of the flat parameter array: four coupling networks (9608).
     pub const PARAM_COUNT: usize = AFFINE_PARAM_COUNT;
 
+    /// A sampler over `params` without the length check of [`Self::new`], for GPU shaders
+    /// (`Option<Self>` with a borrowed `W` cannot be tested by rust-gpu). Not `unsafe`:
+    /// reads past the end of a short array give 0.0, so wrong densities but never a panic
+    /// or NaN. Check `params.len() == PARAM_COUNT` on the host.
+    #[inline]
+    #[must_use]
+    pub const fn new_unchecked(params: W) -> Self {
+        AffineFlowSampler { params }
+    }
+
     /// An affine flow over `params` (layout in `core/ARCHITECTURES.md` §4), or `None` when
     /// `params.len() != PARAM_COUNT`.
     #[inline]
@@ -423,19 +468,24 @@ impl<W: Weights> AffineFlowSampler<W> {
 /// network's first layer.
 #[derive(Debug)]
 pub struct AffineFlowPrepared<'s, W> {
-    params: &'s W,
+    /// A copy of the sampler's weights handle (see `sampler::Held`).
+    params: sampler::Held<W>,
+    _sampler: PhantomData<&'s W>,
     share: [[f32; HIDDEN]; AFFINE_LAYERS],
 }
 
-impl<W> Clone for AffineFlowPrepared<'_, W> {
+impl<W: Copy> Clone for AffineFlowPrepared<'_, W> {
     #[inline]
     fn clone(&self) -> Self {
-        *self
+        AffineFlowPrepared {
+            params: self.params.clone(),
+            _sampler: PhantomData,
+            share: self.share,
+        }
     }
 }
-impl<W> Copy for AffineFlowPrepared<'_, W> {}
 
-impl<W: Weights> Sampler for AffineFlowSampler<W> {
+impl<W: Weights + Copy> Sampler for AffineFlowSampler<W> {
     type Prepared<'s>
         = AffineFlowPrepared<'s, W>
     where
@@ -458,11 +508,15 @@ impl<W: Weights> Sampler for AffineFlowSampler<W> {
             }
             l += 1;
         }
-        Some(AffineFlowPrepared { params: w, share })
+        Some(AffineFlowPrepared {
+            params: sampler::Held::new(self.params),
+            _sampler: PhantomData,
+            share,
+        })
     }
 }
 
-impl<W: Weights> AffineFlowPrepared<'_, W> {
+impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
     /// Density direction: the latent point `z` of disk point `p` and `ln |det ∂z/∂p|`, or
     /// `None` when `p` is not strictly inside the unit disk. Layers `l = 0..3` in order:
     /// `v_d ← v_d · exp(s) + t` with `d = l mod 2`.
@@ -472,7 +526,7 @@ impl<W: Weights> AffineFlowPrepared<'_, W> {
         if !inside_disk(p) {
             return None;
         }
-        let st0 = affine_params(self.params, 0, &self.share[0], p.y);
+        let st0 = affine_params(&self.params.get(), 0, &self.share[0], p.y);
         Some(self.latent_with_layer0(p, st0))
     }
 
@@ -486,11 +540,11 @@ impl<W: Weights> AffineFlowPrepared<'_, W> {
         let mut l = 1;
         while l < AFFINE_LAYERS {
             if l % 2 == 0 {
-                let (s, t) = affine_params(self.params, l, &self.share[l], y);
+                let (s, t) = affine_params(&self.params.get(), l, &self.share[l], y);
                 x = x * math::exp(s) + t;
                 ld += s;
             } else {
-                let (s, t) = affine_params(self.params, l, &self.share[l], x);
+                let (s, t) = affine_params(&self.params.get(), l, &self.share[l], x);
                 y = y * math::exp(s) + t;
                 ld += s;
             }
@@ -517,17 +571,17 @@ impl<W: Weights> AffineFlowPrepared<'_, W> {
         let mut l = AFFINE_LAYERS - 1;
         while l > 0 {
             if l % 2 == 0 {
-                let (s, t) = affine_params(self.params, l, &self.share[l], y);
+                let (s, t) = affine_params(&self.params.get(), l, &self.share[l], y);
                 x = (x - t) * math::exp(-s);
                 ld -= s;
             } else {
-                let (s, t) = affine_params(self.params, l, &self.share[l], x);
+                let (s, t) = affine_params(&self.params.get(), l, &self.share[l], x);
                 y = (y - t) * math::exp(-s);
                 ld -= s;
             }
             l -= 1;
         }
-        let (s0, t0) = affine_params(self.params, 0, &self.share[0], y);
+        let (s0, t0) = affine_params(&self.params.get(), 0, &self.share[0], y);
         x = (x - t0) * math::exp(-s0);
         ld -= s0;
         (Vec2::new(x, y), ld, (s0, t0))
@@ -556,7 +610,7 @@ impl<W: Weights> AffineFlowPrepared<'_, W> {
     }
 }
 
-impl<W: Weights> Prepared for AffineFlowPrepared<'_, W> {
+impl<W: Weights + Copy> Prepared for AffineFlowPrepared<'_, W> {
     /// Box–Muller from `u` (standard normal `z`), then the inverse couplings. The reported
     /// pdf is the density direction's at the sampled point (reusing layer 0, whose input
     /// `y` is the same in both directions), so it equals [`Prepared::pdf_disk`] bit for bit.

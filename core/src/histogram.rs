@@ -196,10 +196,10 @@ fn logit(x: f32) -> f32 {
 /// `N · 6·10⁻⁸` of the row's mass. Nothing allocates, and an index past the end of a tensor
 /// reads 0 ([`Weights`]), so no input can make it panic.
 #[derive(Debug)]
-pub struct Table2D<'w, T: ?Sized, M: ?Sized = T, C: ?Sized = T> {
-    values: &'w T,
-    marginal: &'w M,
-    conditional: &'w C,
+pub struct Table2D<T, M = T, C = T> {
+    values: T,
+    marginal: M,
+    conditional: C,
     n: u32,
     slice0: u32,
     slice1: u32,
@@ -211,30 +211,19 @@ pub struct Table2D<'w, T: ?Sized, M: ?Sized = T, C: ?Sized = T> {
     inv_integral: f32,
 }
 
-impl<T: ?Sized, M: ?Sized, C: ?Sized> Clone for Table2D<'_, T, M, C> {
+impl<T: Copy, M: Copy, C: Copy> Clone for Table2D<T, M, C> {
     fn clone(&self) -> Self {
         *self
     }
 }
-impl<T: ?Sized, M: ?Sized, C: ?Sized> Copy for Table2D<'_, T, M, C> {}
+impl<T: Copy, M: Copy, C: Copy> Copy for Table2D<T, M, C> {}
 
-impl<'w, T, M, C> Table2D<'w, T, M, C>
-where
-    T: Weights + ?Sized,
-    M: Weights + ?Sized,
-    C: Weights + ?Sized,
-{
+impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
     /// A view of slice `slice` (the `slice`-th block of `N²` values, `N²` conditional and `N`
     /// marginal entries). `None` when `n` is 0 or above [`MAX_N`], or a tensor is too short.
     #[inline]
     #[must_use]
-    pub fn new(
-        values: &'w T,
-        marginal: &'w M,
-        conditional: &'w C,
-        n: u32,
-        slice: u32,
-    ) -> Option<Self> {
+    pub fn new(values: T, marginal: M, conditional: C, n: u32, slice: u32) -> Option<Self> {
         Self::lerp(values, marginal, conditional, n, slice, slice, 0.0)
     }
 
@@ -243,9 +232,9 @@ where
     #[inline]
     #[must_use]
     pub fn lerp(
-        values: &'w T,
-        marginal: &'w M,
-        conditional: &'w C,
+        values: T,
+        marginal: M,
+        conditional: C,
         n: u32,
         slice0: u32,
         slice1: u32,
@@ -278,9 +267,9 @@ where
     /// check sizes once, at construction of the sampler).
     #[inline(always)]
     fn from_parts(
-        values: &'w T,
-        marginal: &'w M,
-        conditional: &'w C,
+        values: T,
+        marginal: M,
+        conditional: C,
         n: u32,
         slice0: u32,
         slice1: u32,
@@ -335,13 +324,13 @@ where
     /// Blended `marginal[r]`.
     #[inline(always)]
     fn marginal_at(&self, r: u32) -> f32 {
-        self.blend(self.marginal, self.n, r)
+        self.blend(&self.marginal, self.n, r)
     }
 
     /// Blended `conditional[r][c]`.
     #[inline(always)]
     fn conditional_at(&self, r: u32, c: u32) -> f32 {
-        self.blend(self.conditional, self.n * self.n, r * self.n + c)
+        self.blend(&self.conditional, self.n * self.n, r * self.n + c)
     }
 
     /// Blended stored value of cell `(r, c)` (indices clamped into the grid).
@@ -350,7 +339,7 @@ where
     pub fn value(&self, row: u32, col: u32) -> f32 {
         let r = if row < self.n { row } else { self.n - 1 };
         let c = if col < self.n { col } else { self.n - 1 };
-        self.blend(self.values, self.n * self.n, r * self.n + c)
+        self.blend(&self.values, self.n * self.n, r * self.n + c)
     }
 
     /// Draws a point of `[−1, 1]²` from `u ∈ [0, 1)²`: `u.x` picks the row, `u.y` the column
@@ -484,6 +473,16 @@ impl<W: Weights> DirectHistogramSampler<W> {
     /// Number of parameters: `dense(30,64) dense(64,64) dense(64,256)` = 22784.
     pub const PARAM_COUNT: usize = DIRECT_END;
 
+    /// A sampler over `params` without the length check of [`Self::new`], for GPU shaders
+    /// (`Option<Self>` with a borrowed `W` cannot be tested by rust-gpu). Not `unsafe`:
+    /// reads past the end of a short array give 0.0, so wrong densities but never a panic
+    /// or NaN. Check `params.len() == PARAM_COUNT` on the host.
+    #[inline]
+    #[must_use]
+    pub const fn new_unchecked(params: W) -> Self {
+        DirectHistogramSampler { params }
+    }
+
     /// A sampler over the flat parameter array `params`, or `None` when it does not hold
     /// exactly [`Self::PARAM_COUNT`] values.
     #[must_use]
@@ -570,7 +569,7 @@ impl DirectHistogramPrepared {
     /// The grid as a [`Table2D`] view.
     #[inline]
     #[must_use]
-    pub fn table(&self) -> Table2D<'_, [f32; DIRECT_CELLS], [f32; DIRECT_N]> {
+    pub fn table(&self) -> Table2D<&[f32; DIRECT_CELLS], &[f32; DIRECT_N]> {
         Table2D::from_parts(
             &self.table,
             &self.marginal,
@@ -715,6 +714,35 @@ impl<W: Weights> HistogramMixtureSampler<W> {
         })
     }
 
+    /// A sampler without the size checks of [`Self::new`], for GPU shaders (`Option<Self>`
+    /// with a borrowed `W` cannot be tested by rust-gpu). `t_levels` and `resolution` are
+    /// clamped to `1 ..= MAX_T` and `1 ..= MAX_N`. Not `unsafe`: reads past the end of a
+    /// short array give 0.0, so wrong densities but never a panic or NaN. Check the sizes on
+    /// the host (e.g. with [`Self::new`]).
+    #[inline]
+    #[must_use]
+    pub fn new_unchecked(
+        params: W,
+        mass: W,
+        table: W,
+        marginal: W,
+        conditional: W,
+        t_levels: u32,
+        resolution: u32,
+        interpolation: Interpolation,
+    ) -> Self {
+        HistogramMixtureSampler {
+            params,
+            mass,
+            table,
+            marginal,
+            conditional,
+            t_levels: t_levels.clamp(1, MAX_T as u32),
+            resolution: resolution.clamp(1, MAX_N as u32),
+            interpolation,
+        }
+    }
+
     /// The parameter array.
     #[must_use]
     pub fn params(&self) -> &W {
@@ -768,10 +796,10 @@ impl<W: Weights> HistogramMixtureSampler<W> {
     ///
     /// `None` only when no basis has a usable table.
     #[must_use]
-    pub fn prepare_outputs(
-        &self,
-        o: &[f32; MIX_OUTPUTS],
-    ) -> Option<HistogramMixturePrepared<'_, W>> {
+    pub fn prepare_outputs(&self, o: &[f32; MIX_OUTPUTS]) -> Option<HistogramMixturePrepared<'_, W>>
+    where
+        W: Copy,
+    {
         let t_levels = self.t_levels;
         let mut soft = [0.0f32; BASES];
         let mut k = 0;
@@ -781,23 +809,23 @@ impl<W: Weights> HistogramMixtureSampler<W> {
         }
         gaussian::softmax(&mut soft);
 
-        let mut prep = HistogramMixturePrepared {
-            sampler: self,
-            weights: [0.0; BASES],
-            rotation: [Vec2::X; BASES],
-            slice0: [0; BASES],
-            slice1: [0; BASES],
-            lerp: [0.0; BASES],
-        };
+        // Plain local arrays, assembled into the prepared state at the end: a mutable local
+        // struct holding the sampler reference stays a pointer-typed variable on SPIR-V,
+        // which spirv-val rejects under logical addressing.
+        let mut weights = [0.0f32; BASES];
+        let mut rotation = [Vec2::X; BASES];
+        let mut slice0 = [0u32; BASES];
+        let mut slice1 = [0u32; BASES];
+        let mut lerp = [0.0f32; BASES];
         let top = (t_levels - 1) as f32;
         let mut sum = 0.0f32;
-        let mut usable = [false; BASES];
+        let mut usable = [0u32; BASES]; // not [bool; _]: rust-gpu cannot memset bools
         k = 0;
         while k < BASES {
             let rho = Vec2::new(o[4 * k + 1], o[4 * k + 2]);
             let len2 = rho.x * rho.x + rho.y * rho.y;
             if len2 >= MIN_ROTATION_NORM2 && math::is_finite(len2) {
-                prep.rotation[k] = rho * (1.0 / math::sqrt(len2));
+                rotation[k] = rho * (1.0 / math::sqrt(len2));
             }
             // NaN τ gives NaN t; the clamp sends it to level 0.
             let s = math::clamp(math::sigmoid(o[4 * k + 3]) * top, 0.0, top);
@@ -816,19 +844,31 @@ impl<W: Weights> HistogramMixtureSampler<W> {
                 }
             };
             let base = k as u32 * t_levels;
-            prep.slice0[k] = base + l0;
-            prep.slice1[k] = base + l1;
-            prep.lerp[k] = a;
+            slice0[k] = base + l0;
+            slice1[k] = base + l1;
+            lerp[k] = a;
             let m0 = self.mass.at(base + l0);
             let mass = if a > 0.0 {
                 (1.0 - a) * m0 + a * self.mass.at(base + l1)
             } else {
                 m0
             };
-            usable[k] = prep.table(k).integral() > 0.0;
+            usable[k] = u32::from(
+                Table2D::from_parts(
+                    self.table,
+                    self.marginal,
+                    self.conditional,
+                    self.resolution,
+                    slice0[k],
+                    slice1[k],
+                    lerp[k],
+                )
+                .integral()
+                    > 0.0,
+            );
             let w = soft[k] * mass;
-            if usable[k] && w > 0.0 && math::is_finite(w) {
-                prep.weights[k] = w;
+            if usable[k] != 0 && w > 0.0 && math::is_finite(w) {
+                weights[k] = w;
                 sum += w;
             }
             k += 1;
@@ -838,8 +878,8 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             sum = 0.0;
             k = 0;
             while k < BASES {
-                prep.weights[k] = if usable[k] { soft[k] } else { 0.0 };
-                sum += prep.weights[k];
+                weights[k] = if usable[k] != 0 { soft[k] } else { 0.0 };
+                sum += weights[k];
                 k += 1;
             }
             if !(sum > 0.0) {
@@ -849,10 +889,18 @@ impl<W: Weights> HistogramMixtureSampler<W> {
         let inv = 1.0 / sum;
         k = 0;
         while k < BASES {
-            prep.weights[k] *= inv;
+            weights[k] *= inv;
             k += 1;
         }
-        Some(prep)
+        Some(HistogramMixturePrepared {
+            sampler: crate::sampler::Held::new(*self),
+            _sampler: core::marker::PhantomData,
+            weights,
+            rotation,
+            slice0,
+            slice1,
+            lerp,
+        })
     }
 }
 
@@ -860,7 +908,9 @@ impl<W: Weights> HistogramMixtureSampler<W> {
 /// Borrows the sampler's tables.
 #[derive(Debug)]
 pub struct HistogramMixturePrepared<'s, W> {
-    sampler: &'s HistogramMixtureSampler<W>,
+    /// A copy of the sampler: weight and table handles (see `sampler::Held`).
+    sampler: crate::sampler::Held<HistogramMixtureSampler<W>>,
+    _sampler: core::marker::PhantomData<&'s W>,
     weights: [f32; BASES],
     rotation: [Vec2; BASES],
     slice0: [u32; BASES],
@@ -868,14 +918,21 @@ pub struct HistogramMixturePrepared<'s, W> {
     lerp: [f32; BASES],
 }
 
-impl<W> Clone for HistogramMixturePrepared<'_, W> {
+impl<W: Copy> Clone for HistogramMixturePrepared<'_, W> {
     fn clone(&self) -> Self {
-        *self
+        HistogramMixturePrepared {
+            sampler: self.sampler.clone(),
+            _sampler: core::marker::PhantomData,
+            weights: self.weights,
+            rotation: self.rotation,
+            slice0: self.slice0,
+            slice1: self.slice1,
+            lerp: self.lerp,
+        }
     }
 }
-impl<W> Copy for HistogramMixturePrepared<'_, W> {}
 
-impl<'s, W: Weights> HistogramMixturePrepared<'s, W> {
+impl<'s, W: Weights + Copy> HistogramMixturePrepared<'s, W> {
     /// Mixture weights `w_k` (sum 1).
     #[must_use]
     pub fn weights(&self) -> [f32; BASES] {
@@ -892,13 +949,13 @@ impl<'s, W: Weights> HistogramMixturePrepared<'s, W> {
     /// the basis's rotated coordinates `q = Rᵀ_k ω⊥`.
     #[inline]
     #[must_use]
-    pub fn table(&self, k: usize) -> Table2D<'s, W> {
+    pub fn table(&self, k: usize) -> Table2D<W> {
         let k = if k < BASES { k } else { BASES - 1 };
-        let s = self.sampler;
+        let s = self.sampler.get();
         Table2D::from_parts(
-            &s.table,
-            &s.marginal,
-            &s.conditional,
+            s.table,
+            s.marginal,
+            s.conditional,
             s.resolution,
             self.slice0[k],
             self.slice1[k],
@@ -934,7 +991,7 @@ impl<'s, W: Weights> HistogramMixturePrepared<'s, W> {
     }
 }
 
-impl<W: Weights> Sampler for HistogramMixtureSampler<W> {
+impl<W: Weights + Copy> Sampler for HistogramMixtureSampler<W> {
     type Prepared<'s>
         = HistogramMixturePrepared<'s, W>
     where
@@ -952,7 +1009,7 @@ impl<W: Weights> Sampler for HistogramMixtureSampler<W> {
     }
 }
 
-impl<W: Weights> Prepared for HistogramMixturePrepared<'_, W> {
+impl<W: Weights + Copy> Prepared for HistogramMixturePrepared<'_, W> {
     /// Chooses basis `k` by the weights (remapping `u.x`), samples its table in rotated
     /// coordinates and rotates back: `ω⊥ = R_k q`. The reported density is the full mixture
     /// (Eq. 5) at the drawn point; `None` when it lands outside the disk.

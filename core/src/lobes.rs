@@ -96,6 +96,16 @@ impl<W: Weights> ImprovedBaselineSampler<W> {
     /// Number of parameters: `dense(30,32) dense(32,32) dense(32,32) dense(32,5)` = 3269.
     pub const PARAM_COUNT: usize = BASELINE_END;
 
+    /// A sampler over `params` without the length check of [`Self::new`], for GPU shaders
+    /// (`Option<Self>` with a borrowed `W` cannot be tested by rust-gpu). Not `unsafe`:
+    /// reads past the end of a short array give 0.0, so wrong densities but never a panic
+    /// or NaN. Check `params.len() == PARAM_COUNT` on the host.
+    #[inline]
+    #[must_use]
+    pub const fn new_unchecked(params: W) -> Self {
+        ImprovedBaselineSampler { params }
+    }
+
     /// A sampler over the flat parameter array `params`, or `None` when it does not hold
     /// exactly [`Self::PARAM_COUNT`] values.
     #[must_use]
@@ -235,6 +245,16 @@ pub struct AnalyticMixtureSampler<W> {
 impl<W: Weights> AnalyticMixtureSampler<W> {
     /// Number of parameters: `dense(30,32) dense(32,11)` = 1355.
     pub const PARAM_COUNT: usize = ANALYTIC_END;
+
+    /// A sampler over `params` without the length check of [`Self::new`], for GPU shaders
+    /// (`Option<Self>` with a borrowed `W` cannot be tested by rust-gpu). Not `unsafe`:
+    /// reads past the end of a short array give 0.0, so wrong densities but never a panic
+    /// or NaN. Check `params.len() == PARAM_COUNT` on the host.
+    #[inline]
+    #[must_use]
+    pub const fn new_unchecked(params: W) -> Self {
+        AnalyticMixtureSampler { params }
+    }
 
     /// A sampler over the flat parameter array `params`, or `None` when it does not hold
     /// exactly [`Self::PARAM_COUNT`] values.

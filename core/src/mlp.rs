@@ -20,6 +20,7 @@ pub const LEAKY_RELU_SLOPE: f32 = 0.01;
 
 /// Element-wise non-linearity applied after a dense layer.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
+#[repr(u32)] // a u8 discriminant needs the Int8 capability on SPIR-V
 pub enum Activation {
     /// y = x.
     Identity,

@@ -10,6 +10,9 @@
 //!
 //! Both steps are total: bad input gives `None` or a zero density, never a panic or NaN.
 
+use core::cell::Cell;
+use core::fmt;
+
 use glam::{Vec2, Vec3};
 
 use crate::mlp::{self, CONDITION_BANDS};
@@ -195,5 +198,42 @@ impl Prepared for CosinePrepared {
     fn invert(&self, wo: Vec3) -> Option<Vec2> {
         let w = warp::upper_hemisphere(wo)?;
         Some(warp::invert_uniform_disk_concentric(warp::to_disk(w)))
+    }
+}
+
+/// A copy of a sampler's weights handle (`&[f32]`, `Tensor`, …) kept by a prepared state.
+///
+/// Two constraints of GPU shaders (rust-gpu) shape it:
+/// * a prepared state must not point at its sampler: with storage-buffer weights that is a
+///   pointer to a local variable holding a buffer pointer, which rust-gpu cannot remove and
+///   Vulkan drivers fail on (lavapipe crashes), so the handle is copied (`W: Copy`);
+/// * the handle's null-pointer niche must be hidden, so that `Option<Prepared>` is a tagged
+///   enum: rust-gpu cannot test a niche-encoded `Option` holding a pointer ("cannot convert
+///   pointers to integers"). A `Cell` hides niches.
+pub(crate) struct Held<W>(Cell<W>);
+
+impl<W: Copy> Held<W> {
+    /// Keeps a copy of `w`.
+    #[inline(always)]
+    pub(crate) fn new(w: W) -> Self {
+        Held(Cell::new(w))
+    }
+    /// The handle.
+    #[inline(always)]
+    pub(crate) fn get(&self) -> W {
+        self.0.get()
+    }
+}
+
+impl<W: Copy> Clone for Held<W> {
+    #[inline(always)]
+    fn clone(&self) -> Self {
+        Held::new(self.get())
+    }
+}
+
+impl<W> fmt::Debug for Held<W> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("Held(..)")
     }
 }

@@ -635,8 +635,8 @@ fn hostile_conditions_and_variates() {
 }
 
 #[test]
-fn prepared_is_copy() {
-    fn copy<T: Copy>(_: T) {}
+fn prepared_is_clone() {
+    fn copy<T: Clone>(_: T) {}
     let ps = spline_params(1);
     let s = FlowSampler::new(&ps[..]).unwrap();
     let c = random_condition(&mut rng(1));

@@ -125,7 +125,7 @@ fn mixture<'a>(
     .expect("valid mixture")
 }
 
-fn view(b: &BakedTables, s0: u32, s1: u32, a: f32) -> Table2D<'_, [f32]> {
+fn view(b: &BakedTables, s0: u32, s1: u32, a: f32) -> Table2D<&[f32]> {
     Table2D::lerp(
         &b.table[..],
         &b.marginal[..],
@@ -224,7 +224,7 @@ fn chi2_inside<P: Prepared>(p: &P, r: &mut TestRng, res: usize, sub: usize, n: u
 }
 
 /// Exact χ² of a table's sampled cell frequencies against its cell probabilities.
-fn table_cell_chi2(v: &Table2D<'_, [f32]>, r: &mut TestRng, samples: usize) -> f64 {
+fn table_cell_chi2(v: &Table2D<&[f32]>, r: &mut TestRng, samples: usize) -> f64 {
     let n = v.resolution() as usize;
     let mut observed = vec![0.0f64; n * n];
     for _ in 0..samples {

@@ -161,6 +161,6 @@ proptest! {
             prop_assert!(pdf.is_finite() && pdf >= 0.0);
             let _ = p.invert(wi);
         }
-        prop_assert!(warp::upper_hemisphere(wi).map_or(true, |w| w.is_finite() && w.z > 0.0));
+        prop_assert!(warp::upper_hemisphere(wi).is_none_or(|w| w.is_finite() && w.z > 0.0));
     }
 }

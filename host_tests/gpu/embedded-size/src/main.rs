@@ -6,6 +6,8 @@
 //! most of its code to that symbol (shared helpers such as libm stay separate).
 #![no_std]
 #![no_main]
+// `loop {}` is the conventional bare-metal halt; this binary is measured, never run.
+#![allow(clippy::empty_loop)]
 
 use core::hint::black_box;
 use core::panic::PanicInfo;
@@ -44,19 +46,47 @@ pub extern "C" fn ns_cosine() -> f32 {
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_flow() -> f32 {
-    match neusample::FlowSampler::new(weights()) {
-        Some(s) => exercise(&s),
-        None => 0.0,
-    }
+    exercise(&neusample::FlowSampler::new_unchecked(weights()))
 }
 
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_affine_flow() -> f32 {
-    match neusample::AffineFlowSampler::new(weights()) {
-        Some(s) => exercise(&s),
-        None => 0.0,
-    }
+    exercise(&neusample::AffineFlowSampler::new_unchecked(weights()))
+}
+
+#[inline(never)]
+#[no_mangle]
+pub extern "C" fn ns_baseline() -> f32 {
+    exercise(&neusample::ImprovedBaselineSampler::new_unchecked(weights()))
+}
+
+#[inline(never)]
+#[no_mangle]
+pub extern "C" fn ns_analytic() -> f32 {
+    exercise(&neusample::AnalyticMixtureSampler::new_unchecked(weights()))
+}
+
+#[inline(never)]
+#[no_mangle]
+pub extern "C" fn ns_direct_histogram() -> f32 {
+    exercise(&neusample::DirectHistogramSampler::new_unchecked(weights()))
+}
+
+#[inline(never)]
+#[no_mangle]
+pub extern "C" fn ns_histogram_mixture() -> f32 {
+    let s = neusample::HistogramMixtureSampler::new_unchecked(
+        weights(),
+        weights(),
+        weights(),
+        weights(),
+        weights(),
+        black_box(8),
+        black_box(32),
+        black_box(neusample::Interpolation::Linear),
+    );
+    exercise(&s)
 }
 
 /// Entry point (no runtime: the binary is only measured, never run).
@@ -66,6 +96,10 @@ pub extern "C" fn _start() -> ! {
     acc += ns_cosine();
     acc += ns_flow();
     acc += ns_affine_flow();
+    acc += ns_baseline();
+    acc += ns_analytic();
+    acc += ns_direct_histogram();
+    acc += ns_histogram_mixture();
     black_box(acc);
     loop {}
 }

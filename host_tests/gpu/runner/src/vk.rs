@@ -90,7 +90,11 @@ impl Context {
                 .queue_family_index(family)
                 .queue_priorities(&prio)];
             let device = instance
-                .create_device(pd, &vk::DeviceCreateInfo::default().queue_create_infos(&qci), None)
+                .create_device(
+                    pd,
+                    &vk::DeviceCreateInfo::default().queue_create_infos(&qci),
+                    None,
+                )
                 .map_err(|e| format!("vkCreateDevice: {e:?}"))?;
             let queue = device.get_device_queue(family, 0);
             let pool = device
@@ -102,7 +106,7 @@ impl Context {
                 )
                 .map_err(|e| format!("vkCreateCommandPool: {e:?}"))?;
             let mem_props = instance.get_physical_device_memory_properties(pd);
-            if spv.len() % 4 != 0 {
+            if !spv.len().is_multiple_of(4) {
                 return Err("SPIR-V module length is not a multiple of 4".into());
             }
             let words: Vec<u32> = spv
@@ -140,7 +144,8 @@ impl Context {
                 )
                 .map_err(|e| format!("vkCreateBuffer: {e:?}"))?;
             let req = self.device.get_buffer_memory_requirements(buffer);
-            let want = vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
+            let want =
+                vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
             let type_index = (0..self.mem_props.memory_type_count)
                 .find(|&i| {
                     req.memory_type_bits & (1 << i) != 0
@@ -216,7 +221,11 @@ impl Context {
         let dummy = [0.0f32; 4];
         let mut bufs = Vec::with_capacity(BINDINGS);
         for i in 0..BINDINGS {
-            let data: &[f32] = if i < buffers.len() { buffers[i] } else { &dummy };
+            let data: &[f32] = if i < buffers.len() {
+                buffers[i]
+            } else {
+                &dummy
+            };
             bufs.push(self.create_buffer(data)?);
         }
         let d = &self.device;

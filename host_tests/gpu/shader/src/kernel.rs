@@ -7,8 +7,9 @@ use neusample::{Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
 
 /// Floats per input record: φ (8), wi (3), u (2), wo2 (3).
 pub const IN_STRIDE: usize = 16;
-/// Floats per output record: wo (3), pdf, pdf_disk, flags, pdf(wo2), pdf(wo).
-pub const OUT_STRIDE: usize = 8;
+/// Floats per output record: wo (3), pdf, pdf_disk, flags, pdf(wo2), pdf(wo), invert(wo2) (2),
+/// pdf_disk(wo2⊥), 0.
+pub const OUT_STRIDE: usize = 12;
 
 /// Offset of `wi` in an input record.
 pub const IN_WI: usize = FEATURE_DIM;
@@ -21,6 +22,8 @@ pub const IN_WO2: usize = FEATURE_DIM + 5;
 pub const FLAG_PREPARED: u32 = 1;
 /// `flags` bit: `sample` returned `Some`.
 pub const FLAG_SAMPLED: u32 = 2;
+/// `flags` bit: `invert(wo2)` returned `Some`.
+pub const FLAG_INVERTED: u32 = 4;
 
 /// Push constants shared by every entry point.
 #[derive(Copy, Clone, Debug, Default)]
@@ -57,13 +60,23 @@ pub fn run<S: Sampler>(s: &S, i: u32, input: &[f32], output: &mut [f32]) {
     }
     let wi = Vec3::new(input[b + IN_WI], input[b + IN_WI + 1], input[b + IN_WI + 2]);
     let u = Vec2::new(input[b + IN_U], input[b + IN_U + 1]);
-    let wo2 = Vec3::new(input[b + IN_WO2], input[b + IN_WO2 + 1], input[b + IN_WO2 + 2]);
+    let wo2 = Vec3::new(
+        input[b + IN_WO2],
+        input[b + IN_WO2 + 1],
+        input[b + IN_WO2 + 2],
+    );
 
     let mut rec = [0.0f32; OUT_STRIDE];
     let mut flags = 0u32;
     if let Some(p) = s.prepare(&phi, wi) {
         flags |= FLAG_PREPARED;
         rec[6] = p.pdf(wo2);
+        rec[10] = p.pdf_disk(Vec2::new(wo2.x, wo2.y));
+        if let Some(v) = p.invert(wo2) {
+            flags |= FLAG_INVERTED;
+            rec[8] = v.x;
+            rec[9] = v.y;
+        }
         if let Some(smp) = p.sample(u) {
             flags |= FLAG_SAMPLED;
             rec[0] = smp.wo.x;

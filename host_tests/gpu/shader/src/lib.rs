@@ -10,13 +10,14 @@
 //!
 //! ```text
 //! input  [IN_STRIDE = 16]:  φ0..φ7 | wi.x wi.y wi.z | u0 u1 | wo2.x wo2.y wo2.z
-//! output [OUT_STRIDE = 8]:  wo.x wo.y wo.z | pdf | pdf_disk | flags | pdf(wo2) | pdf(wo)
+//! output [OUT_STRIDE = 12]: wo.x wo.y wo.z | pdf | pdf_disk | flags | pdf(wo2) | pdf(wo)
+//!                           | invert(wo2).x invert(wo2).y | pdf_disk(wo2⊥) | 0
 //! ```
 //!
-//! `flags` = 1 (prepared) + 2 (sampled), stored as an exact small float. `pdf`/`pdf_disk`
-//! are the sample's solid-angle / projected-disk densities; the last slot re-evaluates
-//! `Prepared::pdf` at the sampled direction (must equal `pdf`); `pdf(wo2)` is the density
-//! of an unrelated direction, as MIS needs.
+//! `flags` = 1 (prepared) + 2 (sampled) + 4 (`invert(wo2)` is `Some`), stored as an exact
+//! small float. `pdf`/`pdf_disk` are the sample's solid-angle / projected-disk densities;
+//! `pdf(wo)` re-evaluates `Prepared::pdf` at the sampled direction (must equal `pdf`);
+//! `pdf(wo2)` is the density of an unrelated direction, as MIS needs.
 #![cfg_attr(target_arch = "spirv", no_std)]
 #![deny(missing_docs)]
 
@@ -94,6 +95,7 @@ weighted_entry!(
 /// `table`, `marginal`, `conditional` at 3–6; T, N and the interpolation in the push
 /// constants.
 #[spirv(compute(threads(64)))]
+#[allow(clippy::too_many_arguments)] // one argument per binding
 pub fn histogram_mixture(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(push_constant)] params: &Params,
@@ -127,4 +129,4 @@ pub fn histogram_mixture(
 }
 
 // Keep the strides referenced on every target (they document the layout above).
-const _: () = assert!(IN_STRIDE == 16 && OUT_STRIDE == 8);
+const _: () = assert!(IN_STRIDE == 16 && OUT_STRIDE == 12);
