@@ -133,6 +133,42 @@ fn cell_index(x: f32, n: u32) -> u32 {
     math::clamp_index(math::floor((x + 1.0) * (0.5 * n as f32)), n)
 }
 
+/// The coordinate `x` moved by whole ulps until [`cell_index`] puts it in cell `cell`: the
+/// position `cell·h − 1 + d·h` of a sample can round onto a neighbouring cell's edge, and the
+/// density must then be read from the cell the sample was drawn in. Bounded loop; the
+/// caller's `x` is already within a few ulps of the cell.
+#[inline(always)]
+fn snap_into_cell(mut x: f32, cell: u32, n: u32) -> f32 {
+    let mut k = 0;
+    while k < 16 {
+        let i = cell_index(x, n);
+        if i == cell {
+            break;
+        }
+        x = if i > cell { next_down(x) } else { next_up(x) };
+        k += 1;
+    }
+    x
+}
+
+/// The largest f32 below finite `x`.
+#[inline(always)]
+fn next_down(x: f32) -> f32 {
+    if x == 0.0 {
+        -f32::from_bits(1)
+    } else if x > 0.0 {
+        f32::from_bits(x.to_bits() - 1)
+    } else {
+        f32::from_bits(x.to_bits() + 1)
+    }
+}
+
+/// The smallest f32 above finite `x`.
+#[inline(always)]
+fn next_up(x: f32) -> f32 {
+    -next_down(-x)
+}
+
 /// `true` for points of the closed square `[−1, 1]²` (false for NaN).
 #[inline(always)]
 fn in_square(p: Vec2) -> bool {
@@ -386,7 +422,10 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
         }
         let dx = math::clamp((tx - c0) / dc, 0.0, math::ONE_MINUS_EPSILON);
         let h = 2.0 / n as f32;
-        let p = Vec2::new((c as f32 * h - 1.0) + dx * h, (r as f32 * h - 1.0) + dy * h);
+        let p = Vec2::new(
+            snap_into_cell((c as f32 * h - 1.0) + dx * h, c, n),
+            snap_into_cell((r as f32 * h - 1.0) + dy * h, r, n),
+        );
         let pdf = self.pdf(p);
         if pdf > 0.0 {
             Some((p, pdf))

@@ -22,14 +22,8 @@ fn fix_checksum(b: &mut [u8]) {
     }
     let n = b.len();
     b[12..16].copy_from_slice(&(n as u32).to_le_bytes());
-    let mut c = !0u32;
-    for &x in &b[..n - 4] {
-        c ^= u32::from(x);
-        for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
-        }
-    }
-    b[n - 4..].copy_from_slice(&(!c).to_le_bytes());
+    let c = crc32fast::hash(&b[..n - 4]);
+    b[n - 4..].copy_from_slice(&c.to_le_bytes());
 }
 
 fuzz_target!(|data: &[u8]| {

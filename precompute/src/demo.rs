@@ -147,6 +147,17 @@ pub fn regenerate_fixtures(out: &Path, quick: bool) -> Result<()> {
     )?;
     for name in DEFAULT_MATERIALS {
         let m = materials::builtin(name)?;
+        // Conditions drawn from the material, for the runtime's statistical tests (which do
+        // not link the materials): one "φ0 … φ7 wi.x wi.y wi.z" line each.
+        let conds = crate::groundtruth::conditions(m.as_ref(), 256, 0xC0DE);
+        let mut text = String::from("# phi0..phi7 wi.x wi.y wi.z (local frame), from the material\n");
+        for c in &conds {
+            for v in c.phi {
+                text.push_str(&format!("{v:e} "));
+            }
+            text.push_str(&format!("{:e} {:e} {:e}\n", c.wi.x, c.wi.y, c.wi.z));
+        }
+        io::atomic_write(&out.join(name).join("conditions.txt"), text.as_bytes())?;
         for method in Method::ALL {
             pb.set_message(format!("{name}/{method}"));
             let mut cfg = if quick {

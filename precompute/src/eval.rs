@@ -96,7 +96,7 @@ pub fn cost<S: Sampler>(sampler: &S, material: &dyn Material, n: usize, passes: 
         .map(|_| Vec2::new(rng.random::<f32>(), rng.random::<f32>()))
         .collect();
     let wos: Vec<Vec3> = (0..n)
-        .map(|_| crate::bake::direction(rng.random::<f32>() * 1.4, rng.random::<f32>() * 6.28))
+        .map(|_| crate::bake::direction(rng.random::<f32>() * 1.4, rng.random::<f32>() * std::f32::consts::TAU))
         .collect();
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);

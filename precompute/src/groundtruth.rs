@@ -20,20 +20,28 @@
 //!   directions, [`GRAZING_CUTOFF`]).
 //! * Only cells lying **entirely inside** the unit disk (farthest corner at radius ≤ 1) get a
 //!   non-zero density: the piecewise-constant density is then exactly 0 outside the disk,
-//!   every sample lands strictly inside it, and `sample` and `pdf` agree everywhere. With the
-//!   0.98 cut-off this drops only the sliver of cells straddling the circle (radius > 0.98).
+//!   every sample lands strictly inside it (nothing is refused for lying outside, unlike the
+//!   release), and the density a sample reports is `pdf` at its point. With the 0.98 cut-off
+//!   this drops only the sliver of cells straddling the circle (radius > 0.98).
 //! * Values are normalised so that `Σ density·h² = 1` (∫ over the disk = 1). If the function
 //!   is 0 everywhere (possible only at pathological conditions), the density is uniform over
 //!   the active cells and [`TargetPdf::degenerate`] says so.
 //!
-//! Sampling is pbrt-style (`PiecewiseConstant2D`): a row from the marginal CDF with `u.y`, a
-//! column from that row's conditional CDF with `u.x`, and the remapped `u` as the offset
-//! inside the cell, so the map `u ↦ ω⊥` is a bijection with an exact inverse
-//! ([`TargetPdf::invert`]).
+//! The table is stored in the layout of the runtime's baked histograms
+//! (`neusample::histogram`: normalised cell densities plus unnormalised running sums, a
+//! marginal over rows and a conditional within each row), and sampling, density and inverse
+//! go through [`neusample::histogram::Table2D`] — the very code that samples baked tables:
+//! a row from the marginal with `u.x`, a column from the row's conditional with `u.y`, the
+//! remainders as the offset inside the cell, so `u ↦ ω⊥` is a bijection with an inverse
+//! ([`TargetPdf::invert`]). `Table2D` supports `R ≤` [`neusample::histogram::MAX_N`] (128);
+//! larger tables still give [`TargetPdf::density`], [`TargetPdf::pdf`] and
+//! [`TargetPdf::kl_from`], but `sample` and `invert` return `None`.
 
 use glam::{Vec2, Vec3};
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
+
+use neusample::histogram::Table2D;
 
 use crate::materials::{luminance, Material, FEATURE_DIM};
 
@@ -112,9 +120,9 @@ pub struct TargetPdf {
     res: usize,
     /// Per cell, density w.r.t. disk area; rows = y.
     density: Vec<f32>,
-    /// Normalised marginal CDF over rows, `res + 1` entries, 0 … 1.
+    /// Running sums of the row totals of `density` (`R` entries, core layout).
     marginal: Vec<f32>,
-    /// Per row, normalised conditional CDF over columns, `res + 1` entries each.
+    /// Running sums of `density` within each row (`R²` entries, core layout).
     conditional: Vec<f32>,
     /// `∫ Y(f) dω⊥` before normalisation (the luminance albedo `∫ Y(f) cos θo dωo`).
     integral: f64,
@@ -199,7 +207,7 @@ impl TargetPdf {
         for r in 0..res {
             for c in 0..res {
                 let v = &mut values[r * res + c];
-                if !(v.is_finite() && *v > 0.0) || !cell_inside_disk(res, r, c) {
+                if !(v.is_finite() && *v > 0.0 && cell_inside_disk(res, r, c)) {
                     *v = 0.0;
                 }
                 total += f64::from(*v);
@@ -209,7 +217,11 @@ impl TargetPdf {
         if degenerate {
             for r in 0..res {
                 for c in 0..res {
-                    values[r * res + c] = if cell_inside_disk(res, r, c) { 1.0 } else { 0.0 };
+                    values[r * res + c] = if cell_inside_disk(res, r, c) {
+                        1.0
+                    } else {
+                        0.0
+                    };
                 }
             }
             total = values.iter().map(|&v| f64::from(v)).sum();
@@ -217,28 +229,13 @@ impl TargetPdf {
         let integral = if degenerate { 0.0 } else { total * area };
         // Density: value / (total · area), so Σ density · area = 1.
         let scale = 1.0 / (total * area);
-        let density: Vec<f32> = values.iter().map(|&v| (f64::from(v) * scale) as f32).collect();
-        let mut marginal = vec![0f32; res + 1];
-        let mut conditional = vec![0f32; res * (res + 1)];
-        let mut acc_rows = 0.0f64;
-        for r in 0..res {
-            let row = &values[r * res..(r + 1) * res];
-            let row_sum: f64 = row.iter().map(|&v| f64::from(v)).sum();
-            let cdf = &mut conditional[r * (res + 1)..(r + 1) * (res + 1)];
-            let mut acc = 0.0f64;
-            for c in 0..res {
-                acc += f64::from(row[c]);
-                cdf[c + 1] = if row_sum > 0.0 {
-                    (acc / row_sum) as f32
-                } else {
-                    (c + 1) as f32 / res as f32
-                };
-            }
-            cdf[res] = 1.0;
-            acc_rows += row_sum;
-            marginal[r + 1] = (acc_rows / total) as f32;
-        }
-        marginal[res] = 1.0;
+        let density: Vec<f32> = values
+            .iter()
+            .map(|&v| (f64::from(v) * scale) as f32)
+            .collect();
+        let mut marginal = vec![0f32; res];
+        let mut conditional = vec![0f32; res * res];
+        neusample::histogram::running_sums(&density, res as u32, &mut marginal, &mut conditional);
         TargetPdf {
             res,
             density,
@@ -288,54 +285,56 @@ impl TargetPdf {
         Some(r * self.res + c)
     }
 
+    /// The runtime's view of the table (`None` when `R >` [`neusample::histogram::MAX_N`]).
+    #[must_use]
+    pub fn table(&self) -> Option<Table2D<&[f32]>> {
+        Table2D::new(
+            &self.density[..],
+            &self.marginal[..],
+            &self.conditional[..],
+            self.res as u32,
+            0,
+        )
+    }
+
+    /// The table in the runtime's layout: `(density, marginal, conditional)` with `R²`, `R` and
+    /// `R²` values (module docs of `neusample::histogram`), e.g. to bake it into a blob.
+    #[must_use]
+    pub fn tensors(&self) -> (&[f32], &[f32], &[f32]) {
+        (&self.density, &self.marginal, &self.conditional)
+    }
+
     /// Piecewise-constant density at disk point `p` w.r.t. disk area; 0 outside the open unit
-    /// disk and for non-finite `p`.
+    /// disk and for non-finite `p`. Equal to the density [`TargetPdf::sample`] reports.
     #[inline]
     #[must_use]
     pub fn pdf(&self, p: Vec2) -> f32 {
-        if !(p.length_squared() < 1.0) {
+        if p.length_squared() >= 1.0 || !p.is_finite() {
             return 0.0;
         }
-        self.cell_of(p).map_or(0.0, |i| self.density[i])
+        match self.table() {
+            Some(t) => t.pdf(p),
+            None => self.cell_of(p).map_or(0.0, |i| self.density[i]),
+        }
     }
 
-    /// Exact sample for `u ∈ [0, 1)²` (a row by `u.y`, a column by `u.x`, the remainders as the
-    /// offset inside the cell). `None` for `u` outside `[0, 1]²` or non-finite, or in the
-    /// measure-zero event of landing exactly on the circle.
+    /// Exact sample for `u ∈ [0, 1)²` through `Table2D::sample` (`u.x` picks the row, `u.y`
+    /// the column). `None` for `u` outside `[0, 1]²` or non-finite, for `R > 128`, and in the
+    /// rare event that rounding puts the point on the edge of an empty neighbouring cell.
     #[must_use]
     pub fn sample(&self, u: Vec2) -> Option<Vec2> {
-        let u = neusample::sampler::sanitize_u2(u)?;
-        let (r, dy) = sample_cdf(&self.marginal, u.y);
-        let row = &self.conditional[r * (self.res + 1)..(r + 1) * (self.res + 1)];
-        let (c, dx) = sample_cdf(row, u.x);
-        let h = 2.0 / self.res as f32;
-        let p = Vec2::new(
-            -1.0 + (c as f32 + dx) * h,
-            -1.0 + (r as f32 + dy) * h,
-        );
-        if p.length_squared() < 1.0 {
-            Some(p)
-        } else {
-            None
-        }
+        let (p, _) = self.table()?.sample(u)?;
+        (p.length_squared() < 1.0).then_some(p)
     }
 
-    /// The `u` that [`TargetPdf::sample`] maps to `p`; `None` where the density is 0.
+    /// The `u` that [`TargetPdf::sample`] maps to `p` (up to rounding); `None` where the
+    /// density is 0 or for `R > 128`.
     #[must_use]
     pub fn invert(&self, p: Vec2) -> Option<Vec2> {
-        if !(self.pdf(p) > 0.0) {
+        if self.pdf(p) <= 0.0 {
             return None;
         }
-        let n = self.res as f32;
-        let gx = (p.x + 1.0) * 0.5 * n;
-        let gy = (p.y + 1.0) * 0.5 * n;
-        let c = (gx as usize).min(self.res - 1);
-        let r = (gy as usize).min(self.res - 1);
-        let (fx, fy) = ((gx - c as f32).clamp(0.0, 1.0), (gy - r as f32).clamp(0.0, 1.0));
-        let row = &self.conditional[r * (self.res + 1)..(r + 1) * (self.res + 1)];
-        let uy = self.marginal[r] + fy * (self.marginal[r + 1] - self.marginal[r]);
-        let ux = row[c] + fx * (row[c + 1] - row[c]);
-        Some(Vec2::new(ux.min(neusample::math::ONE_MINUS_EPSILON), uy.min(neusample::math::ONE_MINUS_EPSILON)))
+        self.table()?.invert(p)
     }
 
     /// `KL(p* ‖ q) = Σ_cells p*_c log(p*_c / q(m_c)) · h²` with `m_c` the cell midpoints and `q`
@@ -356,7 +355,11 @@ impl TargetPdf {
                     (-1.0 + (r as f64 + 0.5) * h) as f32,
                 );
                 let qv = f64::from(q(m));
-                let qv = if qv.is_finite() && qv > KL_Q_FLOOR { qv } else { KL_Q_FLOOR };
+                let qv = if qv.is_finite() && qv > KL_Q_FLOOR {
+                    qv
+                } else {
+                    KL_Q_FLOOR
+                };
                 kl += p * (p / qv).ln();
             }
         }
@@ -364,25 +367,10 @@ impl TargetPdf {
     }
 }
 
-/// Samples a normalised CDF (`cdf[0] = 0`, `cdf[n] = 1`): the bin `i` with
-/// `cdf[i] ≤ u < cdf[i+1]` (skipping empty bins) and the remapped offset in `[0, 1)`.
-fn sample_cdf(cdf: &[f32], u: f32) -> (usize, f32) {
-    let n = cdf.len() - 1;
-    let i = cdf.partition_point(|&v| v <= u).clamp(1, n) - 1;
-    // Guard against landing in an empty bin through rounding at the top end.
-    let mut i = i;
-    while i > 0 && cdf[i + 1] <= cdf[i] {
-        i -= 1;
-    }
-    let w = cdf[i + 1] - cdf[i];
-    let d = if w > 0.0 { ((u - cdf[i]) / w).clamp(0.0, neusample::math::ONE_MINUS_EPSILON) } else { 0.5 };
-    (i, d)
-}
-
 impl neusample::Prepared for TargetPdf {
     fn sample(&self, u: Vec2) -> Option<neusample::Sample> {
-        let p = TargetPdf::sample(self, u)?;
-        neusample::Sample::from_disk(p, TargetPdf::pdf(self, p))
+        let (p, pdf) = self.table()?.sample(u)?;
+        neusample::Sample::from_disk(p, pdf)
     }
 
     fn pdf_disk(&self, p: Vec2) -> f32 {

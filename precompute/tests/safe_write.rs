@@ -1,7 +1,6 @@
 //! A write killed midway leaves the previous file intact; a corrupted blob is refused with a
 //! message that names the file.
 
-use std::io::Write;
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::{Duration, Instant};

@@ -22,10 +22,6 @@ use rand_pcg::Pcg64;
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-fn full_tests() -> bool {
-    std::env::var("NEUSAMPLE_FULL_TESTS").is_ok_and(|v| v == "1")
-}
-
 /// Quick-trained models on the synthetic target, shared between tests.
 fn quick(method: Method) -> Trained {
     static CACHE: OnceLock<Mutex<HashMap<Method, Trained>>> = OnceLock::new();
@@ -243,7 +239,7 @@ fn training_is_reproducible() {
 /// reporting ms/step and KL(p* ‖ p). Slow (minutes): full tests only.
 #[test]
 fn default_training_kl() {
-    if !full_tests() {
+    if !neusample_host_tests::full_tests() {
         return;
     }
     let methods: Vec<Method> = match std::env::var("NEUSAMPLE_TRAIN_METHODS") {

@@ -113,11 +113,16 @@ impl SurfaceModel for Anisotropic {
                 let t = Vec2::new(-g.y, g.x);
                 let v = fbm(uv, p.freq * 2, 3, 0.5, p.seed ^ 0x1234) * 1.4 + 0.5;
                 let hgrad = gradient_of(
-                    |q| fbm(q, p.freq * 4, 2, 0.5, p.seed ^ 0x77) / (4.0 * f),
+                    |q| fbm(q, p.freq * 2, 2, 0.5, p.seed ^ 0x77) / (2.0 * f),
                     uv,
                     0.01 / f,
                 );
-                (t, v.clamp(0.0, 1.0), (0.5 + 1.2 * g.length() / f).clamp(0.0, 1.0), hgrad)
+                (
+                    t,
+                    v.clamp(0.0, 1.0),
+                    (0.5 + 1.2 * g.length() / f).clamp(0.0, 1.0),
+                    hgrad,
+                )
             }
             Pattern::Spot | Pattern::Shell => {
                 let jitter = if p.pattern == Pattern::Spot { 0.3 } else { 0.9 };

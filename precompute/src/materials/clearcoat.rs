@@ -103,7 +103,8 @@ impl Material for ClearCoat {
         let p = &self.p;
         let uv = super::noise::wrap_uv(uv);
         let pat = (0.5 + 1.2 * fbm(uv, p.pattern_freq, 3, 0.5, p.seed)).clamp(0.0, 1.0);
-        let wear = (0.5 + 1.5 * fbm(uv, p.pattern_freq * 2, 2, 0.5, p.seed ^ 0xc0a7)).clamp(0.0, 1.0);
+        let wear =
+            (0.5 + 1.5 * fbm(uv, p.pattern_freq * 2, 2, 0.5, p.seed ^ 0xc0a7)).clamp(0.0, 1.0);
         let w = worley(uv, p.flakes, 1.0, p.seed ^ 0xf1a4);
         let a = hunit(w.id) * std::f32::consts::TAU;
         let t = p.flake_tilt * hunit(hash(w.id, 1, p.seed)).sqrt();

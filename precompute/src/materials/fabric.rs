@@ -95,6 +95,7 @@ pub struct Fabric {
     name: String,
     p: Params,
     tilt_sin: f32,
+    tilt_cos: f32,
     ax: f32,
     ay: f32,
     ar: f32,
@@ -120,7 +121,7 @@ impl Fabric {
         check::range_n("sheen_color", &p.sheen_color, 0.0, 1.0)?;
         check::range("sheen_alpha", p.sheen_alpha, 0.05, 1.0)?;
         check::interval("sheen", p.sheen, 0.0, 1.0)?;
-        let tilt_sin = p.tilt_deg.to_radians().sin();
+        let (tilt_sin, tilt_cos) = p.tilt_deg.to_radians().sin_cos();
         let sheen_max = p.sheen_color.iter().fold(0.0f32, |a, &b| a.max(b));
         Ok(Fabric {
             name: file.name.clone(),
@@ -129,6 +130,7 @@ impl Fabric {
             ar: alpha_from_roughness(p.retro_roughness),
             p: file.params,
             tilt_sin,
+            tilt_cos,
             sheen_max,
         })
     }
@@ -182,7 +184,11 @@ impl Material for Fabric {
         let (c2, s2) = (psi_c2 * cj - psi_s2 * sj, psi_c2 * sj + psi_s2 * cj);
         let shade = 0.85 + 0.3 * hunit(th.rotate_left(11));
         let color = color.map(|c| (c * shade).clamp(0.0, 1.0));
-        let fuzz = smoothstep(-0.3, 0.3, fbm(uv, p.motif_freq * 8, 2, 0.5, p.seed ^ 0xf022));
+        let fuzz = smoothstep(
+            -0.3,
+            0.3,
+            fbm(uv, p.motif_freq * 8, 2, 0.5, p.seed ^ 0xf022),
+        );
         let sheen = p.sheen[0] + (p.sheen[1] - p.sheen[0]) * fuzz;
         [c2, s2, tau, color[0], color[1], color[2], sheen, gloss]
     }
@@ -201,8 +207,8 @@ impl Material for Fabric {
             if w <= 0.0 {
                 continue;
             }
-            let t = sign * self.tilt_sin;
-            let frame = ShadingFrame::new(t * c, t * s, c, s);
+            let frame =
+                ShadingFrame::tilted_along_tangent(c, s, sign * self.tilt_sin, self.tilt_cos);
             if let Some(l) = frame.local(wi, wo) {
                 let (dg, cos_d) = ggx_dg(l.wi, l.wo, self.ax, self.ay);
                 spec += w * dg * l.inv_4mm * schlick1(p.f0, cos_d);
@@ -212,7 +218,8 @@ impl Material for Fabric {
         // Retro lobe.
         let inv_4cc = 0.25 / (wi.z * wo.z);
         let hr = Vec3::new(wi.x - wo.x, wi.y - wo.y, wi.z + wo.z).normalize();
-        let retro = p.retro * ggx_d(hr, self.ar, self.ar) * ggx_g2(wi, wo, self.ar, self.ar) * inv_4cc;
+        let retro =
+            p.retro * ggx_d(hr, self.ar, self.ar) * ggx_g2(wi, wo, self.ar, self.ar) * inv_4cc;
         // Sheen.
         let h = (wi + wo).normalize();
         let sheen_amt = unit(phi[6]);

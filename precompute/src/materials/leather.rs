@@ -109,11 +109,14 @@ impl SurfaceModel for Leather {
         let w = worley(uv, p.grain_cells, 0.9, p.seed);
         let crease = 1.0 - smoothstep(0.0, 0.35, w.f2 - w.f1);
         let jitter = 1.0 + p.color_jitter * (super::noise::unit(w.id) - 0.5);
-        let albedo = lerp3(p.color_top, p.color_crease, crease).map(|c| (c * jitter).clamp(0.0, 1.0));
+        let albedo =
+            lerp3(p.color_top, p.color_crease, crease).map(|c| (c * jitter).clamp(0.0, 1.0));
         let r = p.roughness_top + (p.roughness_crease - p.roughness_top) * crease;
         let cavity = 1.0 - 0.5 * crease;
         let (nx, ny) = clamp_tilt(n.x, n.y);
-        [nx, ny, r, albedo[0], albedo[1], albedo[2], p.specular, cavity]
+        [
+            nx, ny, r, albedo[0], albedo[1], albedo[2], p.specular, cavity,
+        ]
     }
 
     fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface {

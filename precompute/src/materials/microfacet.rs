@@ -187,7 +187,7 @@ impl ShadingFrame {
     pub fn new(nx: f32, ny: f32, cos_psi: f32, sin_psi: f32) -> Self {
         let mut n2 = Vec3::new(nx, ny, 0.0);
         let l2 = nx * nx + ny * ny;
-        if !(l2 <= MAX_TILT_XY * MAX_TILT_XY) {
+        if l2.is_nan() || l2 > MAX_TILT_XY * MAX_TILT_XY {
             n2 = if l2.is_finite() && l2 > 0.0 {
                 n2 * (MAX_TILT_XY / l2.sqrt())
             } else {
@@ -198,6 +198,30 @@ impl ShadingFrame {
         ShadingFrame {
             frame: Frame::from_normal_tangent(n, Vec3::new(cos_psi, sin_psi, 0.0)),
         }
+    }
+
+    /// The frame whose normal is tilted by θ towards the tangent `(cos ψ, sin ψ, 0)`:
+    /// `n = (sin θ cos ψ, sin θ sin ψ, cos θ)`, `t = (cos θ cos ψ, cos θ sin ψ, −sin θ)`,
+    /// `b = (−sin ψ, cos ψ, 0)`. The same frame as
+    /// `ShadingFrame::new(sin θ cos ψ, sin θ sin ψ, cos ψ, sin ψ)` for `sin θ ≤` [`MAX_TILT_XY`],
+    /// without square roots. `θ` may be negative.
+    #[inline]
+    #[must_use]
+    pub fn tilted_along_tangent(cos_psi: f32, sin_psi: f32, sin_t: f32, cos_t: f32) -> Self {
+        ShadingFrame {
+            frame: Frame {
+                t: Vec3::new(cos_t * cos_psi, cos_t * sin_psi, -sin_t),
+                b: Vec3::new(-sin_psi, cos_psi, 0.0),
+                n: Vec3::new(sin_t * cos_psi, sin_t * sin_psi, cos_t),
+            },
+        }
+    }
+
+    /// A geometric-frame direction in the shading frame.
+    #[inline]
+    #[must_use]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        self.frame.to_local(v)
     }
 
     /// The shading normal.
@@ -247,7 +271,7 @@ pub fn normalize_pair(wi: Vec3, wo: Vec3) -> Option<(Vec3, Vec3)> {
 #[must_use]
 pub fn half_angle(c2: f32, s2: f32) -> (f32, f32) {
     let l = (c2 * c2 + s2 * s2).sqrt();
-    if !(l > 1e-12) {
+    if l.is_nan() || l <= 1e-12 {
         return (1.0, 0.0);
     }
     let c = c2 / l;

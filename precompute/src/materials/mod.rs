@@ -202,22 +202,50 @@ pub fn parse(
     }
     let header: Header = de(text, format).map_err(|e| anyhow!("{origin}: {e}"))?;
     let Some(model) = header.model else {
-        bail!("{origin}: missing field `model` (one of: {})", MODELS.join(", "));
+        bail!(
+            "{origin}: missing field `model` (one of: {})",
+            MODELS.join(", ")
+        );
     };
     if header.name.is_none() {
         bail!("{origin}: missing field `name`");
     }
     let ctx = |e: anyhow::Error| anyhow!("{origin}: {e:#}");
     let m: Box<dyn Material> = match model.as_str() {
-        "normal_mapped" => Box::new(surface::Textured::<leather::Leather>::new(file(text, format).map_err(ctx)?).map_err(ctx)?),
-        "anisotropic" => Box::new(surface::Textured::<anisotropic::Anisotropic>::new(file(text, format).map_err(ctx)?).map_err(ctx)?),
-        "marble" => Box::new(surface::Textured::<marble::Marble>::new(file(text, format).map_err(ctx)?).map_err(ctx)?),
-        "wood" => Box::new(surface::Textured::<wood::Wood>::new(file(text, format).map_err(ctx)?).map_err(ctx)?),
-        "tiles" => Box::new(surface::Textured::<tiles::Tiles>::new(file(text, format).map_err(ctx)?).map_err(ctx)?),
-        "conductor" => Box::new(surface::Textured::<conductor::Conductor>::new(file(text, format).map_err(ctx)?).map_err(ctx)?),
-        "clearcoat" => Box::new(clearcoat::ClearCoat::new(file::<clearcoat::Params>(text, format).map_err(ctx)?).map_err(ctx)?),
-        "fabric" => Box::new(fabric::Fabric::new(file::<fabric::Params>(text, format).map_err(ctx)?).map_err(ctx)?),
-        "tabulated" => Box::new(tabulated::Tabulated::new(file::<tabulated::Params>(text, format).map_err(ctx)?, side).map_err(ctx)?),
+        "normal_mapped" => Box::new(
+            surface::Textured::<leather::Leather>::new(file(text, format).map_err(ctx)?)
+                .map_err(ctx)?,
+        ),
+        "anisotropic" => Box::new(
+            surface::Textured::<anisotropic::Anisotropic>::new(file(text, format).map_err(ctx)?)
+                .map_err(ctx)?,
+        ),
+        "marble" => Box::new(
+            surface::Textured::<marble::Marble>::new(file(text, format).map_err(ctx)?)
+                .map_err(ctx)?,
+        ),
+        "wood" => Box::new(
+            surface::Textured::<wood::Wood>::new(file(text, format).map_err(ctx)?).map_err(ctx)?,
+        ),
+        "tiles" => Box::new(
+            surface::Textured::<tiles::Tiles>::new(file(text, format).map_err(ctx)?)
+                .map_err(ctx)?,
+        ),
+        "conductor" => Box::new(
+            surface::Textured::<conductor::Conductor>::new(file(text, format).map_err(ctx)?)
+                .map_err(ctx)?,
+        ),
+        "clearcoat" => Box::new(
+            clearcoat::ClearCoat::new(file::<clearcoat::Params>(text, format).map_err(ctx)?)
+                .map_err(ctx)?,
+        ),
+        "fabric" => Box::new(
+            fabric::Fabric::new(file::<fabric::Params>(text, format).map_err(ctx)?).map_err(ctx)?,
+        ),
+        "tabulated" => Box::new(
+            tabulated::Tabulated::new(file::<tabulated::Params>(text, format).map_err(ctx)?, side)
+                .map_err(ctx)?,
+        ),
         other => bail!(
             "{origin}: field `model`: unknown model `{other}` (one of: {})",
             MODELS.join(", ")

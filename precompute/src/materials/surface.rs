@@ -4,14 +4,17 @@
 //!
 //! ```text
 //! f = s · [ F(wi·h) · ((1 − w_h) DG(α_x, α_y) + w_h DG(α_h)) / (4 M_i M_o)
-//!         + ρ_d/π · (cos_s θi / M_i)(cos_s θo / M_o) · (1 − F̄(cos_s θi))(1 − F̄(cos_s θo)) ]
+//!         + ρ_d/π · d(wi) d(wo) · (1 − F̄(M_i))(1 − F̄(M_o)) ]
+//!
+//! d(w) = β + (1 − β) · max(cos_s θ, 0) / M,   β = DIFFUSE_FLOOR = 0.1
 //! ```
 //!
-//! with `M_i, M_o` the max-cosine normal-mapping denominators of [`super::microfacet`],
-//! `F̄` the scalar Schlick Fresnel of the mean `F0`, and `s ∈ [0, 1]` a cavity factor. Every
-//! term is symmetric in `wi` and `wo`, so the BRDF is reciprocal; the specular part reflects
-//! at most `F`, the diffuse part at most `ρ_d (1 − F̄(cos_s θi))`, so the white furnace stays
-//! ≤ 1 for `ρ_d ≤ 1`.
+//! with `M_i, M_o` the max-cosine normal-mapping denominators of [`super::microfacet`]
+//! (the specular lobe is 0 when either direction is below the shading horizon), `F̄` the
+//! scalar Schlick Fresnel of the mean `F0`, and `s ∈ [0, 1]` a cavity factor. Every term is
+//! symmetric in `wi` and `wo`, so the BRDF is reciprocal; the specular part reflects at most
+//! `F`, the diffuse part at most `ρ_d (1 − F̄(M_i))` because `d ≤ 1`, so the white furnace
+//! stays ≤ 1 for `ρ_d ≤ 1` (checked numerically in `tests/materials.rs`).
 //!
 //! A model is a [`SurfaceModel`]: a procedural feature texture plus a decoder from φ to a
 //! [`Surface`]; [`Textured`] turns it into a [`super::Material`].
@@ -20,6 +23,11 @@ use glam::{Vec2, Vec3};
 use serde::de::DeserializeOwned;
 
 use super::microfacet::{ggx_dg, normalize_pair, schlick, schlick1, ShadingFrame, LAMBERT};
+
+/// Floor β of the diffuse normal-mapping factor `d(w) = β + (1 − β)·max(cos_s θ, 0)/M`, so
+/// that a texel whose shading normal faces away from `wi` is dark but never black (a
+/// normal-mapped texel with `f ≡ 0` would have no target density).
+pub const DIFFUSE_FLOOR: f32 = 0.1;
 use super::{File, Material, FEATURE_DIM};
 
 /// A decoded texel of the standard surface.
@@ -63,24 +71,32 @@ impl Surface {
     #[inline]
     #[must_use]
     pub fn eval_unit(&self, wi: Vec3, wo: Vec3) -> [f32; 3] {
-        let Some(l) = self.frame.local(wi, wo) else {
+        let li = self.frame.to_local(wi);
+        let lo = self.frame.to_local(wo);
+        let mi = li.z.max(wi.z);
+        let mo = lo.z.max(wo.z);
+        if !(mi > 1e-6 && mo > 1e-6) {
             return [0.0; 3];
-        };
-        let (dg, cos_d) = ggx_dg(l.wi, l.wo, self.ax, self.ay);
-        let mut spec = dg;
-        if self.haze > 0.0 {
-            let (dgh, _) = ggx_dg(l.wi, l.wo, self.haze_alpha, self.haze_alpha);
-            spec = (1.0 - self.haze) * dg + self.haze * dgh;
         }
-        spec *= l.inv_4mm * self.scale;
+        let mut spec = 0.0;
+        let mut cos_d = 1.0;
+        if li.z > 1e-6 && lo.z > 1e-6 {
+            let (dg, cd) = ggx_dg(li, lo, self.ax, self.ay);
+            spec = dg;
+            cos_d = cd;
+            if self.haze > 0.0 {
+                let (dgh, _) = ggx_dg(li, lo, self.haze_alpha, self.haze_alpha);
+                spec = (1.0 - self.haze) * dg + self.haze * dgh;
+            }
+            spec *= 0.25 / (mi * mo) * self.scale;
+        }
         let fr = schlick(self.f0, cos_d);
         let f0m = (self.f0[0] + self.f0[1] + self.f0[2]) * (1.0 / 3.0);
-        let kd = LAMBERT
-            * l.ci
-            * l.co
-            * (1.0 - schlick1(f0m, l.wi.z))
-            * (1.0 - schlick1(f0m, l.wo.z))
-            * self.scale;
+        // Diffuse shading factor d(w) = β + (1 − β)·max(cos_s, 0)/M ∈ [β, 1].
+        let di = DIFFUSE_FLOOR + (1.0 - DIFFUSE_FLOOR) * li.z.max(0.0) / mi;
+        let d_o = DIFFUSE_FLOOR + (1.0 - DIFFUSE_FLOOR) * lo.z.max(0.0) / mo;
+        let kd =
+            LAMBERT * di * d_o * (1.0 - schlick1(f0m, mi)) * (1.0 - schlick1(f0m, mo)) * self.scale;
         [
             fr[0] * spec + self.diffuse[0] * kd,
             fr[1] * spec + self.diffuse[1] * kd,
@@ -99,14 +115,19 @@ impl Surface {
     }
 }
 
-/// Anisotropic α pair from a perceptual roughness and an anisotropy `a ∈ [0, 1]`
-/// (Burley 2012: aspect `√(1 − 0.9 a)`, `α_x = r²/aspect`, `α_y = r²·aspect`).
+/// Anisotropic α pair `(α_t, α_b)` from a perceptual roughness and an anisotropy
+/// `a ∈ [0, 1]` (Burley 2012's aspect `√(1 − 0.9 a)`): `α_t = r²·aspect` along the tangent
+/// (the brushing or fibre direction: smoother) and `α_b = r²/aspect` across it, so the
+/// highlight stretches across the tangent.
 #[inline]
 #[must_use]
 pub fn aniso_alphas(roughness: f32, anisotropy: f32) -> (f32, f32) {
     let a = super::microfacet::alpha_from_roughness(roughness);
     let aspect = (1.0 - 0.9 * anisotropy.clamp(0.0, 1.0)).sqrt();
-    ((a / aspect).min(1.0), (a * aspect).max(super::microfacet::ALPHA_MIN))
+    (
+        (a * aspect).max(super::microfacet::ALPHA_MIN),
+        (a / aspect).min(1.0),
+    )
 }
 
 /// `x` clamped to `[0, 1]` (NaN → 0).

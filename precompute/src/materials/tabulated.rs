@@ -176,7 +176,11 @@ impl Table {
     pub fn lookup(&self, wi: Vec3, wo: Vec3) -> [f32; 3] {
         // Rotate wo⊥ by −φi.
         let s = (wi.x * wi.x + wi.y * wi.y).sqrt();
-        let (c, sn) = if s > 1e-7 { (wi.x / s, wi.y / s) } else { (1.0, 0.0) };
+        let (c, sn) = if s > 1e-7 {
+            (wi.x / s, wi.y / s)
+        } else {
+            (1.0, 0.0)
+        };
         let p = Vec2::new(c * wo.x + sn * wo.y, -sn * wo.x + c * wo.y);
         let theta = s.atan2(wi.z).clamp(0.0, std::f32::consts::FRAC_PI_2);
         let tk = theta / std::f32::consts::FRAC_PI_2 * (self.n_theta - 1) as f32;

@@ -4,7 +4,8 @@
 //! are separated by grout. A star-shaped inlay in the centre of each tile uses the kind's
 //! `inlay_color`.
 //!
-//! Anisotropy is along the tile's u axis for `anisotropy > 0` and along v for `< 0`.
+//! Anisotropic tiles are brushed along the tile's u axis for `anisotropy > 0` and along v for
+//! `< 0` (smoother along the brushing, see [`super::surface::aniso_alphas`]).
 //!
 //! # φ layout
 //!
@@ -117,7 +118,16 @@ impl SurfaceModel for Tiles {
             let k = &p.grout;
             let tint = 1.0 + 0.2 * fbm(uv, 64, 2, 0.5, p.seed ^ 0x6);
             let c = k.color.map(|x| (x * tint).clamp(0.0, 1.0));
-            return [c[0], c[1], c[2], k.metallic, k.roughness, k.anisotropy, 0.0, 0.0];
+            return [
+                c[0],
+                c[1],
+                c[2],
+                k.metallic,
+                k.roughness,
+                k.anisotropy,
+                0.0,
+                0.0,
+            ];
         }
         let (ci, cj) = (cell.x as u32 % p.tiles, cell.y as u32 % p.tiles);
         let h = hash(ci, cj, p.seed);
@@ -142,16 +152,30 @@ impl SurfaceModel for Tiles {
         let color = color.map(|x| (x * glaze).clamp(0.0, 1.0));
         let n = Vec3::new(n2.x, n2.y, 1.0).normalize();
         let (nx, ny) = clamp_tilt(n.x, n.y);
-        [color[0], color[1], color[2], k.metallic, k.roughness, k.anisotropy, nx, ny]
+        [
+            color[0],
+            color[1],
+            color[2],
+            k.metallic,
+            k.roughness,
+            k.anisotropy,
+            nx,
+            ny,
+        ]
     }
 
     fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface {
         let color = [unit(phi[0]), unit(phi[1]), unit(phi[2])];
         let m = unit(phi[3]);
         let a = signed(phi[5]);
-        let (along, across) = aniso_alphas(unit(phi[4]), a.abs());
-        let (ax, ay) = if a >= 0.0 { (along, across) } else { (across, along) };
-        let mut s = Surface::isotropic(ax, lerp3([0.04; 3], color, m), color.map(|x| x * (1.0 - m)));
+        let (along, across) = aniso_alphas(unit(phi[4]), a.abs()); // α_t ≤ α_b
+        let (ax, ay) = if a >= 0.0 {
+            (along, across)
+        } else {
+            (across, along)
+        };
+        let mut s =
+            Surface::isotropic(ax, lerp3([0.04; 3], color, m), color.map(|x| x * (1.0 - m)));
         s.ay = ay;
         s.frame = ShadingFrame::new(signed(phi[6]), signed(phi[7]), 1.0, 0.0);
         s

@@ -10,7 +10,7 @@
 //! | 0–2   | diffuse albedo (RGB)                                  | `[0, 1]` |
 //! | 3     | perceptual roughness `r`                              | `[0, 1]` |
 //! | 4, 5  | grain direction as doubled angle `(cos 2ψ, sin 2ψ)`   | unit vector |
-//! | 6     | anisotropy `a` (aspect `√(1 − 0.9 a)`, stretched along the grain) | `[0, 1]` |
+//! | 6     | anisotropy `a`: `(α_t, α_b)` from [`aniso_alphas`], tangent = grain (smoother along the fibres, highlight stretched across them) | `[0, 1]` |
 //! | 7     | specular level `s` (`F0 = 0.08 s`)                    | `[0, 1]` |
 
 use glam::Vec2;
@@ -88,7 +88,11 @@ impl SurfaceModel for Wood {
         let frac = ph - ph.floor();
         // Early wood grows fast (light, wide), late wood is a narrow dark band.
         let late = smoothstep(0.65, 0.85, frac) * (1.0 - smoothstep(0.92, 1.0, frac));
-        let pores = smoothstep(0.35, 0.6, gradient(uv * Vec2::new(1.0, 8.0), 64, p.seed ^ 0x9)) * (1.0 - late);
+        let pores = smoothstep(
+            0.35,
+            0.6,
+            gradient(uv * Vec2::new(1.0, 8.0), 64, p.seed ^ 0x9),
+        ) * (1.0 - late);
         let streak = fbm(Vec2::new(uv.x, uv.y), 2, 2, 0.5, p.seed ^ 0x3) * 0.3;
         let albedo = lerp3(p.color_early, p.color_late, (late + 0.5 * pores).min(1.0))
             .map(|c| (c * (1.0 + streak)).clamp(0.0, 1.0));
@@ -116,7 +120,7 @@ impl SurfaceModel for Wood {
 
     fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface {
         let (c, s) = half_angle(signed(phi[4]), signed(phi[5]));
-        let (ax, ay) = aniso_alphas(unit(phi[3]), unit(phi[6]));
+        let (ax, ay) = aniso_alphas(unit(phi[3]), unit(phi[6])); // x = grain
         let f0 = 0.08 * unit(phi[7]);
         let mut surf = Surface::isotropic(ax, [f0; 3], [unit(phi[0]), unit(phi[1]), unit(phi[2])]);
         surf.ay = ay;

@@ -11,7 +11,14 @@
 //!
 //! fitted with the L2 loss of Eq. 7 at random points (half uniform on the disk, half drawn
 //! from p*), divided by the batch's mean p*² so the scale does not depend on how peaked the
-//! material is, plus the quantisation term `λ ‖t − round(t·(T−1))/(T−1)‖²`.
+//! material is, plus the quantisation term `λ ‖t − round(t·(T−1))/(T−1)‖²`, plus optionally
+//! a self-normalised NLL term ([`super::TrainConfig::hist_nll_weight`], 0 = the paper).
+//!
+//! Training aids that leave the model unchanged: the basis output is `S·softplus(z)` with a
+//! constant S ([`super::TrainConfig::hist_output_scale`]; the baked tables are normalised, so
+//! S cancels), the basis network starts at the uniform density, and the condition network
+//! can start with every basis aligned to the mirror direction
+//! ([`super::TrainConfig::hist_aligned_init`]).
 //!
 //! Baking evaluates `H(·, t_j, k)` on every `(k, level j)` slice of an `N × N` grid (the mean
 //! over `ss × ss` points per cell; cells entirely outside the disk are 0), records the slice
@@ -21,7 +28,7 @@
 
 use burn::module::Module;
 use burn::tensor::activation;
-use burn::tensor::Tensor;
+use burn::tensor::{Tensor, TensorData};
 use glam::{Vec2, Vec3};
 use neusample::histogram::{self, cell_outside_disk, Interpolation, BASES};
 use neusample::sampler::{raw_condition, RAW_CONDITION_DIM};
@@ -104,10 +111,10 @@ fn basis_q_part(basis: &Mlp, qx: Tensor<2>, qy: Tensor<2>) -> Tensor<2> {
 }
 
 /// Layers after the first, from the first layer's pre-activation `[r, hidden]`, with the
-/// softplus output: `[r, 1]`.
-fn basis_rest(basis: &Mlp, pre: Tensor<2>) -> Tensor<2> {
+/// scaled softplus output `scale · softplus(z)`: `[r, 1]`.
+fn basis_rest(basis: &Mlp, pre: Tensor<2>, scale: f32) -> Tensor<2> {
     let h = Mlp::hidden_act(pre, Act::Relu);
-    activation::softplus(basis.forward_from(1, h, Act::Relu), 1.0)
+    activation::softplus(basis.forward_from(1, h, Act::Relu), 1.0) * scale
 }
 
 struct Heads {
@@ -137,7 +144,7 @@ fn heads(cond: &Mlp, raw: Tensor<2>) -> Heads {
 
 impl HistogramMixture {
     /// Training-model density `[b, s]` at the batch points and the latent codes `[b, K]`.
-    fn density(&self, batch: &Batch) -> (Tensor<2>, Tensor<2>) {
+    fn density(&self, batch: &Batch, scale: f32) -> (Tensor<2>, Tensor<2>) {
         let (b, s) = (batch.b, batch.s);
         let h = heads(&self.cond, batch.raw.clone());
         let x = batch.x.clone().unsqueeze_dim::<3>(2);
@@ -152,10 +159,110 @@ impl HistogramMixture {
             .reshape([b, s, BASES, BASIS_HIDDEN]);
         let share = basis_tk_share(&self.basis, h.t.clone()).unsqueeze_dim::<4>(1);
         let pre = (qpart + share).reshape([n, BASIS_HIDDEN]);
-        let hk = basis_rest(&self.basis, pre).reshape([b, s, BASES]);
+        let hk = basis_rest(&self.basis, pre, scale).reshape([b, s, BASES]);
         let p = (hk * h.weights.unsqueeze_dim::<3>(1)).sum_dim(2).reshape([b, s]);
         (p, h.t)
     }
+}
+
+/// The (unnormalised) training-model density `Σ_k softmax(a)_k H(R_kᵀ p, t_k, k)` with unit
+/// output scale at `points`, from exported condition and basis parameters (burn, f32). The
+/// baked model is this density cell-averaged, read at the nearest or interpolated latent
+/// levels, and normalised; useful to check the bake.
+#[must_use]
+pub fn network_density(
+    params: &[f32],
+    basis_params: &[f32],
+    phi: &[f32; FEATURE_DIM],
+    wi: Vec3,
+    points: &[Vec2],
+) -> Vec<f32> {
+    let device = nn::infer_device();
+    let model = HistogramMixture {
+        cond: Mlp::from_flat(&COND_SIZES, params, &device),
+        basis: Mlp::from_flat(&BASIS_SIZES, basis_params, &device),
+    };
+    let wi = neusample::sampler::check_condition(phi, wi).unwrap_or(Vec3::Z);
+    let host = super::data::HostBatch {
+        b: 1,
+        s: points.len(),
+        cond: neusample::sampler::encode_condition(phi, wi).to_vec(),
+        raw: raw_condition(phi, wi).to_vec(),
+        x: points.iter().map(|p| p.x).collect(),
+        y: points.iter().map(|p| p.y).collect(),
+        target: Vec::new(),
+    };
+    let batch = Batch::upload(host, &device);
+    to_host(model.density(&batch, 1.0).0)
+}
+
+/// A condition network whose every basis starts aligned with the mirror direction: hidden
+/// units 0–3 of each layer carry `(wi.x, −wi.x, wi.y, −wi.y)` through the ReLUs unchanged,
+/// the output gives `ρ_k ≈ −wi⊥` and `τ_k ≈ 4(|wi.x| + |wi.y|) − 2.4` (so `t_k` starts as a
+/// rough function of the lobe's distance from the centre); every other weight is random as
+/// in [`Mlp::new`], the aligned outputs get a small random part. Only an initialisation: the
+/// architecture is the runtime's. Without it the random rotations average the lobes away
+/// and training sits on the uniform plateau for thousands of steps.
+fn aligned_condition_init(rng: &mut rand_pcg::Pcg64, device: &burn::tensor::Device) -> Mlp {
+    let mut flat = Vec::new();
+    Mlp::new(&COND_SIZES, 1.0, rng, device).export(&mut flat);
+    let (wx, wy) = (FEATURE_DIM, FEATURE_DIM + 1);
+    let mut at = 0;
+    for l in 0..COND_SIZES.len() - 1 {
+        let (i_n, o_n) = (COND_SIZES[l], COND_SIZES[l + 1]);
+        let (w, rest) = flat[at..].split_at_mut(i_n * o_n);
+        let b = &mut rest[..o_n];
+        let last = l + 2 == COND_SIZES.len();
+        if !last {
+            // Units 0..4: (wi.x, −wi.x, wi.y, −wi.y), from the raw inputs in layer 0 and
+            // copied from units 0..4 of the previous layer afterwards.
+            let src: [(usize, f32); 4] = if l == 0 {
+                [(wx, 1.0), (wx, -1.0), (wy, 1.0), (wy, -1.0)]
+            } else {
+                [(0, 1.0), (1, 1.0), (2, 1.0), (3, 1.0)]
+            };
+            for (u, &(from, sign)) in src.iter().enumerate() {
+                for i in 0..i_n {
+                    w[i * o_n + u] = if i == from { sign } else { 0.0 };
+                }
+                b[u] = 0.0;
+            }
+        } else {
+            for k in 0..BASES {
+                for j in 1..4 {
+                    let o = 4 * k + j;
+                    for i in 0..i_n {
+                        w[i * o_n + o] *= 0.1;
+                    }
+                    b[o] *= 0.1;
+                }
+                let (rx, ry, tau) = (4 * k + 1, 4 * k + 2, 4 * k + 3);
+                w[rx] -= 1.0; // −h0
+                w[o_n + rx] += 1.0; // +h1
+                w[2 * o_n + ry] -= 1.0; // −h2
+                w[3 * o_n + ry] += 1.0; // +h3
+                for u in 0..4 {
+                    w[u * o_n + tau] += 4.0;
+                }
+                b[tau] -= 2.4;
+            }
+        }
+        at += i_n * o_n + o_n;
+    }
+    Mlp::from_flat(&COND_SIZES, &flat, device)
+}
+
+/// `−mean ln p(ω*) + ln Ẑ` of a regression batch `[b, s]` (even points uniform on the disk,
+/// odd points drawn from p*), with the normaliser estimated per condition from the uniform
+/// points, `Ẑ = π · mean p(ω_uniform)`: a Monte-Carlo estimate of `KL(p* ‖ p/Z)` up to a
+/// constant. Optional addition to Eq. 7 ([`TrainConfig::hist_nll_weight`]).
+fn self_normalised_nll(p: Tensor<2>) -> Tensor<1> {
+    let [b, s] = p.dims();
+    let pairs = p.reshape([b, s / 2, 2]);
+    let uniform = pairs.clone().narrow(2, 0, 1).reshape([b, s / 2]);
+    let drawn = pairs.narrow(2, 1, 1).reshape([b, s / 2]);
+    let z = uniform.mean_dim(1) * std::f32::consts::PI + 1e-12;
+    (drawn + 1e-12).log().mean().neg() + z.log().mean()
 }
 
 /// Trains the histogram mixture and bakes its tables; returns `(params, tables, history)`.
@@ -165,14 +272,29 @@ pub fn train(
 ) -> anyhow::Result<(Vec<f32>, BakedTables, Vec<f32>)> {
     anyhow::ensure!(cfg.hist_t_levels >= 2, "hist_t_levels must be at least 2");
     anyhow::ensure!(cfg.hist_res >= 1, "hist_res must be at least 1");
+    anyhow::ensure!(
+        cfg.hist_points_per_condition >= 2 && cfg.hist_points_per_condition % 2 == 0,
+        "hist_points_per_condition must be even (half uniform, half from p*)"
+    );
     let device = nn::train_device();
     let mut rng = rng_for(mix_seed(cfg.seed, 0x4157), 0, 0);
-    let model = HistogramMixture {
-        cond: Mlp::new(&COND_SIZES, 1.0, &mut rng, &device),
-        basis: Mlp::new(&BASIS_SIZES, 1.0, &mut rng, &device),
+    let mut basis = Mlp::new(&BASIS_SIZES, 1.0, &mut rng, &device);
+    // Start every basis near the uniform density 1/π: S·softplus(b) = 1/π.
+    let level = f64::from(std::f32::consts::FRAC_1_PI / cfg.hist_output_scale);
+    let b0 = level.exp_m1().ln() as f32;
+    if let Some(last) = basis.layers.last_mut() {
+        let bias = Tensor::<1>::from_data(TensorData::new(vec![b0], [1]), &device);
+        last.bias = Some(burn::module::Param::from_tensor(bias));
+    }
+    let cond = if cfg.hist_aligned_init {
+        aligned_condition_init(&mut rng, &device)
+    } else {
+        Mlp::new(&COND_SIZES, 1.0, &mut rng, &device)
     };
+    let model = HistogramMixture { cond, basis };
     let levels = (cfg.hist_t_levels - 1) as f32;
     let lambda = cfg.hist_quant_weight;
+    let nll_weight = cfg.hist_nll_weight;
     let (model, history) = fit(
         model,
         "histogram-mixture",
@@ -182,11 +304,16 @@ pub fn train(
         (cfg.hist_batch_conditions, cfg.hist_points_per_condition),
         |m: &HistogramMixture, batch: &Batch| {
             let target = batch.target.clone().expect("regression batches carry p*");
-            let (p, t) = m.density(batch);
+            let (p, t) = m.density(batch, cfg.hist_output_scale);
             let scale = target.clone().powi_scalar(2).mean().detach() + 1e-12;
-            let l2 = (p - target).powi_scalar(2).mean() / scale;
+            let l2 = (p.clone() - target).powi_scalar(2).mean() / scale;
             let tq = (t.clone().detach() * levels).round() / levels;
-            l2 + (t - tq).powi_scalar(2).mean() * lambda
+            let loss = l2 + (t - tq).powi_scalar(2).mean() * lambda;
+            if nll_weight > 0.0 {
+                loss + self_normalised_nll(p) * nll_weight
+            } else {
+                loss
+            }
         },
     )?;
     let mut params = Vec::new();
@@ -258,7 +385,7 @@ pub fn bake(
         let m = chunk.min(slices - first);
         let sh = share.clone().narrow(0, first, m).unsqueeze_dim::<3>(1);
         let pre = (qpart3.clone() + sh).reshape([m * np, BASIS_HIDDEN]);
-        let vals = to_host(basis_rest(&basis, pre));
+        let vals = to_host(basis_rest(&basis, pre, 1.0));
         for sl in 0..m {
             let out = &mut raw[(first + sl) * res * res..(first + sl + 1) * res * res];
             for (o, &i) in open.iter().enumerate() {

@@ -130,6 +130,17 @@ pub struct TrainConfig {
     pub hist_supersample: usize,
     /// Weight λ of the quantisation term of the histogram mixture.
     pub hist_quant_weight: f32,
+    /// Output scale S of the basis network, `H = S·softplus(z)`: lets a freshly initialised
+    /// network reach the peak densities of glossy lobes quickly (the baked tables are
+    /// normalised, so S does not change what the model can represent).
+    pub hist_output_scale: f32,
+    /// Weight of an optional self-normalised NLL term (a KL(p* ‖ p) estimate) added to the
+    /// paper's L2 loss of the histogram mixture; 0 gives the paper's objective. The L2 loss
+    /// ignores the low-density tails, which the NLL term covers.
+    pub hist_nll_weight: f32,
+    /// Initialise the histogram mixture's condition network with every basis aligned to the
+    /// mirror direction (see `histogram_mixture`); only the starting point differs.
+    pub hist_aligned_init: bool,
     /// Conditions per batch of the histogram mixture.
     pub hist_batch_conditions: usize,
     /// Regression points per condition of the histogram mixture.
@@ -162,6 +173,9 @@ impl TrainConfig {
             interpolate_t: true,
             hist_supersample: 1,
             hist_quant_weight: 100.0,
+            hist_output_scale: 5.0,
+            hist_nll_weight: 0.0,
+            hist_aligned_init: true,
             hist_batch_conditions: 8,
             hist_points_per_condition: 32,
             weight_decay: 0.0,
@@ -174,26 +188,29 @@ impl TrainConfig {
     /// The default run of `method`: about a minute on two cores.
     #[must_use]
     pub fn default_for(method: Method) -> Self {
-        let steps = match method {
-            Method::Baseline | Method::Analytic | Method::DirectHistogram => 3000,
-            Method::Flow | Method::AffineFlow => 2000,
-            Method::HistogramMixture => 1500,
+        let (steps, lr) = match method {
+            Method::Baseline | Method::Analytic | Method::DirectHistogram => (3000, 2e-3),
+            Method::Flow | Method::AffineFlow => (2000, 2e-3),
+            Method::HistogramMixture => (3000, 4e-3),
         };
         TrainConfig {
             steps,
             batch_conditions: 64,
             samples_per_condition: 64,
-            lr: 2e-3,
+            lr,
             seed: 1,
             gt_res: 128,
             pool_conditions: 512,
-            pool_refresh_every: 250,
+            pool_refresh_every: 200,
             hist_t_levels: 32,
             hist_res: 64,
             interpolate_t: true,
             hist_supersample: 2,
             hist_quant_weight: 100.0,
-            hist_batch_conditions: 32,
+            hist_output_scale: 5.0,
+            hist_nll_weight: 0.0,
+            hist_aligned_init: true,
+            hist_batch_conditions: 16,
             hist_points_per_condition: 64,
             weight_decay: 0.0,
             grad_clip: 10.0,
