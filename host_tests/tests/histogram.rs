@@ -1108,7 +1108,9 @@ fn stratified_u_including_one_is_never_refused() {
     use neusample::histogram::{bake_slices, Table2D};
     let n = 16usize;
     let mut r = neusample_host_tests::rng(31);
-    let raw: Vec<f32> = (0..n * n).map(|_| rand::RngExt::random::<f32>(&mut r) + 0.01).collect();
+    let raw: Vec<f32> = (0..n * n)
+        .map(|_| rand::RngExt::random::<f32>(&mut r) + 0.01)
+        .collect();
     let baked = bake_slices(&raw, 1, 1, n, neusample::DType::F32);
     let t = Table2D::new(
         baked.table.as_slice(),
@@ -1122,12 +1124,18 @@ fn stratified_u_including_one_is_never_refused() {
     let mut refused = 0;
     for i in 0..steps {
         for j in 0..steps {
-            let u = neusample::Vec2::new(i as f32 / (steps - 1) as f32, j as f32 / (steps - 1) as f32);
+            let u =
+                neusample::Vec2::new(i as f32 / (steps - 1) as f32, j as f32 / (steps - 1) as f32);
             match t.sample(u) {
                 Some((p, pdf)) => assert_eq!(pdf, t.pdf(p)),
                 None => refused += 1,
             }
         }
     }
-    assert_eq!(refused, 0, "{refused} of {} stratified u refused", steps * steps);
+    assert_eq!(
+        refused,
+        0,
+        "{refused} of {} stratified u refused",
+        steps * steps
+    );
 }

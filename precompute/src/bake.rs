@@ -92,7 +92,11 @@ pub fn verify(
     for _ in 0..conditions {
         let c = groundtruth::random_condition(material, &mut rng);
         let Some(prep) = sampler.prepare(&c.phi, c.wi) else {
-            bail!("the blob refused a valid condition (φ {:?}, wi {})", c.phi, c.wi);
+            bail!(
+                "the blob refused a valid condition (φ {:?}, wi {})",
+                c.phi,
+                c.wi
+            );
         };
         // A density floor relative to the condition's peak keeps the comparison meaningful
         // where both densities are ~0.
@@ -142,5 +146,9 @@ pub fn verify(
 /// A unit direction from spherical angles (helper for reports and tests).
 #[must_use]
 pub fn direction(theta: f32, phi: f32) -> Vec3 {
-    Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    Vec3::new(
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    )
 }

@@ -140,7 +140,10 @@ fn bar(len: u64, msg: &str) -> ProgressBar {
 /// writes `<out>/<material>/<method>.nsb` (f32, histogram tables T = 8, N = 32) plus
 /// `<out>/cosine.nsb`.
 pub fn regenerate_fixtures(out: &Path, quick: bool) -> Result<()> {
-    let pb = bar((DEFAULT_MATERIALS.len() * Method::ALL.len()) as u64, "fixtures");
+    let pb = bar(
+        (DEFAULT_MATERIALS.len() * Method::ALL.len()) as u64,
+        "fixtures",
+    );
     io::atomic_write(
         &out.join("cosine.nsb"),
         &BlobWriter::new(SamplerKind::Cosine, DType::F32, "cosine").to_bytes(),
@@ -150,7 +153,8 @@ pub fn regenerate_fixtures(out: &Path, quick: bool) -> Result<()> {
         // Conditions drawn from the material, for the runtime's statistical tests (which do
         // not link the materials): one "φ0 … φ7 wi.x wi.y wi.z" line each.
         let conds = crate::groundtruth::conditions(m.as_ref(), 256, 0xC0DE);
-        let mut text = String::from("# phi0..phi7 wi.x wi.y wi.z (local frame), from the material\n");
+        let mut text =
+            String::from("# phi0..phi7 wi.x wi.y wi.z (local frame), from the material\n");
         for c in &conds {
             for v in c.phi {
                 text.push_str(&format!("{v:e} "));
@@ -167,7 +171,10 @@ pub fn regenerate_fixtures(out: &Path, quick: bool) -> Result<()> {
             };
             cfg.seed = 1;
             let trained = train::train(m.as_ref(), method, &cfg)?;
-            let label = format!("fixture material={name} method={method} steps={} seed=1", cfg.steps);
+            let label = format!(
+                "fixture material={name} method={method} steps={} seed=1",
+                cfg.steps
+            );
             let bytes = bake::blob_bytes(&trained, DType::F32, &label)?;
             bake::verify(&trained, &bytes, m.as_ref(), 8, 7)
                 .with_context(|| format!("fixture {name}/{method}"))?;
@@ -214,7 +221,13 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         let mut methods = Vec::new();
 
         pb.set_message(format!("{mname}/cosine"));
-        let fit = eval::fit(&CosineSampler, m.as_ref(), eval_conditions, eval_res, a.seed + 100);
+        let fit = eval::fit(
+            &CosineSampler,
+            m.as_ref(),
+            eval_conditions,
+            eval_res,
+            a.seed + 100,
+        );
         let cost = eval::cost(&CosineSampler, m.as_ref(), cost_n, cost_passes);
         methods.push(method_report("cosine", 0.0, None, 0, None, fit, cost));
         pb.inc(1);
@@ -243,12 +256,29 @@ pub fn run(a: &DemoArgs) -> Result<()> {
                     Some(v.max_relative),
                 )
             };
-            io::atomic_write(&out.join("blobs").join(&mname).join(format!("{method}.nsb")), &bytes)?;
+            io::atomic_write(
+                &out.join("blobs").join(&mname).join(format!("{method}.nsb")),
+                &bytes,
+            )?;
             let blob = Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
             let sampler = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
-            let fit = eval::fit(&sampler, m.as_ref(), eval_conditions, eval_res, a.seed + 100);
+            let fit = eval::fit(
+                &sampler,
+                m.as_ref(),
+                eval_conditions,
+                eval_res,
+                a.seed + 100,
+            );
             let cost = eval::cost(&sampler, m.as_ref(), cost_n, cost_passes);
-            methods.push(method_report(method.name(), secs, loss, bytes.len(), check, fit, cost));
+            methods.push(method_report(
+                method.name(),
+                secs,
+                loss,
+                bytes.len(),
+                check,
+                fit,
+                cost,
+            ));
             pb.inc(1);
         }
         report.materials.push(MaterialReport {

@@ -96,7 +96,12 @@ pub fn cost<S: Sampler>(sampler: &S, material: &dyn Material, n: usize, passes: 
         .map(|_| Vec2::new(rng.random::<f32>(), rng.random::<f32>()))
         .collect();
     let wos: Vec<Vec3> = (0..n)
-        .map(|_| crate::bake::direction(rng.random::<f32>() * 1.4, rng.random::<f32>() * std::f32::consts::TAU))
+        .map(|_| {
+            crate::bake::direction(
+                rng.random::<f32>() * 1.4,
+                rng.random::<f32>() * std::f32::consts::TAU,
+            )
+        })
         .collect();
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
@@ -106,7 +111,11 @@ pub fn cost<S: Sampler>(sampler: &S, material: &dyn Material, n: usize, passes: 
     for _ in 0..passes {
         let t0 = Instant::now();
         for c in &conds {
-            black_box(sampler.prepare(black_box(&c.phi), black_box(c.wi)).is_some());
+            black_box(
+                sampler
+                    .prepare(black_box(&c.phi), black_box(c.wi))
+                    .is_some(),
+            );
         }
         tp.push(t0.elapsed().as_nanos() as f64 / n as f64);
 

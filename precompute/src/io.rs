@@ -35,6 +35,7 @@ pub fn atomic_write_with(
         w.flush()
             .with_context(|| format!("while writing {}", path.display()))?;
     }
+    set_permissions(tmp.as_file(), path);
     tmp.as_file()
         .sync_all()
         .with_context(|| format!("cannot sync {}", path.display()))?;
@@ -43,6 +44,20 @@ pub fn atomic_write_with(
         .with_context(|| format!("cannot move the new file into place at {}", path.display()))?;
     Ok(())
 }
+
+/// Temporary files are created private (0600); give the new file the permissions of the file
+/// it replaces, or the usual 0644 for a new file.
+#[cfg(unix)]
+fn set_permissions(file: &fs::File, path: &Path) {
+    use std::os::unix::fs::PermissionsExt;
+    let mode = fs::metadata(path)
+        .map(|m| m.permissions().mode() & 0o7777)
+        .unwrap_or(0o644);
+    let _ = file.set_permissions(fs::Permissions::from_mode(mode));
+}
+
+#[cfg(not(unix))]
+fn set_permissions(_file: &fs::File, _path: &Path) {}
 
 fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
@@ -54,7 +69,6 @@ fn parent_dir(path: &Path) -> PathBuf {
 /// Reads a blob file and opens it, with errors that name the file.
 pub fn read_blob(path: &Path) -> Result<Vec<u8>> {
     let bytes = fs::read(path).with_context(|| format!("cannot read blob {}", path.display()))?;
-    neusample::blob::Blob::open(&bytes)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    neusample::blob::Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(bytes)
 }

@@ -14,7 +14,11 @@ use neusample_precompute::{bake, demo, io, materials};
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 #[derive(Parser)]
-#[command(name = "neusample", version, about = "Learned importance sampling for neural materials: train, bake, inspect, evaluate.")]
+#[command(
+    name = "neusample",
+    version,
+    about = "Learned importance sampling for neural materials: train, bake, inspect, evaluate."
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -223,10 +227,22 @@ fn inspect(path: &Path, json: bool) -> Result<()> {
     if json {
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
-        println!("{}: {} sampler, {} bytes, format v{}, checksum ok", path.display(), h.kind.name(), bytes.len(), neusample::blob::FORMAT_VERSION);
-        println!("  storage {:?}, φ dim {}, {} params", h.dtype, h.feature_dim, h.param_count);
+        println!(
+            "{}: {} sampler, {} bytes, format v{}, checksum ok",
+            path.display(),
+            h.kind.name(),
+            bytes.len(),
+            neusample::blob::FORMAT_VERSION
+        );
+        println!(
+            "  storage {:?}, φ dim {}, {} params",
+            h.dtype, h.feature_dim, h.param_count
+        );
         if h.t_levels > 0 {
-            println!("  tables: K={} T={} N={} ({:?} in t)", h.basis, h.t_levels, h.resolution, h.interpolation);
+            println!(
+                "  tables: K={} T={} N={} ({:?} in t)",
+                h.basis, h.t_levels, h.resolution, h.interpolation
+            );
         }
         println!("  label: {}", h.label);
         for t in &tensors {

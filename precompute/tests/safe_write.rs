@@ -35,7 +35,12 @@ fn killed_write_leaves_old_file_intact() {
     atomic_write(&path, &old).unwrap();
 
     let mut child = Command::new(std::env::current_exe().unwrap())
-        .args(["--exact", "child_slow_writer", "--nocapture", "--test-threads=1"])
+        .args([
+            "--exact",
+            "child_slow_writer",
+            "--nocapture",
+            "--test-threads=1",
+        ])
         .env(CHILD_ENV, &path)
         .spawn()
         .unwrap();
@@ -49,12 +54,19 @@ fn killed_write_leaves_old_file_intact() {
         if grown {
             break;
         }
-        assert!(t0.elapsed() < Duration::from_secs(60), "child never started writing");
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "child never started writing"
+        );
         std::thread::sleep(Duration::from_millis(5));
     }
     child.kill().unwrap();
     let _ = child.wait();
-    assert_eq!(std::fs::read(&path).unwrap(), old, "old file damaged by a killed write");
+    assert_eq!(
+        std::fs::read(&path).unwrap(),
+        old,
+        "old file damaged by a killed write"
+    );
 }
 
 #[test]
@@ -75,4 +87,19 @@ fn corrupted_blob_is_refused_naming_the_file() {
     let msg = format!("{:#}", read_blob(&path).unwrap_err());
     assert!(msg.contains("cosine.nsb"), "{msg}");
     assert!(msg.contains("checksum"), "{msg}");
+}
+
+#[cfg(unix)]
+#[test]
+fn new_files_are_world_readable_and_replacements_keep_their_mode() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("new.bin");
+    atomic_write(&path, b"a").unwrap();
+    let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o644);
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).unwrap();
+    atomic_write(&path, b"b").unwrap();
+    let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o640);
 }
