@@ -168,7 +168,10 @@ impl<'a> Pool<'a> {
         seed: u64,
         refresh_every: usize,
     ) -> anyhow::Result<Self> {
-        anyhow::ensure!(size > 0, "the ground-truth pool needs at least one condition");
+        anyhow::ensure!(
+            size > 0,
+            "the ground-truth pool needs at least one condition"
+        );
         let items = source.draw(size, res, mix_seed(seed, 0))?;
         anyhow::ensure!(
             items.len() == size,
@@ -193,7 +196,9 @@ impl<'a> Pool<'a> {
         }
         self.round += 1;
         let n = self.items.len().div_ceil(4);
-        let fresh = self.source.draw(n, self.res, mix_seed(self.seed, self.round))?;
+        let fresh = self
+            .source
+            .draw(n, self.res, mix_seed(self.seed, self.round))?;
         for g in fresh {
             let i = self.cursor;
             self.items[i] = g;
@@ -240,7 +245,10 @@ pub struct HostBatch {
 /// A uniform point on the open unit disk.
 fn uniform_disk(rng: &mut Pcg64) -> Vec2 {
     loop {
-        let p = Vec2::new(rng.random_range(-1.0f32..1.0), rng.random_range(-1.0f32..1.0));
+        let p = Vec2::new(
+            rng.random_range(-1.0f32..1.0),
+            rng.random_range(-1.0f32..1.0),
+        );
         if p.length_squared() < 1.0 {
             return p;
         }
@@ -270,16 +278,14 @@ pub fn make_batch(
     step: usize,
 ) -> HostBatch {
     let items = pool.items();
-    let mut pick = rng_for(seed, 0xba7c, step as u64);
-    let chosen: Vec<usize> = (0..b)
-        .map(|_| pick.random_range(0..items.len()))
-        .collect();
+    let mut pick = rng_for(mix_seed(seed, 0xba7c), step as u64, 0);
+    let chosen: Vec<usize> = (0..b).map(|_| pick.random_range(0..items.len())).collect();
     let rows: Vec<_> = chosen
         .par_iter()
         .enumerate()
         .map(|(j, &i)| {
             let g = &items[i];
-            let mut rng = rng_for(seed, step as u64, 1 + j as u64);
+            let mut rng = rng_for(mix_seed(seed, 0x9017), step as u64, j as u64);
             let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
             let cond = encode_condition(&g.phi, wi);
             let raw = raw_condition(&g.phi, wi);

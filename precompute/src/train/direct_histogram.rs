@@ -49,7 +49,13 @@ pub struct DirectHistogram {
 fn log_pdf(net: &Mlp, batch: &Batch) -> Tensor<2> {
     let device = batch.x.device();
     let mask: Vec<f32> = (0..GRID * GRID)
-        .map(|i| if masked(i / GRID, i % GRID) { MASKED } else { 0.0 })
+        .map(|i| {
+            if masked(i / GRID, i % GRID) {
+                MASKED
+            } else {
+                0.0
+            }
+        })
         .collect();
     let mask = tensor2(mask, 1, GRID * GRID, &device);
     let ln_area = (2.0f32 / GRID as f32).powi(2).ln();

@@ -100,8 +100,8 @@ impl SplineFlow {
         let o = self.base.forward(batch.cond.clone(), Act::Relu);
         let mx = o.clone().narrow(1, 0, 1);
         let my = o.clone().narrow(1, 1, 1);
-        let lsx = o.clone().narrow(1, 2, 1).clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
-        let lsy = o.narrow(1, 3, 1).clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
+        let lsx = nn::clamp_log_sigma(o.clone().narrow(1, 2, 1));
+        let lsy = nn::clamp_log_sigma(o.narrow(1, 3, 1));
         let dx = (xl - mx) * lsx.clone().neg().exp();
         let dy = (yl - my) * lsy.clone().neg().exp();
         let lbase = (dx.powi_scalar(2) + dy.powi_scalar(2)) * (-0.5) - LN_TWO_PI - lsx - lsy;
@@ -157,7 +157,10 @@ impl AffineFlow {
 }
 
 /// Trains the RQ-spline flow; returns `(params, loss history)`.
-pub fn train_spline(pool: &mut Pool<'_>, cfg: &TrainConfig) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+pub fn train_spline(
+    pool: &mut Pool<'_>,
+    cfg: &TrainConfig,
+) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
     let device = nn::train_device();
     let mut rng = rng_for(mix_seed(cfg.seed, 0xf10e), 0, 0);
     // Small output layers start the couplings near a uniform spline and the base near N(0, I).
@@ -183,7 +186,10 @@ pub fn train_spline(pool: &mut Pool<'_>, cfg: &TrainConfig) -> anyhow::Result<(V
 }
 
 /// Trains the affine-coupling flow; returns `(params, loss history)`.
-pub fn train_affine(pool: &mut Pool<'_>, cfg: &TrainConfig) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+pub fn train_affine(
+    pool: &mut Pool<'_>,
+    cfg: &TrainConfig,
+) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
     let device = nn::train_device();
     let mut rng = rng_for(mix_seed(cfg.seed, 0xaff1), 0, 0);
     let model = AffineFlow {

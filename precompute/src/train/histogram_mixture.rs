@@ -49,7 +49,13 @@ const T_IN: usize = 1 + 2 * T_BANDS;
 /// Width of the basis network's hidden layers.
 pub const BASIS_HIDDEN: usize = 64;
 /// Layer sizes of the basis network (training only; baked into tables).
-pub const BASIS_SIZES: [usize; 5] = [Q_IN + T_IN + BASES, BASIS_HIDDEN, BASIS_HIDDEN, BASIS_HIDDEN, 1];
+pub const BASIS_SIZES: [usize; 5] = [
+    Q_IN + T_IN + BASES,
+    BASIS_HIDDEN,
+    BASIS_HIDDEN,
+    BASIS_HIDDEN,
+    1,
+];
 
 /// The baked tables of a histogram mixture (`core/ARCHITECTURES.md` §6), with what is needed
 /// to re-bake them.
@@ -78,7 +84,7 @@ impl BakedTables {
             b.resolution as usize,
             storage,
         )
-            .map_err(|e| anyhow::anyhow!("baking the histogram mixture: {e}"))
+        .map_err(|e| anyhow::anyhow!("baking the histogram mixture: {e}"))
     }
 }
 
@@ -99,7 +105,9 @@ fn basis_tk_share(basis: &Mlp, t: Tensor<2>) -> Tensor<3> {
     let tpart = et
         .matmul(basis.first_weight_rows(Q_IN, T_IN))
         .reshape([m, k, BASIS_HIDDEN]);
-    let kpart = basis.first_weight_rows(Q_IN + T_IN, BASES).unsqueeze_dim::<3>(0);
+    let kpart = basis
+        .first_weight_rows(Q_IN + T_IN, BASES)
+        .unsqueeze_dim::<3>(0);
     tpart + kpart + basis.first_bias().unsqueeze_dim::<3>(0)
 }
 
@@ -155,12 +163,18 @@ impl HistogramMixture {
         let qx = x.clone() * c.clone() + y.clone() * sn.clone();
         let qy = y * c - x * sn;
         let n = b * s * BASES;
-        let qpart = basis_q_part(&self.basis, qx.reshape([n, 1]), qy.reshape([n, 1]))
-            .reshape([b, s, BASES, BASIS_HIDDEN]);
+        let qpart = basis_q_part(&self.basis, qx.reshape([n, 1]), qy.reshape([n, 1])).reshape([
+            b,
+            s,
+            BASES,
+            BASIS_HIDDEN,
+        ]);
         let share = basis_tk_share(&self.basis, h.t.clone()).unsqueeze_dim::<4>(1);
         let pre = (qpart + share).reshape([n, BASIS_HIDDEN]);
         let hk = basis_rest(&self.basis, pre, scale).reshape([b, s, BASES]);
-        let p = (hk * h.weights.unsqueeze_dim::<3>(1)).sum_dim(2).reshape([b, s]);
+        let p = (hk * h.weights.unsqueeze_dim::<3>(1))
+            .sum_dim(2)
+            .reshape([b, s]);
         (p, h.t)
     }
 }
@@ -373,9 +387,12 @@ pub fn bake(
         .map(|j| j as f32 / (t_levels - 1) as f32)
         .collect();
     // [T, K, hidden] → slice order (k, j).
-    let share = basis_tk_share(&basis, tensor2(tl, t_levels, 1, &device).repeat_dim(1, BASES))
-        .swap_dims(0, 1)
-        .reshape([BASES * t_levels, BASIS_HIDDEN]);
+    let share = basis_tk_share(
+        &basis,
+        tensor2(tl, t_levels, 1, &device).repeat_dim(1, BASES),
+    )
+    .swap_dims(0, 1)
+    .reshape([BASES * t_levels, BASIS_HIDDEN]);
     let slices = BASES * t_levels;
     let mut raw = vec![0.0f32; slices * res * res];
     let chunk = (1usize << 17).div_ceil(np.max(1)).clamp(1, slices);
@@ -390,16 +407,18 @@ pub fn bake(
             let out = &mut raw[(first + sl) * res * res..(first + sl + 1) * res * res];
             for (o, &i) in open.iter().enumerate() {
                 let at = sl * np + o * ss * ss;
-                let mean: f64 =
-                    vals[at..at + ss * ss].iter().map(|&v| f64::from(v)).sum::<f64>()
-                        / (ss * ss) as f64;
+                let mean: f64 = vals[at..at + ss * ss]
+                    .iter()
+                    .map(|&v| f64::from(v))
+                    .sum::<f64>()
+                    / (ss * ss) as f64;
                 out[i] = mean as f32;
             }
         }
         first += m;
     }
     let baked = histogram::try_bake_slices(&raw, BASES, t_levels, res, DType::F32)
-    .map_err(|e| anyhow::anyhow!("baking the histogram mixture: {e}"))?;
+        .map_err(|e| anyhow::anyhow!("baking the histogram mixture: {e}"))?;
     Ok(BakedTables {
         baked,
         interpolation,

@@ -5,7 +5,8 @@
 //! * Analytic mixture: MLP `30 → 32 → 11`,
 //!   `p = w0/π + w1 N(μ1, diag σ1²) + w2 N(μ2, diag σ2²)`.
 //!
-//! Weights are softmaxes of raw logits; every `log σ` is clamped to `[−7, 1]` before `exp`.
+//! Weights are softmaxes of raw logits; every `log σ` is clamped to `[−7, 1]` before `exp`
+//! (with a straight-through gradient, [`nn::clamp_log_sigma`]).
 //! Training points are ground-truth samples, strictly inside the disk, so the Lambert term
 //! is the constant `1/π` there.
 
@@ -56,7 +57,7 @@ fn col(o: &Tensor<2>, j: usize) -> Tensor<2> {
 }
 
 fn clamp_ls(t: Tensor<2>) -> Tensor<2> {
-    t.clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX)
+    nn::clamp_log_sigma(t)
 }
 
 /// Per-point log density `[b, s]` of the improved baseline.
@@ -113,8 +114,15 @@ pub fn train(
     } else {
         &BASELINE_SIZES
     };
+    // Start the Gaussians at σ ≈ 0.3 (log σ = −1.2): a unit-σ Gaussian has less density than
+    // the Lambert lobe everywhere on the disk, and its weight collapses before σ can shrink.
+    let bias: &[(usize, f32)] = if analytic {
+        &[(4, -1.2), (5, -1.2), (6, -1.2), (7, -1.2)]
+    } else {
+        &[(2, -1.2)]
+    };
     let model = LobeModel {
-        net: Mlp::new(sizes, 0.1, &mut rng, &device),
+        net: Mlp::new_with_output_bias(sizes, 0.1, bias, &mut rng, &device),
     };
     let name = if analytic { "analytic" } else { "baseline" };
     let (model, history) = fit(

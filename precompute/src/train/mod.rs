@@ -189,8 +189,9 @@ impl TrainConfig {
     #[must_use]
     pub fn default_for(method: Method) -> Self {
         let (steps, lr) = match method {
-            Method::Baseline | Method::Analytic | Method::DirectHistogram => (3000, 2e-3),
-            Method::Flow | Method::AffineFlow => (2000, 2e-3),
+            Method::Baseline | Method::Analytic | Method::DirectHistogram => (3000, 5e-3),
+            Method::Flow => (2000, 5e-3),
+            Method::AffineFlow => (2000, 4e-3),
             Method::HistogramMixture => (3000, 4e-3),
         };
         TrainConfig {
@@ -201,7 +202,7 @@ impl TrainConfig {
             seed: 1,
             gt_res: 128,
             pool_conditions: 512,
-            pool_refresh_every: 200,
+            pool_refresh_every: 400,
             hist_t_levels: 32,
             hist_res: 64,
             interpolate_t: true,
@@ -236,7 +237,11 @@ pub struct Trained {
 }
 
 /// Trains `method` on `material` (ground truth from `crate::groundtruth`).
-pub fn train(material: &dyn Material, method: Method, cfg: &TrainConfig) -> anyhow::Result<Trained> {
+pub fn train(
+    material: &dyn Material,
+    method: Method,
+    cfg: &TrainConfig,
+) -> anyhow::Result<Trained> {
     train_with(&MaterialSource::new(material), method, cfg)
 }
 

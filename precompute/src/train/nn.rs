@@ -93,7 +93,11 @@ impl Mlp {
         for l in 0..sizes.len() - 1 {
             let (i, o) = (sizes[l], sizes[l + 1]);
             let k = 1.0 / (i as f32).sqrt();
-            let scale = if l + 2 == sizes.len() { last_scale } else { 1.0 };
+            let scale = if l + 2 == sizes.len() {
+                last_scale
+            } else {
+                1.0
+            };
             let w: Vec<f32> = (0..i * o)
                 .map(|_| scale * rng.random_range(-k..k))
                 .collect();
@@ -101,6 +105,24 @@ impl Mlp {
             layers.push(linear_from(w, b, i, o, device));
         }
         Mlp { layers }
+    }
+
+    /// [`Mlp::new`], then sets the listed biases of the output layer: `(output, value)`.
+    pub fn new_with_output_bias(
+        sizes: &[usize],
+        last_scale: f32,
+        bias: &[(usize, f32)],
+        rng: &mut Pcg64,
+        device: &Device,
+    ) -> Self {
+        let mut flat = Vec::new();
+        Mlp::new(sizes, last_scale, rng, device).export(&mut flat);
+        let out = sizes[sizes.len() - 1];
+        let end = flat.len();
+        for &(o, v) in bias {
+            flat[end - out + o] = v;
+        }
+        Mlp::from_flat(sizes, &flat, device)
     }
 
     /// An MLP from flat parameters in the runtime layout.
@@ -161,11 +183,7 @@ impl Mlp {
         for layer in &self.layers {
             out.extend(to_host(layer.weight.val()));
             out.extend(to_host(
-                layer
-                    .bias
-                    .as_ref()
-                    .expect("every layer has a bias")
-                    .val(),
+                layer.bias.as_ref().expect("every layer has a bias").val(),
             ));
         }
     }
@@ -244,6 +262,16 @@ pub fn encode_f64(v: f64, bands: usize, out: &mut Vec<f64>) {
         out.push(a.sin());
         out.push(a.cos());
     }
+}
+
+/// `clamp(x, LOG_SIGMA_MIN, LOG_SIGMA_MAX)` in the forward pass (the runtime's clamp of every
+/// predicted `log σ`) with the identity as its gradient (straight-through). A plain clamp has
+/// zero gradient outside the range, and a network whose `log σ` overshoots the upper bound
+/// early in training then never recovers (its Gaussian loses all weight to the Lambert lobe).
+pub fn clamp_log_sigma<const D: usize>(x: Tensor<D>) -> Tensor<D> {
+    use neusample::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
+    let clamped = x.clone().clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
+    x.clone() + (clamped - x).detach()
 }
 
 /// ln(eᵃ + eᵇ), element-wise and stable.

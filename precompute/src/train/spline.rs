@@ -71,8 +71,8 @@ pub fn rq_forward(v: Tensor<2>, raw: Tensor<2>, bins: usize, bound: f32) -> (Ten
     let den = s.clone() + (d1.clone() + d0.clone() - s.clone() * 2.0) * t.clone();
     let num = h * (s.clone() * xi.clone().powi_scalar(2) + d0.clone() * t.clone());
     let y = y0 + num / den.clone();
-    let dnum = s.clone().powi_scalar(2)
-        * (d1 * xi.powi_scalar(2) + s * t * 2.0 + d0 * om.powi_scalar(2));
+    let dnum =
+        s.clone().powi_scalar(2) * (d1 * xi.powi_scalar(2) + s * t * 2.0 + d0 * om.powi_scalar(2));
     let logdet = dnum.log() - den.log() * 2.0;
 
     let y = y.mask_where(outside.clone(), v);
