@@ -45,6 +45,7 @@ fn every_fixture_blob_passes_chi2() {
         .filter(|p| p.is_dir())
         .collect();
     materials.sort();
+    let filtered = std::env::var("NEUSAMPLE_CHI2_ONLY").is_ok();
     assert!(
         materials.len() >= 3,
         "expected at least three fixture materials"
@@ -62,10 +63,18 @@ fn every_fixture_blob_passes_chi2() {
             .collect();
         blobs.sort();
         assert!(blobs.len() >= 6, "{}: expected every method", dir.display());
+        // `NEUSAMPLE_CHI2_ONLY=brushed_metal/flow,…` restricts a (full) run to some blobs.
+        if let Ok(only) = std::env::var("NEUSAMPLE_CHI2_ONLY") {
+            blobs.retain(|b| only.split(',').any(|o| b.to_string_lossy().contains(o)));
+        }
         for b in blobs {
             jobs.push((b, conds[..per_blob].to_vec()));
         }
     }
+    assert!(
+        filtered || jobs.len() >= 18,
+        "expected 3 materials × 6 methods"
+    );
     let tests: usize = jobs.iter().map(|(_, c)| c.len()).sum();
     let alpha = bonferroni(0.01, tests);
     let mut failures = Vec::new();
