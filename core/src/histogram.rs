@@ -527,7 +527,7 @@ impl<W: Weights> DirectHistogramSampler<W> {
     #[must_use]
     pub fn new(params: W) -> Option<Self> {
         if params.len() as usize == Self::PARAM_COUNT {
-            Some(DirectHistogramSampler { params })
+            Some(Self::new_unchecked(params))
         } else {
             None
         }
@@ -741,7 +741,8 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             resolution,
         )
         .ok()?;
-        Some(HistogramMixtureSampler {
+        // The checked dimensions are within the clamps of `new_unchecked`.
+        Some(Self::new_unchecked(
             params,
             mass,
             table,
@@ -750,7 +751,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             t_levels,
             resolution,
             interpolation,
-        })
+        ))
     }
 
     /// A sampler without the size checks of [`Self::new`], for GPU shaders (`Option<Self>`

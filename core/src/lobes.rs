@@ -111,7 +111,7 @@ impl<W: Weights> ImprovedBaselineSampler<W> {
     #[must_use]
     pub fn new(params: W) -> Option<Self> {
         if params.len() as usize == Self::PARAM_COUNT {
-            Some(ImprovedBaselineSampler { params })
+            Some(Self::new_unchecked(params))
         } else {
             None
         }
@@ -261,7 +261,7 @@ impl<W: Weights> AnalyticMixtureSampler<W> {
     #[must_use]
     pub fn new(params: W) -> Option<Self> {
         if params.len() as usize == Self::PARAM_COUNT {
-            Some(AnalyticMixtureSampler { params })
+            Some(Self::new_unchecked(params))
         } else {
             None
         }
