@@ -1,4 +1,5 @@
-//! The blob container: one versioned, checksummed file format for every sampler.
+//! The blob container: one versioned, checksummed file format for every sampler, and for
+//! the neural materials they sample ([`SamplerKind::NeuralMaterial`], [`Blob::neural_material`]).
 //!
 //! The byte layout is specified in `core/BLOB.md`. In short:
 //!
@@ -20,6 +21,7 @@ use crate::error::{Error, Result};
 use crate::flow::{AffineFlowSampler, FlowSampler};
 use crate::histogram::{self, DirectHistogramSampler, HistogramMixtureSampler, Interpolation};
 use crate::lobes::{AnalyticMixtureSampler, ImprovedBaselineSampler};
+use crate::neural::{self, NeuralMaterial};
 use crate::sampler::{CosineSampler, Prepared, Sample, Sampler, FEATURE_DIM};
 use crate::weights::{DType, Tensor, Weights};
 use glam::{Vec2, Vec3};
@@ -56,10 +58,15 @@ pub enum SamplerKind {
     DirectHistogram,
     /// Histogram mixture (paper Eq. 5–6).
     HistogramMixture,
+    /// Not a sampler: a NeuMIP-style neural material (feature texture + decoder,
+    /// [`crate::neural`]), the BRDF the samplers are trained for. Opened with
+    /// [`Blob::neural_material`]; [`Blob::sampler`] refuses it. Not in [`SamplerKind::ALL`].
+    NeuralMaterial,
 }
 
 impl SamplerKind {
-    /// Every kind, in a stable order.
+    /// Every sampler kind, in a stable order ([`SamplerKind::NeuralMaterial`], which is not a
+    /// sampler, is not listed).
     pub const ALL: [SamplerKind; 7] = [
         SamplerKind::Cosine,
         SamplerKind::ImprovedBaseline,
@@ -81,12 +88,22 @@ impl SamplerKind {
             SamplerKind::AffineFlow => "affine-flow",
             SamplerKind::DirectHistogram => "direct-histogram",
             SamplerKind::HistogramMixture => "histogram-mixture",
+            SamplerKind::NeuralMaterial => "neural-material",
         }
     }
 
-    /// The kind with the given [`SamplerKind::name`].
+    /// Whether the kind is a sampler (every kind but [`SamplerKind::NeuralMaterial`]).
+    #[must_use]
+    pub const fn is_sampler(self) -> bool {
+        !matches!(self, SamplerKind::NeuralMaterial)
+    }
+
+    /// The kind with the given [`SamplerKind::name`] (the neural material included).
     #[must_use]
     pub fn from_name(name: &str) -> Option<SamplerKind> {
+        if name.as_bytes() == SamplerKind::NeuralMaterial.name().as_bytes() {
+            return Some(SamplerKind::NeuralMaterial);
+        }
         let mut i = 0;
         while i < Self::ALL.len() {
             if Self::ALL[i].name().as_bytes() == name.as_bytes() {
@@ -108,9 +125,13 @@ impl SamplerKind {
             SamplerKind::AffineFlow => AffineFlowSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
+            SamplerKind::NeuralMaterial => NeuralMaterial::<&[f32]>::PARAM_COUNT,
         }
     }
 }
+
+/// Number of tensor roles.
+const ROLES: usize = 6;
 
 /// What a tensor holds.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -125,6 +146,8 @@ pub enum TensorRole {
     Marginal,
     /// Histogram mixture: running sums within rows, K × T × N × N.
     Conditional,
+    /// Neural material: the feature texture, H × W × 8 (texel-major, channels last).
+    Features,
 }
 
 impl TensorRole {
@@ -137,6 +160,7 @@ impl TensorRole {
             TensorRole::Table => "table",
             TensorRole::Marginal => "marginal",
             TensorRole::Conditional => "conditional",
+            TensorRole::Features => "features",
         }
     }
 
@@ -147,16 +171,18 @@ impl TensorRole {
             TensorRole::Table => 2,
             TensorRole::Marginal => 3,
             TensorRole::Conditional => 4,
+            TensorRole::Features => 5,
         }
     }
 
     /// Every role, in directory order.
-    pub const ALL: [TensorRole; 5] = [
+    pub const ALL: [TensorRole; ROLES] = [
         TensorRole::Params,
         TensorRole::Mass,
         TensorRole::Table,
         TensorRole::Marginal,
         TensorRole::Conditional,
+        TensorRole::Features,
     ];
 }
 
@@ -182,9 +208,11 @@ pub struct Header<'a> {
     pub param_count: u32,
     /// Histogram mixture: number of bases K; 0 otherwise.
     pub basis: u32,
-    /// Histogram mixture: number of latent-code levels T; 0 otherwise.
+    /// Histogram mixture: number of latent-code levels T; neural material: texture height
+    /// (texels along v); 0 otherwise.
     pub t_levels: u32,
-    /// Histogram mixture / direct histogram: grid resolution N; 0 otherwise.
+    /// Histogram mixture / direct histogram: grid resolution N; neural material: texture
+    /// width (texels along u); 0 otherwise.
     pub resolution: u32,
     /// Histogram mixture: how t is looked up.
     pub interpolation: TableInterpolation,
@@ -212,7 +240,7 @@ pub struct TensorEntry {
 #[derive(Copy, Clone, Debug)]
 pub struct Blob<'a> {
     header: Header<'a>,
-    tensors: [Option<(TensorEntry, &'a [u8])>; 5],
+    tensors: [Option<(TensorEntry, &'a [u8])>; ROLES],
 }
 
 fn u32_at(bytes: &[u8], at: usize) -> u32 {
@@ -226,8 +254,8 @@ fn u32_at(bytes: &[u8], at: usize) -> u32 {
 /// A required tensor: role, element count, dtype (`None`: the header's dtype).
 type Requirement = Option<(TensorRole, u64, Option<DType>)>;
 
-fn required(h: &Header<'_>) -> ([Requirement; 5], usize) {
-    let mut r = [None; 5];
+fn required(h: &Header<'_>) -> ([Requirement; ROLES], usize) {
+    let mut r = [None; ROLES];
     let p = h.param_count as u64;
     let (k, t, n) = (h.basis as u64, h.t_levels as u64, h.resolution as u64);
     let count = match h.kind {
@@ -239,6 +267,15 @@ fn required(h: &Header<'_>) -> ([Requirement; 5], usize) {
             r[3] = Some((TensorRole::Marginal, k * t * n, Some(DType::F32)));
             r[4] = Some((TensorRole::Conditional, k * t * n * n, Some(DType::F32)));
             5
+        }
+        SamplerKind::NeuralMaterial => {
+            r[0] = Some((TensorRole::Params, p, None));
+            r[5] = Some((
+                TensorRole::Features,
+                neural::texture_len(h.resolution, h.t_levels) as u64,
+                None,
+            ));
+            2
         }
         _ => {
             r[0] = Some((TensorRole::Params, p, None));
@@ -347,7 +384,7 @@ impl<'a> Blob<'a> {
             return Err(Error::HeaderInvalid);
         }
         let data_start = header_end.div_ceil(DATA_ALIGN) * DATA_ALIGN;
-        let mut tensors: [Option<(TensorEntry, &'a [u8])>; 5] = [None; 5];
+        let mut tensors: [Option<(TensorEntry, &'a [u8])>; ROLES] = [None; ROLES];
         for _ in 0..req_count {
             let (e, r): (TensorEntry, &'a [u8]) =
                 postcard::take_from_bytes(rest).map_err(|_| Error::HeaderDecode)?;
@@ -424,6 +461,11 @@ impl<'a> Blob<'a> {
                 check_dim("basis", h.basis, 0)?;
                 check_dim("t_levels", h.t_levels, 0)?;
                 check_dim("resolution", h.resolution, histogram::DIRECT_N as u32)?;
+            }
+            SamplerKind::NeuralMaterial => {
+                check_dim("basis", h.basis, 0)?;
+                check_range("width", h.resolution, 1, neural::MAX_TEXTURE_SIZE)?;
+                check_range("height", h.t_levels, 1, neural::MAX_TEXTURE_SIZE)?;
             }
             _ => {
                 check_dim("basis", h.basis, 0)?;
@@ -546,7 +588,22 @@ impl<'a> Blob<'a> {
         .ok_or(Error::HeaderInvalid)
     }
 
-    /// Whichever sampler the blob holds.
+    /// The neural material (feature texture + decoder, [`crate::neural`]), or
+    /// [`Error::WrongKind`]. Its texture is `header().resolution` texels wide and
+    /// `header().t_levels` high.
+    pub fn neural_material(&self) -> Result<NeuralMaterial<Tensor<'a>>> {
+        self.expect(SamplerKind::NeuralMaterial)?;
+        NeuralMaterial::new(
+            self.tensor_or_empty(TensorRole::Features),
+            self.params(),
+            self.header.resolution,
+            self.header.t_levels,
+        )
+        .ok_or(Error::HeaderInvalid)
+    }
+
+    /// Whichever sampler the blob holds. A neural-material blob holds no sampler:
+    /// [`Error::NotASampler`].
     pub fn sampler(&self) -> Result<AnySampler<'a>> {
         Ok(match self.header.kind {
             SamplerKind::Cosine => AnySampler::Cosine(CosineSampler),
@@ -559,6 +616,11 @@ impl<'a> Blob<'a> {
             SamplerKind::DirectHistogram => AnySampler::DirectHistogram(self.direct_histogram()?),
             SamplerKind::HistogramMixture => {
                 AnySampler::HistogramMixture(self.histogram_mixture()?)
+            }
+            SamplerKind::NeuralMaterial => {
+                return Err(Error::NotASampler {
+                    found: SamplerKind::NeuralMaterial,
+                })
             }
         })
     }
@@ -741,6 +803,15 @@ impl<'l> BlobWriter<'l> {
         self
     }
 
+    /// Sets the neural material's texture dimensions (`width × height` texels; stored in the
+    /// header's `resolution` and `t_levels` fields).
+    #[must_use]
+    pub fn texture_dims(mut self, width: u32, height: u32) -> Self {
+        self.header.resolution = width;
+        self.header.t_levels = height;
+        self
+    }
+
     /// Overrides a header field for tests of the validator (wrong dimensions and the like).
     #[doc(hidden)]
     #[must_use]
@@ -748,12 +819,12 @@ impl<'l> BlobWriter<'l> {
         &mut self.header
     }
 
-    /// The element type a role is stored with: the blob's `dtype` for parameters and the
-    /// histogram table, f32 for masses and CDFs.
+    /// The element type a role is stored with: the blob's `dtype` for parameters, the
+    /// histogram table and the neural material's features, f32 for masses and CDFs.
     #[must_use]
     pub fn dtype_of(&self, role: TensorRole) -> DType {
         match role {
-            TensorRole::Params | TensorRole::Table => self.header.dtype,
+            TensorRole::Params | TensorRole::Table | TensorRole::Features => self.header.dtype,
             TensorRole::Mass | TensorRole::Marginal | TensorRole::Conditional => DType::F32,
         }
     }

@@ -45,6 +45,13 @@ pub enum Error {
         /// Kind stored in the blob.
         found: crate::blob::SamplerKind,
     },
+    /// [`Blob::sampler`](crate::blob::Blob::sampler) was called on a blob that holds no
+    /// sampler (a neural material: open it with
+    /// [`Blob::neural_material`](crate::blob::Blob::neural_material)).
+    NotASampler {
+        /// Kind stored in the blob.
+        found: crate::blob::SamplerKind,
+    },
     /// An architecture dimension differs from the one compiled into this build, or a table
     /// dimension is zero or above its limit.
     DimensionMismatch {
@@ -127,6 +134,9 @@ impl fmt::Display for Error {
                 found.name(),
                 expected.name()
             ),
+            Error::NotASampler { found } => {
+                write!(f, "blob holds a {}, not a sampler", found.name())
+            }
             Error::DimensionMismatch {
                 what,
                 expected,

@@ -140,7 +140,7 @@ pub const FLOW_COUPLING1: usize = FLOW_COUPLING0 + SPLINE_NET_LEN;
 pub const FLOW_PARAM_COUNT: usize = FLOW_COUPLING1 + SPLINE_NET_LEN;
 
 /// The spline of a coupling network at `offset`, for the other coordinate `v`.
-#[inline(always)]
+#[inline]
 fn spline_knots<W: Weights>(
     w: &W,
     offset: u32,
@@ -214,6 +214,10 @@ pub struct FlowPrepared<'s, W> {
     pub sigma: Vec2,
     /// Condition's share (bias included) of coupling network 0's and 1's first layer.
     share: [[f32; HIDDEN]; 2],
+    /// `ln(σx·σy)`, the base density's normalisation (computed once) …
+    ln_sigma: f32,
+    /// … for this `σ` (`sigma` is public: a changed `σ` is not served from the cache).
+    ln_sigma_of: Vec2,
 }
 
 impl<W: Copy> Clone for FlowPrepared<'_, W> {
@@ -225,6 +229,8 @@ impl<W: Copy> Clone for FlowPrepared<'_, W> {
             mu: self.mu,
             sigma: self.sigma,
             share: self.share,
+            ln_sigma: self.ln_sigma,
+            ln_sigma_of: self.ln_sigma_of,
         }
     }
 }
@@ -249,15 +255,18 @@ impl<W: Weights + Copy> Sampler for FlowSampler<W> {
         if !all_finite(&o) || !all_finite(&share[0]) || !all_finite(&share[1]) {
             return None;
         }
+        let sigma = Vec2::new(
+            gaussian::sigma_from_log(o[2]),
+            gaussian::sigma_from_log(o[3]),
+        );
         Some(FlowPrepared {
             params: sampler::Held::new(self.params),
             _sampler: PhantomData,
             mu: Vec2::new(o[0], o[1]),
-            sigma: Vec2::new(
-                gaussian::sigma_from_log(o[2]),
-                gaussian::sigma_from_log(o[3]),
-            ),
+            sigma,
             share,
+            ln_sigma: math::ln(sigma.x * sigma.y),
+            ln_sigma_of: sigma,
         })
     }
 }
@@ -307,29 +316,41 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
     #[inline]
     #[must_use]
     pub fn from_latent(&self, z: Vec2) -> (Vec2, f32) {
-        let (p, ld, _) = self.point_and_k1(z);
-        (p, ld)
+        let (p, k0, k1) = self.point_and_knots(z);
+        // The log-dets of the same two inverses (not needed by `sample`, so not computed there).
+        (p, k0.inverse(z.x).1 + k1.inverse(z.y).1)
     }
 
-    /// [`FlowPrepared::from_latent`], also returning coupling 1's spline at `x`.
+    /// [`FlowPrepared::from_latent`]'s point, with the splines it built: coupling 0's at
+    /// `y' = z.y` and coupling 1's at `x`.
     #[inline(always)]
-    fn point_and_k1(&self, z: Vec2) -> (Vec2, f32, Knots<SPLINE_BINS>) {
+    fn point_and_knots(&self, z: Vec2) -> (Vec2, Knots<SPLINE_BINS>, Knots<SPLINE_BINS>) {
         let k0 = spline_knots(
             &self.params.get(),
             FLOW_COUPLING0 as u32,
             &self.share[0],
             z.y,
         );
-        let (x, li0) = k0.inverse(z.x);
+        let x = k0.inverse_point(z.x);
         let k1 = spline_knots(&self.params.get(), FLOW_COUPLING1 as u32, &self.share[1], x);
-        let (y, li1) = k1.inverse(z.y);
-        (Vec2::new(x, y), li0 + li1, k1)
+        let y = k1.inverse_point(z.y);
+        (Vec2::new(x, y), k0, k1)
     }
 
-    /// `ln N(z; μ, diag σ²) + ld`, NaN → −∞.
+    /// `ln N(z; μ, diag σ²) + ld`, NaN → −∞. `gaussian::log_normal_pdf` with its
+    /// `ln(σx·σy)` taken from `prepare`.
     #[inline(always)]
     fn log_density(&self, z: Vec2, ld: f32) -> f32 {
-        let l = gaussian::log_normal_pdf(z, self.mu, self.sigma) + ld;
+        let dx = (z.x - self.mu.x) / self.sigma.x;
+        let dy = (z.y - self.mu.y) / self.sigma.y;
+        let cached = self.sigma.x.to_bits() == self.ln_sigma_of.x.to_bits()
+            && self.sigma.y.to_bits() == self.ln_sigma_of.y.to_bits();
+        let ln_sigma = if cached {
+            self.ln_sigma
+        } else {
+            math::ln(self.sigma.x * self.sigma.y)
+        };
+        let l = -0.5 * (dx * dx + dy * dy) - math::LN_TWO_PI - ln_sigma + ld;
         if l.is_nan() {
             f32::NEG_INFINITY
         } else {
@@ -357,17 +378,32 @@ impl<W: Weights + Copy> Prepared for FlowPrepared<'_, W> {
     /// same in both directions), so it equals [`Prepared::pdf_disk`] bit for bit. The
     /// sampling direction's own log-det is the same number only up to f32 rounding, which
     /// steep splines amplify (measured up to ~10⁻² relative): one extra coupling network
-    /// per sample buys exact agreement with `pdf` for MIS.
+    /// per sample buys exact agreement with `pdf` for MIS. That network's input is
+    /// `y' = RQ(y)`, and when this round trip gives back `z.y` bit for bit (about half the
+    /// samples) its spline is the one the sampling direction already built, so it is reused.
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
         let u = sampler::sanitize_u2(u)?;
         let z = self.mu + self.sigma * gaussian::box_muller(u);
-        let (p, _, k1) = self.point_and_k1(z);
+        let (p, k0, k1) = self.point_and_knots(z);
         if !inside_disk(p) {
             return None;
         }
-        let (z, ld) = self.latent_with_k1(p, &k1);
-        Sample::from_disk(p, density_from_log(self.log_density(z, ld)))
+        // `latent_with_k1`, with coupling 0's spline reused when its input is unchanged.
+        let (yl, ld1) = k1.forward(p.y);
+        let k0 = if yl.to_bits() == z.y.to_bits() {
+            k0
+        } else {
+            spline_knots(
+                &self.params.get(),
+                FLOW_COUPLING0 as u32,
+                &self.share[0],
+                yl,
+            )
+        };
+        let (xl, ld0) = k0.forward(p.x);
+        let log_p = self.log_density(Vec2::new(xl, yl), ld0 + ld1);
+        Sample::from_disk(p, density_from_log(log_p))
     }
 
     /// Density on the projected disk (area measure), Eq. 3; 0 outside the open unit disk.
@@ -421,6 +457,10 @@ fn affine_params<W: Weights>(w: &W, l: usize, share: &[f32; HIDDEN], v: f32) -> 
     let s = AFFINE_SCALE_BOUND * math::tanh(o[0] / AFFINE_SCALE_BOUND);
     (s, o[1])
 }
+
+/// Per layer `l` of an affine flow: the input its network saw in the sampling direction and
+/// the `(s, t)` it returned, `[v, s, t]` (row 0 unused).
+type AffineSeen = [[f32; 3]; AFFINE_LAYERS];
 
 /// The affine-coupling flow baseline (Xie et al. 2019): a standard-normal base and four
 /// conditional affine couplings (`core/ARCHITECTURES.md` §4). Densities are on the
@@ -527,27 +567,40 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
             return None;
         }
         let st0 = affine_params(&self.params.get(), 0, &self.share[0], p.y);
-        Some(self.latent_with_layer0(p, st0))
+        let unused = [[0.0f32; 3]; AFFINE_LAYERS];
+        Some(self.latent_with_layer0(p, st0, &unused, false))
     }
 
-    /// [`AffineFlowPrepared::to_latent`] given layer 0's `(s, t)` at `y = p.y`.
+    /// [`AffineFlowPrepared::to_latent`] given layer 0's `(s, t)` at `y = p.y`. With
+    /// `reuse`, a layer whose input is bit for bit the one recorded in `seen` (by
+    /// [`Self::point_and_layer0`]) takes the recorded `(s, t)` instead of running its network
+    /// again: the same function of the same input, so the same numbers.
     #[inline(always)]
-    fn latent_with_layer0(&self, p: Vec2, st0: (f32, f32)) -> (Vec2, f32) {
+    fn latent_with_layer0(
+        &self,
+        p: Vec2,
+        st0: (f32, f32),
+        seen: &AffineSeen,
+        reuse: bool,
+    ) -> (Vec2, f32) {
         let (s0, t0) = st0;
         let mut x = p.x * math::exp(s0) + t0;
         let mut y = p.y;
         let mut ld = s0;
         let mut l = 1;
         while l < AFFINE_LAYERS {
-            if l % 2 == 0 {
-                let (s, t) = affine_params(&self.params.get(), l, &self.share[l], y);
-                x = x * math::exp(s) + t;
-                ld += s;
+            let v = if l % 2 == 0 { y } else { x };
+            let (s, t) = if reuse && v.to_bits() == seen[l][0].to_bits() {
+                (seen[l][1], seen[l][2])
             } else {
-                let (s, t) = affine_params(&self.params.get(), l, &self.share[l], x);
+                affine_params(&self.params.get(), l, &self.share[l], v)
+            };
+            if l % 2 == 0 {
+                x = x * math::exp(s) + t;
+            } else {
                 y = y * math::exp(s) + t;
-                ld += s;
             }
+            ld += s;
             l += 1;
         }
         (Vec2::new(x, y), ld)
@@ -558,33 +611,34 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
     #[inline]
     #[must_use]
     pub fn from_latent(&self, z: Vec2) -> (Vec2, f32) {
-        let (p, ld, _) = self.point_and_layer0(z);
+        let (p, ld, _, _) = self.point_and_layer0(z);
         (p, ld)
     }
 
     /// [`AffineFlowPrepared::from_latent`], also returning layer 0's `(s, t)` (computed at the
-    /// final `y`).
+    /// final `y`) and, for layers 1‥3, the input each network saw with its `(s, t)`.
     #[inline(always)]
-    fn point_and_layer0(&self, z: Vec2) -> (Vec2, f32, (f32, f32)) {
+    fn point_and_layer0(&self, z: Vec2) -> (Vec2, f32, (f32, f32), AffineSeen) {
         let (mut x, mut y) = (z.x, z.y);
         let mut ld = 0.0f32;
+        let mut seen = [[0.0f32; 3]; AFFINE_LAYERS];
         let mut l = AFFINE_LAYERS - 1;
         while l > 0 {
+            let v = if l % 2 == 0 { y } else { x };
+            let (s, t) = affine_params(&self.params.get(), l, &self.share[l], v);
+            seen[l] = [v, s, t];
             if l % 2 == 0 {
-                let (s, t) = affine_params(&self.params.get(), l, &self.share[l], y);
                 x = (x - t) * math::exp(-s);
-                ld -= s;
             } else {
-                let (s, t) = affine_params(&self.params.get(), l, &self.share[l], x);
                 y = (y - t) * math::exp(-s);
-                ld -= s;
             }
+            ld -= s;
             l -= 1;
         }
         let (s0, t0) = affine_params(&self.params.get(), 0, &self.share[0], y);
         x = (x - t0) * math::exp(-s0);
         ld -= s0;
-        (Vec2::new(x, y), ld, (s0, t0))
+        (Vec2::new(x, y), ld, (s0, t0), seen)
     }
 
     /// `ln N(z; 0, I) + ld`, NaN → −∞.
@@ -613,15 +667,16 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
 impl<W: Weights + Copy> Prepared for AffineFlowPrepared<'_, W> {
     /// Box–Muller from `u` (standard normal `z`), then the inverse couplings. The reported
     /// pdf is the density direction's at the sampled point (reusing layer 0, whose input
-    /// `y` is the same in both directions), so it equals [`Prepared::pdf_disk`] bit for bit.
+    /// `y` is the same in both directions, and any later layer whose input the round trip
+    /// reproduced bit for bit), so it equals [`Prepared::pdf_disk`] bit for bit.
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
         let u = sampler::sanitize_u2(u)?;
-        let (p, _, st0) = self.point_and_layer0(gaussian::box_muller(u));
+        let (p, _, st0, seen) = self.point_and_layer0(gaussian::box_muller(u));
         if !inside_disk(p) {
             return None;
         }
-        let (z, ld) = self.latent_with_layer0(p, st0);
+        let (z, ld) = self.latent_with_layer0(p, st0, &seen, true);
         Sample::from_disk(p, density_from_log(Self::log_density(z, ld)))
     }
 

@@ -67,35 +67,100 @@ pub const SOFTMAX_INPUT_BOUND: f32 = 1e30;
 
 /// `softmax(x)` in place, stable for large inputs. Inputs are clamped to
 /// ±[`SOFTMAX_INPUT_BOUND`] and NaN counts as −bound; if nothing remains, weights are uniform.
+///
+/// Inputs more than 80 below the maximum get weight exactly 0. The exponentials are bit for
+/// bit libm's `expf` but computed without branches ([`math::exp_in_range`]), so the loop
+/// vectorises; the normalising sum runs in index order.
 #[inline]
 pub fn softmax<const N: usize>(x: &mut [f32; N]) {
-    let mut m = f32::NEG_INFINITY;
+    let m = clamp_and_max(x);
+    exp_shifted(x, m);
+    let mut sum = 0.0;
     let mut i = 0;
     while i < N {
-        x[i] = math::clamp(x[i], -SOFTMAX_INPUT_BOUND, SOFTMAX_INPUT_BOUND);
+        sum += x[i];
         i += 1;
     }
-    i = 0;
+    normalize(x, sum);
+}
+
+/// Two [`softmax`]es, each bit for bit a call of [`softmax`], with their sequential sums
+/// interleaved so that the two dependency chains overlap (the spline's widths and heights).
+#[inline]
+pub(crate) fn softmax_pair<const N: usize>(a: &mut [f32; N], b: &mut [f32; N]) {
+    let ma = clamp_and_max(a);
+    let mb = clamp_and_max(b);
+    exp_shifted(a, ma);
+    exp_shifted(b, mb);
+    let mut sa = 0.0;
+    let mut sb = 0.0;
+    let mut i = 0;
     while i < N {
-        if x[i] > m {
-            m = x[i];
+        sa += a[i];
+        sb += b[i];
+        i += 1;
+    }
+    normalize(a, sa);
+    normalize(b, sb);
+}
+
+/// [`softmax`]'s first step: clamps every input to ±[`SOFTMAX_INPUT_BOUND`] (NaN → −bound)
+/// and returns the maximum, found in 4 interleaved lanes (exact in any order: no NaN is
+/// left, and ±0 give the same differences in [`exp_shifted`]).
+#[inline(always)]
+fn clamp_and_max<const N: usize>(x: &mut [f32; N]) -> f32 {
+    let mut lanes = [f32::NEG_INFINITY; 4];
+    let mut i = 0;
+    while i + 4 <= N {
+        let mut l = 0;
+        while l < 4 {
+            let v = math::clamp(x[i + l], -SOFTMAX_INPUT_BOUND, SOFTMAX_INPUT_BOUND);
+            x[i + l] = v;
+            lanes[l] = if v > lanes[l] { v } else { lanes[l] };
+            l += 1;
         }
-        i += 1;
+        i += 4;
     }
-    let mut sum = 0.0;
-    i = 0;
     while i < N {
-        // NaN compares false: treat it as −∞ (weight 0).
-        let e = if x[i] >= m - 80.0 {
-            math::exp(x[i] - m)
-        } else {
-            0.0
-        };
-        x[i] = e;
-        sum += e;
+        let v = math::clamp(x[i], -SOFTMAX_INPUT_BOUND, SOFTMAX_INPUT_BOUND);
+        x[i] = v;
+        lanes[0] = if v > lanes[0] { v } else { lanes[0] };
         i += 1;
     }
-    i = 0;
+    let m01 = if lanes[1] > lanes[0] {
+        lanes[1]
+    } else {
+        lanes[0]
+    };
+    let m23 = if lanes[3] > lanes[2] {
+        lanes[3]
+    } else {
+        lanes[2]
+    };
+    if m23 > m01 {
+        m23
+    } else {
+        m01
+    }
+}
+
+/// `x ← e^(x − m)`, 0 for inputs more than 80 below the maximum `m`.
+#[inline(always)]
+fn exp_shifted<const N: usize>(x: &mut [f32; N], m: f32) {
+    // x − m ≤ 0, and ≥ −80 for the kept inputs: where exp_nonpositive is libm's expf.
+    let floor = m - 80.0;
+    let mut i = 0;
+    while i < N {
+        let e = math::exp_nonpositive(x[i] - m);
+        x[i] = if x[i] >= floor { e } else { 0.0 };
+        i += 1;
+    }
+}
+
+/// `x ← x / sum`, or uniform when the sum is not positive.
+#[inline(always)]
+fn normalize<const N: usize>(x: &mut [f32; N], sum: f32) {
+    let mut i = 0;
     while i < N {
         x[i] = if sum > 0.0 {
             x[i] / sum

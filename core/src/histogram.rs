@@ -127,10 +127,11 @@ pub fn cell_outside_disk(row: u32, col: u32, n: u32) -> bool {
 }
 
 /// The cell index of coordinate `x ∈ [−1, 1]` on an `n`-cell axis, clamped to `[0, n − 1]`
-/// (x = 1 falls in the last cell).
+/// (x = 1 falls in the last cell): `⌊(x + 1)·n/2⌋`. No `floor` call is needed: the clamp
+/// to `[0, n − 1]` and the truncating conversion give the floor for every input (NaN → 0).
 #[inline(always)]
 fn cell_index(x: f32, n: u32) -> u32 {
-    math::clamp_index(math::floor((x + 1.0) * (0.5 * n as f32)), n)
+    math::clamp_index((x + 1.0) * (0.5 * n as f32), n)
 }
 
 /// The coordinate `x` moved by whole ulps until [`cell_index`] puts it in cell `cell`: the
@@ -566,12 +567,20 @@ impl DirectHistogramPrepared {
     #[must_use]
     pub fn from_logits(logits: &[f32; DIRECT_CELLS]) -> Self {
         let n = DIRECT_N as u32;
-        let mut p = [0.0f32; DIRECT_CELLS];
+        // `cell_outside_disk` per cell, from the squared half-cell gaps of each row and
+        // column (computed once): the same integer test, in a loop that vectorises.
+        let mut gap2 = [0u32; DIRECT_N];
         let mut i = 0;
+        while i < DIRECT_N {
+            let g = half_cell_gap(i as u32, n);
+            gap2[i] = g * g;
+            i += 1;
+        }
+        let mut p = [0.0f32; DIRECT_CELLS];
+        i = 0;
         while i < DIRECT_CELLS {
-            let (r, c) = ((i / DIRECT_N) as u32, (i % DIRECT_N) as u32);
             // −∞ gets softmax weight exactly 0.
-            p[i] = if cell_outside_disk(r, c, n) {
+            p[i] = if gap2[i / DIRECT_N] + gap2[i % DIRECT_N] >= n * n {
                 f32::NEG_INFINITY
             } else {
                 logit(logits[i])
@@ -683,6 +692,9 @@ const MIX_L1: usize = MIX_L0 + mlp::dense_len(RAW_CONDITION_DIM, MIX_HIDDEN);
 const MIX_L2: usize = MIX_L1 + mlp::dense_len(MIX_HIDDEN, MIX_HIDDEN);
 const MIX_L3: usize = MIX_L2 + mlp::dense_len(MIX_HIDDEN, MIX_HIDDEN);
 const MIX_END: usize = MIX_L3 + mlp::dense_len(MIX_HIDDEN, MIX_OUTPUTS);
+
+/// [`BASES`] rounded up to a multiple of 4 (per-basis scratch arrays that vectorise).
+const PADDED_BASES: usize = BASES.div_ceil(4) * 4;
 
 /// `|ρ|²` below which a predicted rotation vector counts as zero (identity rotation).
 const MIN_ROTATION_NORM2: f32 = 1e-24;
@@ -835,6 +847,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
     ///   every blended mass is 0, `w = softmax(a)` over the bases whose table is non-empty.
     ///
     /// `None` only when no basis has a usable table.
+    #[inline(always)]
     #[must_use]
     pub fn prepare_outputs(&self, o: &[f32; MIX_OUTPUTS]) -> Option<HistogramMixturePrepared<'_, W>>
     where
@@ -857,9 +870,32 @@ impl<W: Weights> HistogramMixtureSampler<W> {
         let mut slice0 = [0u32; BASES];
         let mut slice1 = [0u32; BASES];
         let mut lerp = [0.0f32; BASES];
-        let top = (t_levels - 1) as f32;
-        let mut sum = 0.0f32;
+        let mut mass = [0.0f32; BASES];
+        let mut total = [0.0f32; BASES];
+        let mut inv_integral = [0.0f32; BASES];
         let mut usable = [0u32; BASES]; // not [bool; _]: rust-gpu cannot memset bools
+                                        // The latent codes t_k = sigmoid(τ_k), in a loop of their own so that it vectorises;
+                                        // the fast form is exact down to EXP_IN_RANGE_MIN, the rest (and NaN) take libm's.
+                                        // (Gathered into a contiguous array padded to a multiple of 4 first.)
+        let mut code = [0.0f32; PADDED_BASES];
+        k = 0;
+        while k < BASES {
+            code[k] = o[4 * k + 3];
+            k += 1;
+        }
+        k = 0;
+        while k < PADDED_BASES {
+            code[k] = math::sigmoid_in_range(code[k]);
+            k += 1;
+        }
+        k = 0;
+        while k < BASES {
+            if !(o[4 * k + 3] >= math::EXP_IN_RANGE_MIN) {
+                code[k] = math::sigmoid(o[4 * k + 3]);
+            }
+            k += 1;
+        }
+        let top = (t_levels - 1) as f32;
         k = 0;
         while k < BASES {
             let rho = Vec2::new(o[4 * k + 1], o[4 * k + 2]);
@@ -868,15 +904,16 @@ impl<W: Weights> HistogramMixtureSampler<W> {
                 rotation[k] = rho * (1.0 / math::sqrt(len2));
             }
             // NaN τ gives NaN t; the clamp sends it to level 0.
-            let s = math::clamp(math::sigmoid(o[4 * k + 3]) * top, 0.0, top);
+            let s = math::clamp(code[k] * top, 0.0, top);
             let (l0, l1, a) = match self.interpolation {
+                // s ≥ 0, so the truncation in clamp_index is the floor.
                 Interpolation::Nearest => {
-                    let l = math::clamp_index(math::floor(s + 0.5), t_levels);
+                    let l = math::clamp_index(s + 0.5, t_levels);
                     (l, l, 0.0)
                 }
                 Interpolation::Linear => {
                     if t_levels >= 2 {
-                        let l = math::clamp_index(math::floor(s), t_levels - 1);
+                        let l = math::clamp_index(s, t_levels - 1);
                         (l, l + 1, math::clamp(s - l as f32, 0.0, 1.0))
                     } else {
                         (0, 0, 0.0)
@@ -888,29 +925,45 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             slice1[k] = base + l1;
             lerp[k] = a;
             let m0 = self.mass.at(base + l0);
-            let mass = if a > 0.0 {
+            mass[k] = if a > 0.0 {
                 (1.0 - a) * m0 + a * self.mass.at(base + l1)
             } else {
                 m0
             };
-            usable[k] = u32::from(
-                Table2D::from_parts(
-                    self.table,
-                    self.marginal,
-                    self.conditional,
-                    self.resolution,
-                    slice0[k],
-                    slice1[k],
-                    lerp[k],
-                )
-                .integral()
-                    > 0.0,
-            );
-            let w = soft[k] * mass;
-            if usable[k] != 0 && w > 0.0 && math::is_finite(w) {
-                weights[k] = w;
-                sum += w;
-            }
+            // The table's blended `marginal[N − 1]`, as `Table2D::from_parts` reads it.
+            let n = self.resolution;
+            let last = n - 1;
+            let v0 = self.marginal.at(slice0[k] * n + last);
+            total[k] = if a > 0.0 {
+                (1.0 - a) * v0 + a * self.marginal.at(slice1[k] * n + last)
+            } else {
+                v0
+            };
+            k += 1;
+        }
+        // `Table2D::from_parts`'s total and 1/integral (kept, so that `table(k)` need not read
+        // and divide again per pdf), usability and the unnormalised weights.
+        let area = cell_area(self.resolution);
+        k = 0;
+        while k < BASES {
+            let tot = total[k];
+            let integral = tot * area;
+            let ok = tot > 0.0 && math::is_finite(tot) && integral > 0.0;
+            total[k] = if ok { tot } else { 0.0 };
+            inv_integral[k] = if ok { 1.0 / integral } else { 0.0 };
+            usable[k] = u32::from(ok);
+            let w = soft[k] * mass[k];
+            weights[k] = if ok && w > 0.0 && math::is_finite(w) {
+                w
+            } else {
+                0.0
+            };
+            k += 1;
+        }
+        let mut sum = 0.0f32;
+        k = 0;
+        while k < BASES {
+            sum += weights[k];
             k += 1;
         }
         if !(sum > 0.0 && math::is_finite(sum)) {
@@ -940,6 +993,8 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             slice0,
             slice1,
             lerp,
+            total,
+            inv_integral,
         })
     }
 }
@@ -956,6 +1011,10 @@ pub struct HistogramMixturePrepared<'s, W> {
     slice0: [u32; BASES],
     slice1: [u32; BASES],
     lerp: [f32; BASES],
+    /// Each basis table's blended `marginal[N − 1]` ([`Table2D`]'s `total`).
+    total: [f32; BASES],
+    /// Each basis table's `1 / (total · h²)` ([`Table2D`]'s `inv_integral`).
+    inv_integral: [f32; BASES],
 }
 
 impl<W: Copy> Clone for HistogramMixturePrepared<'_, W> {
@@ -968,6 +1027,8 @@ impl<W: Copy> Clone for HistogramMixturePrepared<'_, W> {
             slice0: self.slice0,
             slice1: self.slice1,
             lerp: self.lerp,
+            total: self.total,
+            inv_integral: self.inv_integral,
         }
     }
 }
@@ -992,15 +1053,18 @@ impl<'s, W: Weights + Copy> HistogramMixturePrepared<'s, W> {
     pub fn table(&self, k: usize) -> Table2D<W> {
         let k = if k < BASES { k } else { BASES - 1 };
         let s = self.sampler.get();
-        Table2D::from_parts(
-            s.table,
-            s.marginal,
-            s.conditional,
-            s.resolution,
-            self.slice0[k],
-            self.slice1[k],
-            self.lerp[k],
-        )
+        // What `Table2D::from_parts` computes, kept from `prepare`.
+        Table2D {
+            values: s.table,
+            marginal: s.marginal,
+            conditional: s.conditional,
+            n: s.resolution,
+            slice0: self.slice0[k],
+            slice1: self.slice1[k],
+            a: self.lerp[k],
+            total: self.total[k],
+            inv_integral: self.inv_integral[k],
+        }
     }
 
     /// The `u` that [`Prepared::sample`] maps to `wo` *through basis `k`*: the basis's table
@@ -1069,12 +1133,44 @@ impl<W: Weights + Copy> Prepared for HistogramMixturePrepared<'_, W> {
         if !(p.x * p.x + p.y * p.y < 1.0) {
             return 0.0;
         }
-        let mut sum = 0.0f32;
+        // `Σ_k w_k · table(k).pdf(Rᵀ_k p)` in three passes: the cells first, then every
+        // basis's table read (independent loads from a table too big for L1 overlap), then
+        // the sum in basis order. The numbers are those of `Table2D::pdf`.
+        let s = self.sampler.get();
+        let n = s.resolution;
+        let nn = n * n;
+        let mut cell = [0u32; BASES];
+        let mut inside = [0u32; BASES];
         let mut k = 0;
+        while k < BASES {
+            let q = warp::rotate_inverse(p, self.rotation[k]);
+            inside[k] = u32::from(in_square(q));
+            cell[k] = cell_index(q.y, n) * n + cell_index(q.x, n);
+            k += 1;
+        }
+        let mut density = [0.0f32; BASES];
+        k = 0;
+        while k < BASES {
+            let v0 = s.table.at(self.slice0[k] * nn + cell[k]);
+            let a = self.lerp[k];
+            let v = if a > 0.0 {
+                (1.0 - a) * v0 + a * s.table.at(self.slice1[k] * nn + cell[k])
+            } else {
+                v0
+            };
+            density[k] = if inside[k] != 0 {
+                finite_density(v * self.inv_integral[k])
+            } else {
+                0.0
+            };
+            k += 1;
+        }
+        let mut sum = 0.0f32;
+        k = 0;
         while k < BASES {
             let w = self.weights[k];
             if w > 0.0 {
-                sum += w * self.table(k).pdf(warp::rotate_inverse(p, self.rotation[k]));
+                sum += w * density[k];
             }
             k += 1;
         }

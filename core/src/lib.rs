@@ -60,6 +60,7 @@ pub mod histogram;
 pub mod lobes;
 pub mod math;
 pub mod mlp;
+pub mod neural;
 pub mod sampler;
 pub mod spline;
 pub mod warp;
@@ -76,6 +77,7 @@ pub use lobes::{
     AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,
     ImprovedBaselineSampler,
 };
+pub use neural::NeuralMaterial;
 pub use sampler::{CosineSampler, Prepared, Sample, Sampler, FEATURE_DIM};
 pub use warp::Frame;
 pub use weights::{DType, Tensor, Weights};

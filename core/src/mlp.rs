@@ -82,14 +82,7 @@ pub const fn dense_len(inputs: usize, outputs: usize) -> usize {
 #[inline(always)]
 #[must_use]
 pub fn bias<W: Weights + ?Sized, const I: usize, const O: usize>(w: &W, offset: u32) -> [f32; O] {
-    let mut out = [0.0f32; O];
-    let b = offset + (I * O) as u32;
-    let mut j = 0;
-    while j < O {
-        out[j] = w.at(b + j as u32);
-        j += 1;
-    }
-    out
+    w.read::<O>(offset + (I * O) as u32)
 }
 
 /// Pre-activation of a dense layer: `b + Σ_i x[i]·W[i]`.

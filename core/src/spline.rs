@@ -90,34 +90,42 @@ fn sanitize_raw(v: f32) -> f32 {
     math::clamp(v, -RAW_LIMIT, RAW_LIMIT)
 }
 
-/// Left knots of `K` bins on `[−B, B]` from raw bin sizes `raw[first .. first + K]`:
-/// `size = min + (1 − K·min)·softmax(raw)`, cumulative sum scaled to `[−B, B]`, left end
-/// exactly `−B` (the right end `+B` is implicit in [`Knots`]).
-#[inline(always)]
+/// Left x- and y-knots of `K` bins on `[−B, B]` from raw widths `raw[0 .. K]` and heights
+/// `raw[K .. 2K]`: `size = min + (1 − K·min)·softmax(raw)`, cumulative sum scaled to
+/// `[−B, B]`, left end exactly `−B` (the right end `+B` is implicit in [`Knots`]). Widths and
+/// heights are independent; their softmaxes and running sums are interleaved so that the two
+/// sequential chains overlap (each computed exactly as on its own).
+#[inline]
 fn cumulative_knots<const K: usize, const N: usize>(
     raw: &[f32; N],
-    first: usize,
-    min_size: f32,
     bound: f32,
-) -> [f32; K] {
-    let mut size = [0.0f32; K];
+) -> ([f32; K], [f32; K]) {
+    let mut w = [0.0f32; K];
+    let mut h = [0.0f32; K];
     let mut k = 0;
     while k < K {
-        size[k] = sanitize_raw(raw[first + k]);
+        w[k] = sanitize_raw(raw[k]);
+        h[k] = sanitize_raw(raw[K + k]);
         k += 1;
     }
-    gaussian::softmax::<K>(&mut size);
-    let scale = 1.0 - min_size * K as f32;
-    let mut knots = [0.0f32; K];
-    knots[0] = -bound;
-    let mut cum = 0.0f32;
+    gaussian::softmax_pair::<K>(&mut w, &mut h);
+    let scale_w = 1.0 - MIN_BIN_WIDTH * K as f32;
+    let scale_h = 1.0 - MIN_BIN_HEIGHT * K as f32;
+    let mut x = [0.0f32; K];
+    let mut y = [0.0f32; K];
+    x[0] = -bound;
+    y[0] = -bound;
+    let mut cum_w = 0.0f32;
+    let mut cum_h = 0.0f32;
     k = 1;
     while k < K {
-        cum += min_size + scale * size[k - 1];
-        knots[k] = 2.0 * bound * cum - bound;
+        cum_w += MIN_BIN_WIDTH + scale_w * w[k - 1];
+        x[k] = 2.0 * bound * cum_w - bound;
+        cum_h += MIN_BIN_HEIGHT + scale_h * h[k - 1];
+        y[k] = 2.0 * bound * cum_h - bound;
         k += 1;
     }
-    knots
+    (x, y)
 }
 
 impl<const K: usize> Knots<K> {
@@ -143,8 +151,7 @@ impl<const K: usize> Knots<K> {
             );
         }
         let bound = math::clamp(bound, MIN_TAIL_BOUND, MAX_TAIL_BOUND);
-        let x = cumulative_knots::<K, N>(raw, 0, MIN_BIN_WIDTH, bound);
-        let y = cumulative_knots::<K, N>(raw, K, MIN_BIN_HEIGHT, bound);
+        let (x, y) = cumulative_knots::<K, N>(raw, bound);
         let mut raw_d = [0.0f32; K];
         let mut k = 1;
         while k < K {
@@ -162,7 +169,15 @@ impl<const K: usize> Knots<K> {
         if k == 0 || k >= K {
             1.0
         } else {
-            MIN_DERIVATIVE + math::softplus(self.raw_d[k])
+            // math::softplus with the exponential inlined (exp_in_range is libm's expf on
+            // [−87, 20]; below, both give MIN_DERIVATIVE + a value far below its ulp).
+            let x = self.raw_d[k];
+            MIN_DERIVATIVE
+                + if x > 20.0 {
+                    x
+                } else {
+                    math::ln_1p(math::exp_in_range(x))
+                }
         }
     }
 
@@ -240,6 +255,18 @@ impl<const K: usize> Knots<K> {
     #[inline]
     #[must_use]
     pub fn inverse(&self, y: f32) -> (f32, f32) {
+        self.inverse_with::<true>(y)
+    }
+
+    /// [`Knots::inverse`] without the log-derivative (its `ln`), for callers that drop it.
+    #[inline(always)]
+    pub(crate) fn inverse_point(&self, y: f32) -> f32 {
+        self.inverse_with::<false>(y).0
+    }
+
+    /// [`Knots::inverse`]; the log-derivative only when `LOG_DET` (0 otherwise).
+    #[inline(always)]
+    fn inverse_with<const LOG_DET: bool>(&self, y: f32) -> (f32, f32) {
         let y = math::clamp(y, -f32::MAX, f32::MAX);
         if !(y >= -self.bound && y <= self.bound) {
             return (y, 0.0);
@@ -272,6 +299,11 @@ impl<const K: usize> Knots<K> {
         } else {
             (x1 - eta * w, 1.0 - eta)
         };
-        (math::clamp(x, x0, x1), -Self::log_derivative(xi, s, d0, d1))
+        let log_det = if LOG_DET {
+            -Self::log_derivative(xi, s, d0, d1)
+        } else {
+            0.0
+        };
+        (math::clamp(x, x0, x1), log_det)
     }
 }

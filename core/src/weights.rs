@@ -40,6 +40,40 @@ pub trait Weights {
     ) {
         accumulate_generic(self, offset, row0, x, acc);
     }
+
+    /// Elements `offset .. offset + N` as an array (0.0 for indices past the end): how dense
+    /// layers read their bias. Storages override it to read the window with one range check.
+    #[inline(always)]
+    fn read<const N: usize>(&self, offset: u32) -> [f32; N] {
+        read_generic(self, offset)
+    }
+}
+
+/// The portable body of [`Weights::read`]: one [`Weights::at`] per element.
+#[inline(always)]
+pub fn read_generic<W: Weights + ?Sized, const N: usize>(w: &W, offset: u32) -> [f32; N] {
+    let mut out = [0.0f32; N];
+    let mut j = 0;
+    while j < N {
+        out[j] = w.at(offset + j as u32);
+        j += 1;
+    }
+    out
+}
+
+/// Slice fast path of [`Weights::read`]: one range check for the window.
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+fn read_slice<const N: usize>(w: &[f32], offset: u32) -> [f32; N] {
+    let start = offset as usize;
+    match w.get(start..start + N) {
+        Some(s) => {
+            let mut out = [0.0f32; N];
+            out.copy_from_slice(s);
+            out
+        }
+        None => read_generic(w, offset),
+    }
 }
 
 /// The portable body of [`Weights::accumulate`]: index loops only (rust-gpu friendly).
@@ -64,8 +98,16 @@ pub fn accumulate_generic<W: Weights + ?Sized, const I: usize, const O: usize>(
     }
 }
 
-/// Slice fast path of [`Weights::accumulate`]: one range check, then loops the compiler can
-/// vectorise. Out-of-range windows read nothing (as if zero).
+/// Slice fast path of [`Weights::accumulate`]: one range check, then the outputs in blocks
+/// of up to 32 (8 × 4 lanes) whose partial sums stay in SIMD registers (`glam::Vec4`, SSE2
+/// on x86-64) while the block's rows stream past. Every output is still
+/// `acc[j] + x[0]·W[0][j] + x[1]·W[1][j] + …` in input order with separate multiplies and
+/// adds, so the result is bit for bit that of [`accumulate_generic`]. Out-of-range windows
+/// read nothing (as if zero).
+///
+/// When `O` is not a multiple of 4 and the (up to 3) elements after the matrix exist — the
+/// next layer's or this layer's bias — the last 4-wide vector runs past column `O − 1` into
+/// lanes that are computed and dropped; otherwise the leftover columns are summed one by one.
 #[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 fn accumulate_slice<const I: usize, const O: usize>(
@@ -76,14 +118,191 @@ fn accumulate_slice<const I: usize, const O: usize>(
     acc: &mut [f32; O],
 ) {
     let start = offset as usize + row0 as usize * O;
-    let Some(m) = w.get(start..start + I * O) else {
-        return;
-    };
-    for (xi, row) in x.iter().zip(m.chunks_exact(O)) {
-        for (a, r) in acc.iter_mut().zip(row) {
-            *a += xi * r;
+    #[cfg(any(
+        target_feature = "sse2",
+        target_feature = "neon",
+        target_feature = "simd128"
+    ))]
+    match w.get(start..start + I * O + (4 - O % 4) % 4) {
+        Some(m) => accumulate_window::<I, O, true>(m, x, acc),
+        None => {
+            if let Some(m) = w.get(start..start + I * O) {
+                accumulate_window::<I, O, false>(m, x, acc);
+            }
         }
     }
+    // Without SIMD registers (thumbv7em, plain wasm32) blocking only costs code size: one
+    // vectorisable pass per input instead.
+    #[cfg(not(any(
+        target_feature = "sse2",
+        target_feature = "neon",
+        target_feature = "simd128"
+    )))]
+    if let Some(m) = w.get(start..start + I * O) {
+        for (xi, row) in x.iter().zip(m.chunks_exact(O)) {
+            for (a, r) in acc.iter_mut().zip(row) {
+                *a += xi * r;
+            }
+        }
+    }
+}
+
+/// [`accumulate_slice`] on its window `m` (`I` rows of `O`, plus the padding if `PADDED`):
+/// blocks of 8 vectors, then one block of the 1‥8 vectors left (the last one possibly running
+/// past the row; so that no pass over the rows has fewer independent sums than needed), then
+/// the unpadded leftover columns.
+#[cfg(all(
+    not(target_arch = "spirv"),
+    any(
+        target_feature = "sse2",
+        target_feature = "neon",
+        target_feature = "simd128"
+    )
+))]
+#[inline(always)]
+fn accumulate_window<const I: usize, const O: usize, const PADDED: bool>(
+    m: &[f32],
+    x: &[f32; I],
+    acc: &mut [f32; O],
+) {
+    let vecs = if PADDED { O.div_ceil(4) } else { O / 4 };
+    // Blocks of 8 whole vectors (inside the row); the 1‥8 vectors left go to `accumulate_last`.
+    let full = O / 4 / 8 * 8;
+    let mut v = 0;
+    while v < full {
+        accumulate_block::<I, O, 8>(m, 4 * v, x, acc);
+        v += 8;
+    }
+    let j0 = 4 * full;
+    match vecs - full {
+        1 => accumulate_last::<I, O, 1>(m, j0, x, acc),
+        2 => accumulate_last::<I, O, 2>(m, j0, x, acc),
+        3 => accumulate_last::<I, O, 3>(m, j0, x, acc),
+        4 => accumulate_last::<I, O, 4>(m, j0, x, acc),
+        5 => accumulate_last::<I, O, 5>(m, j0, x, acc),
+        6 => accumulate_last::<I, O, 6>(m, j0, x, acc),
+        7 => accumulate_last::<I, O, 7>(m, j0, x, acc),
+        8 => accumulate_last::<I, O, 8>(m, j0, x, acc),
+        _ => {}
+    }
+    let mut j = 4 * vecs;
+    while j < O {
+        accumulate_one::<I, O>(m, j, x, acc);
+        j += 1;
+    }
+}
+
+/// Outputs `j0 .. j0 + 4V` of [`accumulate_slice`], all inside the row (`j0 + 4V ≤ O`).
+#[cfg(all(
+    not(target_arch = "spirv"),
+    any(
+        target_feature = "sse2",
+        target_feature = "neon",
+        target_feature = "simd128"
+    )
+))]
+#[inline(always)]
+fn accumulate_block<const I: usize, const O: usize, const V: usize>(
+    m: &[f32],
+    j0: usize,
+    x: &[f32; I],
+    acc: &mut [f32; O],
+) {
+    use glam::Vec4;
+    let Some(dst) = acc.get_mut(j0..j0 + 4 * V) else {
+        return;
+    };
+    let mut a = [Vec4::ZERO; V];
+    for (v, d) in a.iter_mut().zip(dst.chunks_exact(4)) {
+        *v = Vec4::new(d[0], d[1], d[2], d[3]);
+    }
+    for (xi, row) in x.iter().zip(m.chunks_exact(O)) {
+        let Some(r) = row.get(j0..j0 + 4 * V) else {
+            return;
+        };
+        let xv = Vec4::splat(*xi);
+        for (v, c) in a.iter_mut().zip(r.chunks_exact(4)) {
+            *v += xv * Vec4::new(c[0], c[1], c[2], c[3]);
+        }
+    }
+    for (v, d) in a.iter().zip(dst.chunks_exact_mut(4)) {
+        d.copy_from_slice(&v.to_array());
+    }
+}
+
+/// The last block of [`accumulate_slice`]: outputs `j0 ..` up to `O`, in `V` vectors whose
+/// lanes past `O − 1` (padded windows only) read the elements after each row and are dropped.
+#[cfg(all(
+    not(target_arch = "spirv"),
+    any(
+        target_feature = "sse2",
+        target_feature = "neon",
+        target_feature = "simd128"
+    )
+))]
+#[inline(always)]
+fn accumulate_last<const I: usize, const O: usize, const V: usize>(
+    m: &[f32],
+    j0: usize,
+    x: &[f32; I],
+    acc: &mut [f32; O],
+) {
+    use glam::Vec4;
+    let mut a = [[0.0f32; 4]; V];
+    let mut l = 0;
+    while l < 4 * V {
+        if let Some(v) = acc.get(j0 + l) {
+            a[l / 4][l % 4] = *v;
+        }
+        l += 1;
+    }
+    let mut a = a.map(Vec4::from_array);
+    let mut i = 0;
+    while i < I {
+        let Some(r) = m.get(i * O + j0..i * O + j0 + 4 * V) else {
+            return;
+        };
+        let xv = Vec4::splat(x[i]);
+        for (v, c) in a.iter_mut().zip(r.chunks_exact(4)) {
+            *v += xv * Vec4::new(c[0], c[1], c[2], c[3]);
+        }
+        i += 1;
+    }
+    l = 0;
+    while l < 4 * V {
+        if let Some(d) = acc.get_mut(j0 + l) {
+            *d = a[l / 4][l % 4];
+        }
+        l += 1;
+    }
+}
+
+/// Output `j` of [`accumulate_slice`] alone (the < 4 outputs left after the blocks).
+#[cfg(all(
+    not(target_arch = "spirv"),
+    any(
+        target_feature = "sse2",
+        target_feature = "neon",
+        target_feature = "simd128"
+    )
+))]
+#[inline(always)]
+fn accumulate_one<const I: usize, const O: usize>(
+    m: &[f32],
+    j: usize,
+    x: &[f32; I],
+    acc: &mut [f32; O],
+) {
+    let Some(a) = acc.get_mut(j) else {
+        return;
+    };
+    let mut s = *a;
+    for (xi, row) in x.iter().zip(m.chunks_exact(O)) {
+        if let Some(r) = row.get(j) {
+            s += xi * r;
+        }
+    }
+    *a = s;
 }
 
 impl Weights for [f32] {
@@ -111,6 +330,11 @@ impl Weights for [f32] {
     ) {
         accumulate_slice(self, offset, row0, x, acc);
     }
+    #[cfg(not(target_arch = "spirv"))]
+    #[inline(always)]
+    fn read<const M: usize>(&self, offset: u32) -> [f32; M] {
+        read_slice(self, offset)
+    }
 }
 
 impl<const N: usize> Weights for [f32; N] {
@@ -126,6 +350,22 @@ impl<const N: usize> Weights for [f32; N] {
         } else {
             0.0
         }
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    #[inline(always)]
+    fn accumulate<const I: usize, const O: usize>(
+        &self,
+        offset: u32,
+        row0: u32,
+        x: &[f32; I],
+        acc: &mut [f32; O],
+    ) {
+        accumulate_slice(self, offset, row0, x, acc);
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    #[inline(always)]
+    fn read<const M: usize>(&self, offset: u32) -> [f32; M] {
+        read_slice(self, offset)
     }
 }
 
@@ -147,6 +387,10 @@ impl<W: Weights + ?Sized> Weights for &W {
         acc: &mut [f32; O],
     ) {
         (**self).accumulate(offset, row0, x, acc);
+    }
+    #[inline(always)]
+    fn read<const N: usize>(&self, offset: u32) -> [f32; N] {
+        (**self).read(offset)
     }
 }
 
@@ -260,6 +504,15 @@ impl Weights for Tensor<'_> {
             Tensor::F16Bytes(b) => accumulate_generic(&LeF16(b), offset, row0, x, acc),
         }
     }
+
+    #[inline(always)]
+    fn read<const N: usize>(&self, offset: u32) -> [f32; N] {
+        match self {
+            Tensor::F32(f) => f.read(offset),
+            Tensor::F32Bytes(b) => read_generic(&LeF32(b), offset),
+            Tensor::F16Bytes(b) => read_generic(&LeF16(b), offset),
+        }
+    }
 }
 
 /// Unaligned little-endian f32 bytes.
@@ -295,5 +548,96 @@ impl Weights for LeF16<'_> {
             Some(s) => f16::from_le_bytes([s[0], s[1]]).to_f32(),
             None => 0.0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Deterministic pseudo-random values in [−1, 1) (no RNG dependency in core).
+    fn values(n: usize, seed: u32) -> [f32; 4096] {
+        let mut out = [0.0f32; 4096];
+        let mut s = seed.wrapping_mul(2_654_435_761).wrapping_add(1);
+        let mut i = 0;
+        while i < n && i < 4096 {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            out[i] = (s >> 8) as f32 / (1u32 << 23) as f32 - 1.0;
+            i += 1;
+        }
+        out
+    }
+
+    /// The slice kernel against the per-element one, bit for bit, for windows with and
+    /// without room for the padded last vector and with an offset row.
+    fn check<const I: usize, const O: usize>() {
+        let w = values(4096, (I * 131 + O) as u32);
+        let xs = values(I, 7);
+        let mut x = [0.0f32; I];
+        x.copy_from_slice(&xs[..I]);
+        for (offset, row0, len) in [
+            (0u32, 0u32, I * O),     // exactly the matrix: no padding
+            (0, 0, I * O + 3),       // room for the padded lanes
+            (5, 1, 5 + (I + 1) * O), // offset and first row, no padding
+            (3, 0, 4096),
+            (0, 0, I * O - 1), // too short: reads nothing
+        ] {
+            let len = len.min(4096);
+            let w = &w[..len];
+            let start = values(O, 3);
+            let mut fast = [0.0f32; O];
+            fast.copy_from_slice(&start[..O]);
+            let mut slow = fast;
+            w.accumulate(offset, row0, &x, &mut fast);
+            let in_range = offset as usize + (row0 as usize + I) * O <= len;
+            if in_range {
+                accumulate_generic(w, offset, row0, &x, &mut slow);
+            }
+            for j in 0..O {
+                assert_eq!(
+                    fast[j].to_bits(),
+                    slow[j].to_bits(),
+                    "I={I} O={O} offset={offset} row0={row0} len={len} j={j}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn slice_kernel_matches_generic_bit_for_bit() {
+        check::<9, 32>();
+        check::<30, 32>();
+        check::<32, 59>();
+        check::<32, 11>();
+        check::<32, 5>();
+        check::<32, 2>();
+        check::<32, 1>();
+        check::<10, 40>();
+        check::<32, 4>();
+        check::<7, 3>();
+        check::<60, 64>();
+        check::<16, 61>();
+        check::<16, 29>();
+        check::<8, 31>();
+        check::<8, 63>();
+        check::<8, 256>();
+        check::<3, 1>();
+        check::<2, 3>();
+        check::<1, 36>();
+    }
+
+    #[test]
+    fn read_matches_at() {
+        let w = values(100, 11);
+        let s = &w[..100];
+        let a: [f32; 7] = s.read(90);
+        let b: [f32; 7] = read_generic(s, 90);
+        assert_eq!(a, b);
+        // Past the end: zeros, as `at` gives.
+        let a: [f32; 7] = s.read(97);
+        assert_eq!(a[..3], s[97..100]);
+        assert_eq!(a[3..], [0.0; 4]);
     }
 }

@@ -1,5 +1,6 @@
 //! Opens arbitrary bytes as a blob; when one opens, prepares, samples and evaluates pdfs on
-//! inputs taken from the tail of the fuzz input. Any panic, or a NaN/negative/infinite pdf,
+//! inputs taken from the tail of the fuzz input (a neural-material blob: looks up features
+//! and evaluates the decoder instead). Any panic, or a NaN/negative/infinite pdf,
 //! is a finding.
 #![no_main]
 
@@ -43,6 +44,19 @@ fuzz_target!(|data: &[u8]| {
     let Ok(blob) = Blob::open(&owned) else {
         return;
     };
+    // A neural material: features and eval must be finite and non-negative (never NaN).
+    if let Ok(m) = blob.neural_material() {
+        for j in 0..4 {
+            let uv = Vec2::new(f32_at(query, 2 * j), f32_at(query, 2 * j + 1));
+            let phi = m.features(uv);
+            let wi = Vec3::new(f32_at(query, 8 + 3 * j), f32_at(query, 9 + 3 * j), f32_at(query, 10 + 3 * j));
+            let wo = Vec3::new(f32_at(query, 20 + 3 * j), f32_at(query, 21 + 3 * j), f32_at(query, 22 + 3 * j));
+            for v in m.eval(&phi, wi, wo) {
+                assert!(v.is_finite() && v >= 0.0, "neural eval {v}");
+            }
+        }
+        return;
+    }
     let Ok(sampler) = blob.sampler() else {
         return;
     };
