@@ -303,3 +303,104 @@ fn default_training_kl() {
         }
     }
 }
+
+/// Histogram-mixture diagnostics (manual: `cargo test --release --test train -- --ignored
+/// histogram_mixture_diagnostics --nocapture`). Trains with the default configuration
+/// modified by `HM_*` environment variables and prints the KL of the baked model, of the
+/// un-baked network, and of re-bakes at other T / N.
+#[test]
+#[ignore]
+fn histogram_mixture_diagnostics() {
+    use neusample::histogram::Interpolation;
+    use neusample_precompute::train::histogram_mixture::{bake, network_mean_kl};
+    let env = |k: &str| std::env::var(k).ok();
+    let materials: Vec<String> = env("HM_MATERIALS")
+        .unwrap_or_else(|| "goat_leather".into())
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let mut cfg = TrainConfig::default_for(Method::HistogramMixture);
+    if let Some(v) = env("HM_STEPS") {
+        cfg.steps = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_NLL") {
+        cfg.hist_nll_weight = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_LR") {
+        cfg.lr = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_BATCH") {
+        cfg.hist_batch_conditions = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_POINTS") {
+        cfg.hist_points_per_condition = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_QUANT") {
+        cfg.hist_quant_weight = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_T") {
+        cfg.hist_t_levels = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_N") {
+        cfg.hist_res = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_SS") {
+        cfg.hist_supersample = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_POOL") {
+        cfg.pool_conditions = v.parse().unwrap();
+    }
+    if let Some(v) = env("HM_GTRES") {
+        cfg.gt_res = v.parse().unwrap();
+    }
+    eprintln!("{cfg:?}");
+    for name in &materials {
+        let m = neusample_precompute::materials::builtin(name).unwrap();
+        let source = train::MaterialSource::new(m.as_ref());
+        let t0 = std::time::Instant::now();
+        let pool_only = train_with(
+            &source,
+            Method::Baseline,
+            &TrainConfig {
+                steps: 1,
+                ..cfg.clone()
+            },
+        )
+        .unwrap();
+        let t_pool = t0.elapsed().as_secs_f64();
+        drop(pool_only);
+        let t = train_with(&source, Method::HistogramMixture, &cfg).unwrap();
+        let tb = std::time::Instant::now();
+        let tables = t.tables.as_ref().unwrap();
+        let _ = bake(
+            &tables.basis_params,
+            cfg.hist_t_levels,
+            cfg.hist_res,
+            cfg.hist_supersample,
+            Interpolation::Linear,
+        )
+        .unwrap();
+        let t_bake = tb.elapsed().as_secs_f64();
+        let n = 24;
+        let kl = train::mean_kl(&t, &source, n, 64, 12345).unwrap();
+        let kl_net = network_mean_kl(&t, &source, n, 64, 12345).unwrap();
+        let h = &t.loss_history;
+        eprintln!(
+            "{name}: train {:.1} s (pool ≈ {t_pool:.1} s, bake ≈ {t_bake:.1} s), loss {:.4} → {:.4}; KL baked {kl:.4}, network {kl_net:.4}",
+            t.seconds,
+            mean(&h[..50.min(h.len())]),
+            mean(&h[h.len().saturating_sub(50)..]),
+        );
+        for (tl, res, ss, interp) in [
+            (8, 32, 2, Interpolation::Linear),
+            (32, 64, 2, Interpolation::Nearest),
+            (100, 64, 2, Interpolation::Linear),
+            (32, 64, 4, Interpolation::Linear),
+        ] {
+            let mut t2 = t.clone();
+            t2.tables = Some(bake(&tables.basis_params, tl, res, ss, interp).unwrap());
+            let kl2 = train::mean_kl(&t2, &source, n, 64, 12345).unwrap();
+            eprintln!("  rebake T={tl} N={res} ss={ss} {interp:?}: KL {kl2:.4}");
+        }
+    }
+}

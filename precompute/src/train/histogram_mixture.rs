@@ -11,8 +11,18 @@
 //!
 //! fitted with the L2 loss of Eq. 7 at random points (half uniform on the disk, half drawn
 //! from p*), divided by the batch's mean p*² so the scale does not depend on how peaked the
-//! material is, plus the quantisation term `λ ‖t − round(t·(T−1))/(T−1)‖²`, plus optionally
-//! a self-normalised NLL term ([`super::TrainConfig::hist_nll_weight`], 0 = the paper).
+//! material is, plus the quantisation term `λ ‖t − round(t·(T−1))/(T−1)‖²`, plus a
+//! self-normalised NLL term ([`super::TrainConfig::hist_nll_weight`], default 1; 0 = the
+//! paper's objective).
+//!
+//! Why the NLL term (measured with [`network_mean_kl`], KL(p* ‖ p) over 24 conditions): with
+//! the paper's L2 objective alone the *un-baked* network is already poor (goat_leather 0.340,
+//! baked 0.370; brushed_metal 1.187 / 1.200), so baking (T, N, interpolation, supersampling:
+//! re-bakes at T = 100 or 4 × 4 points per cell change the KL by < 0.002) is not what limits
+//! the model: the L2 loss is dominated by the peak of p* and leaves the tails, where KL(p* ‖ p)
+//! is decided, unfitted. With the NLL term (weight 1, 2000 steps instead of 3000, normaliser
+//! by the balance heuristic, see `self_normalised_nll`): goat_leather 0.169 (network 0.152),
+//! brushed_metal 0.580 (0.573), gold 0.035 (0.026; L2 only 0.121).
 //!
 //! Training aids that leave the model unchanged: the basis output is `S·softplus(z)` with a
 //! constant S ([`super::TrainConfig::hist_output_scale`]; the baked tables are normalised, so
@@ -267,15 +277,17 @@ fn aligned_condition_init(rng: &mut rand_pcg::Pcg64, device: &burn::tensor::Devi
 }
 
 /// `−mean ln p(ω*) + ln Ẑ` of a regression batch `[b, s]` (even points uniform on the disk,
-/// odd points drawn from p*), with the normaliser estimated per condition from the uniform
-/// points, `Ẑ = π · mean p(ω_uniform)`: a Monte-Carlo estimate of `KL(p* ‖ p/Z)` up to a
-/// constant. Optional addition to Eq. 7 ([`TrainConfig::hist_nll_weight`]).
-fn self_normalised_nll(p: Tensor<2>) -> Tensor<1> {
+/// odd points drawn from p*): a Monte-Carlo estimate of `KL(p* ‖ p/Z)` up to a constant.
+/// The normaliser is estimated per condition from *all* points with the balance heuristic of
+/// the two point densities, `Ẑ = mean p(ω) / (½/π + ½ p*(ω))`. (An estimate from the uniform
+/// points alone, `π · mean p(ω_uniform)`, misses a narrow peak of p and rewards the model for
+/// making one: on `gold` training drove that estimate down while the true KL rose to 2–5.)
+/// Optional addition to Eq. 7 ([`TrainConfig::hist_nll_weight`]).
+fn self_normalised_nll(p: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
     let [b, s] = p.dims();
-    let pairs = p.reshape([b, s / 2, 2]);
-    let uniform = pairs.clone().narrow(2, 0, 1).reshape([b, s / 2]);
-    let drawn = pairs.narrow(2, 1, 1).reshape([b, s / 2]);
-    let z = uniform.mean_dim(1) * std::f32::consts::PI + 1e-12;
+    let q = target * 0.5 + 0.5 * std::f32::consts::FRAC_1_PI;
+    let z = (p.clone() / q).mean_dim(1) + 1e-12;
+    let drawn = p.reshape([b, s / 2, 2]).narrow(2, 1, 1).reshape([b, s / 2]);
     (drawn + 1e-12).log().mean().neg() + z.log().mean()
 }
 
@@ -320,11 +332,11 @@ pub fn train(
             let target = batch.target.clone().expect("regression batches carry p*");
             let (p, t) = m.density(batch, cfg.hist_output_scale);
             let scale = target.clone().powi_scalar(2).mean().detach() + 1e-12;
-            let l2 = (p.clone() - target).powi_scalar(2).mean() / scale;
+            let l2 = (p.clone() - target.clone()).powi_scalar(2).mean() / scale;
             let tq = (t.clone().detach() * levels).round() / levels;
             let loss = l2 + (t - tq).powi_scalar(2).mean() * lambda;
             if nll_weight > 0.0 {
-                loss + self_normalised_nll(p) * nll_weight
+                loss + self_normalised_nll(p, target) * nll_weight
             } else {
                 loss
             }
@@ -499,4 +511,50 @@ pub fn pdf_f64(
     } else {
         0.0
     }
+}
+
+/// Mean KL(p* ‖ p_net) in nats of the *un-baked* training model of `trained` (condition
+/// network + basis network, normalised numerically over the disk on the target grid) over
+/// `conditions` fresh conditions of `source` at resolution `res`: the part of the baked
+/// model's KL that is not due to baking (tables, T, N). Diagnostics; slow-ish (one basis
+/// network evaluation per grid point and basis).
+pub fn network_mean_kl(
+    trained: &super::Trained,
+    source: &dyn super::TargetSource,
+    conditions: usize,
+    res: usize,
+    seed: u64,
+) -> anyhow::Result<f64> {
+    let tables = trained
+        .tables
+        .as_ref()
+        .ok_or_else(|| anyhow::anyhow!("not a histogram mixture"))?;
+    let gts = source.draw(conditions, res, seed)?;
+    let h = 2.0 / res as f32;
+    let points: Vec<Vec2> = (0..res * res)
+        .map(|i| {
+            Vec2::new(
+                -1.0 + h * ((i % res) as f32 + 0.5),
+                -1.0 + h * ((i / res) as f32 + 0.5),
+            )
+        })
+        .collect();
+    let mut total = 0.0;
+    for g in &gts {
+        let mut d = network_density(&trained.params, &tables.basis_params, &g.phi, g.wi, &points);
+        let mut z = 0.0f64;
+        for (v, p) in d.iter_mut().zip(&points) {
+            if p.length_squared() >= 1.0 {
+                *v = 0.0;
+            }
+            z += f64::from(*v) * f64::from(h * h);
+        }
+        let z = z.max(1e-30);
+        total += g.target.kl_from(|p| {
+            let c = (((p.x + 1.0) / h).floor().max(0.0) as usize).min(res - 1);
+            let r = (((p.y + 1.0) / h).floor().max(0.0) as usize).min(res - 1);
+            (f64::from(d[r * res + c]) / z) as f32
+        });
+    }
+    Ok(total / gts.len().max(1) as f64)
 }
