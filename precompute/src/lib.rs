@@ -8,7 +8,11 @@
 pub mod bake;
 pub mod demo;
 pub mod eval;
+pub mod figures;
 pub mod groundtruth;
 pub mod io;
 pub mod materials;
+pub mod metrics;
+pub mod neural;
+pub mod render;
 pub mod train;

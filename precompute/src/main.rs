@@ -8,7 +8,7 @@ use clap::{Args, Parser, Subcommand};
 use neusample::blob::{Blob, TensorRole};
 use neusample::{DType, Weights};
 use neusample_precompute::train::{self, Method, TrainConfig};
-use neusample_precompute::{bake, demo, io, materials};
+use neusample_precompute::{bake, demo, eval, io, materials};
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -53,6 +53,12 @@ enum Command {
     },
     /// The main job: train every method on the default materials, evaluate, report.
     Demo(demo::DemoArgs),
+    /// Fit a neural material (feature texture + decoder) to a material (NEURAL.md).
+    TrainMaterial(neusample_precompute::neural::cli::TrainMaterialArgs),
+    /// Import a neural material from safetensors (NEURAL.md).
+    ImportMaterial(neusample_precompute::neural::cli::ImportMaterialArgs),
+    /// Single-thread cost of a material's eval and features (Table 1 ratio).
+    MaterialCost(neusample_precompute::neural::cli::MaterialCostArgs),
 }
 
 #[derive(Args)]
@@ -60,12 +66,23 @@ struct TrainArgs {
     /// A material file (TOML/JSON) or the name of a built-in material.
     #[arg(long)]
     material: String,
-    /// The method: baseline, analytic, flow, affine-flow, direct-histogram, histogram-mixture.
+    /// The method: baseline, analytic, flow, affine-flow, direct-histogram, histogram-mixture,
+    /// `all` (every method in turn, evaluated; needs --out-dir) or a comma-separated list
+    /// (`flow,` for a one-method sweep).
     #[arg(long)]
-    method: Method,
-    /// Where to write the blob (atomically).
+    method: MethodArg,
+    /// Where to write the blob (atomically); one method.
+    #[arg(long, required_unless_present = "out_dir")]
+    out: Option<PathBuf>,
+    /// With `--method all`: folder receiving `<method>.nsb` and `summary.json`.
     #[arg(long)]
-    out: PathBuf,
+    out_dir: Option<PathBuf>,
+    /// Multiplies every method's default step count (e.g. 0.5 for a shorter sweep).
+    #[arg(long)]
+    steps_scale: Option<f64>,
+    /// With `--method all`: evaluation conditions for KL(p*‖p) and pdf MSE (grid 64²).
+    #[arg(long, default_value_t = 24)]
+    eval_conditions: usize,
     /// Store weights (and the histogram table) as f16 instead of f32.
     #[arg(long)]
     f16: bool,
@@ -107,6 +124,15 @@ fn run(cli: Cli) -> Result<()> {
         Command::Inspect { blob, json } => inspect(&blob, json),
         Command::Fixtures { out, quick } => demo::regenerate_fixtures(&out, quick),
         Command::Demo(a) => demo::run(&a),
+        Command::TrainMaterial(a) => {
+            neusample_precompute::neural::cli::train_material(&a).map(|_| ())
+        }
+        Command::ImportMaterial(a) => {
+            neusample_precompute::neural::cli::import_material(&a).map(|_| ())
+        }
+        Command::MaterialCost(a) => {
+            neusample_precompute::neural::cli::material_cost(&a).map(|_| ())
+        }
     }
 }
 
@@ -122,15 +148,76 @@ fn list_materials(json: bool) -> Result<()> {
     Ok(())
 }
 
+/// `--method`: one method, `all`, or a comma-separated list (a sweep, like `all`).
+#[derive(Clone, Debug)]
+enum MethodArg {
+    One(Method),
+    Sweep(Vec<Method>),
+}
+
+impl std::str::FromStr for MethodArg {
+    type Err = anyhow::Error;
+    fn from_str(s: &str) -> Result<MethodArg> {
+        if s == "all" {
+            Ok(MethodArg::Sweep(Method::ALL.to_vec()))
+        } else if s.contains(',') {
+            let mut list = Vec::new();
+            for m in s.split(',').map(str::trim).filter(|m| !m.is_empty()) {
+                let m: Method = m.parse()?;
+                if !list.contains(&m) {
+                    list.push(m);
+                }
+            }
+            Ok(MethodArg::Sweep(list))
+        } else {
+            s.parse().map(MethodArg::One)
+        }
+    }
+}
+
 fn train_cmd(a: TrainArgs) -> Result<()> {
     let material = demo::resolve_material(&a.material)?;
+    let method = match &a.method {
+        MethodArg::Sweep(list) => {
+            let dir = a.out_dir.clone().context("--method all needs --out-dir")?;
+            return train_all(&a, list, material.as_ref(), &dir);
+        }
+        MethodArg::One(m) => *m,
+    };
+    let out = a
+        .out
+        .clone()
+        .context("--out is required for a single method")?;
+    let cfg = train_config(&a, method)?;
+    let dtype = if a.f16 { DType::F16 } else { DType::F32 };
+    let (trained, bytes, v) = train_verified(material.as_ref(), method, &cfg, dtype, &out)?;
+    eprintln!(
+        "wrote {} ({} bytes): trained in {:.1} s, final loss {:.4}, blob matches model to {:.2e} (tolerance {:.0e})",
+        out.display(),
+        bytes.len(),
+        trained.seconds,
+        trained.loss_history.last().copied().unwrap_or(f32::NAN),
+        v.max_relative,
+        v.tolerance
+    );
+    Ok(())
+}
+
+/// The training configuration of `method` from the command line.
+fn train_config(a: &TrainArgs, method: Method) -> Result<TrainConfig> {
     let mut cfg = if a.quick {
         TrainConfig::quick()
     } else {
-        TrainConfig::default_for(a.method)
+        TrainConfig::default_for(method)
     };
     cfg.seed = a.seed;
     cfg.progress = true;
+    if let Some(f) = a.steps_scale {
+        if !(f > 0.0 && f.is_finite()) {
+            bail!("--steps-scale must be positive");
+        }
+        cfg.steps = ((cfg.steps as f64 * f).round() as usize).max(1);
+    }
     if let Some(s) = a.steps {
         if s == 0 {
             bail!("--steps must be positive");
@@ -158,29 +245,122 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
     if a.nearest_t {
         cfg.interpolate_t = false;
     }
-    let dtype = if a.f16 { DType::F16 } else { DType::F32 };
-    let trained = train::train(material.as_ref(), a.method, &cfg)?;
+    Ok(cfg)
+}
+
+/// Trains `method`, bakes the blob, verifies it against the model and writes it atomically.
+fn train_verified(
+    material: &dyn materials::Material,
+    method: Method,
+    cfg: &TrainConfig,
+    dtype: DType,
+    out: &Path,
+) -> Result<(train::Trained, Vec<u8>, bake::Verification)> {
+    let trained = train::train(material, method, cfg)?;
     let label = format!(
         "material={} method={} steps={} seed={} dtype={:?}",
         material.name(),
-        a.method,
+        method,
         cfg.steps,
         cfg.seed,
         dtype
     );
     let bytes = bake::blob_bytes(&trained, dtype, &label)?;
-    let v = bake::verify(&trained, &bytes, material.as_ref(), 16, cfg.seed ^ 0x5EED)
-        .with_context(|| format!("verifying the blob for {}", a.out.display()))?;
-    io::atomic_write(&a.out, &bytes)?;
-    eprintln!(
-        "wrote {} ({} bytes): trained in {:.1} s, final loss {:.4}, blob matches model to {:.2e} (tolerance {:.0e})",
-        a.out.display(),
-        bytes.len(),
-        trained.seconds,
-        trained.loss_history.last().copied().unwrap_or(f32::NAN),
-        v.max_relative,
-        v.tolerance
+    let v = bake::verify(&trained, &bytes, material, 16, cfg.seed ^ 0x5EED)
+        .with_context(|| format!("verifying the blob for {}", out.display()))?;
+    io::atomic_write(out, &bytes)?;
+    Ok((trained, bytes, v))
+}
+
+/// `train --method all`: every method in turn on one material; each blob is written
+/// atomically and verified, then evaluated through the runtime (KL(p*‖p), pdf MSE on a 64²
+/// grid, the demo's evaluation seed). `<dir>/summary.json` is rewritten after every method;
+/// a failing method is recorded and the sweep goes on (exit status 1 at the end).
+fn train_all(
+    a: &TrainArgs,
+    methods: &[Method],
+    material: &dyn materials::Material,
+    dir: &Path,
+) -> Result<()> {
+    const EVAL_RES: usize = 64;
+    let dtype = if a.f16 { DType::F16 } else { DType::F32 };
+    let eval_seed = a.seed + 100;
+    let fit = eval::fit(
+        &neusample::CosineSampler,
+        material,
+        a.eval_conditions,
+        EVAL_RES,
+        eval_seed,
     );
+    let mut rows = vec![serde_json::json!({
+        "method": "cosine", "kl": fit.kl_divergence, "pdf_mse": fit.pdf_mse,
+        "train_seconds": 0.0, "steps": 0,
+    })];
+    let mut failures = 0;
+    let write_summary = |rows: &[serde_json::Value]| -> Result<()> {
+        let summary = serde_json::json!({
+            "material": material.name(),
+            "seed": a.seed,
+            "quick": a.quick,
+            "steps_scale": a.steps_scale.unwrap_or(1.0),
+            "eval_conditions": a.eval_conditions,
+            "eval_res": EVAL_RES,
+            "methods": rows,
+        });
+        io::atomic_write(
+            &dir.join("summary.json"),
+            serde_json::to_string_pretty(&summary)?.as_bytes(),
+        )
+    };
+    for &method in methods {
+        let out = dir.join(format!("{method}.nsb"));
+        let row = train_config(a, method).and_then(|cfg| {
+            let (trained, bytes, v) = train_verified(material, method, &cfg, dtype, &out)?;
+            let blob = Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+            let sampler = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
+            let fit = eval::fit(&sampler, material, a.eval_conditions, EVAL_RES, eval_seed);
+            Ok(serde_json::json!({
+                "method": method.name(), "kl": fit.kl_divergence, "pdf_mse": fit.pdf_mse,
+                "train_seconds": trained.seconds, "steps": cfg.steps,
+                "final_loss": trained.loss_history.last().copied(),
+                "blob_bytes": bytes.len(), "blob_vs_model": v.max_relative,
+            }))
+        });
+        match row {
+            Ok(r) => rows.push(r),
+            Err(e) => {
+                eprintln!("error: {method} on {}: {e:#}", material.name());
+                failures += 1;
+                rows.push(serde_json::json!({"method": method.name(), "error": format!("{e:#}")}));
+            }
+        }
+        write_summary(&rows)?;
+    }
+    println!(
+        "{} ({} evaluation conditions)",
+        material.name(),
+        a.eval_conditions
+    );
+    println!(
+        "{:<18} {:>9} {:>11} {:>9}",
+        "method", "KL", "pdf MSE", "train s"
+    );
+    for r in &rows {
+        if let Some(e) = r.get("error") {
+            println!("{:<18} failed: {e}", r["method"].as_str().unwrap_or(""));
+        } else {
+            println!(
+                "{:<18} {:>9.4} {:>11.3e} {:>9.1}",
+                r["method"].as_str().unwrap_or(""),
+                r["kl"].as_f64().unwrap_or(f64::NAN),
+                r["pdf_mse"].as_f64().unwrap_or(f64::NAN),
+                r["train_seconds"].as_f64().unwrap_or(0.0)
+            );
+        }
+    }
+    if failures > 0 {
+        bail!("{failures} method(s) failed on {}", material.name());
+    }
     Ok(())
 }
 
@@ -228,9 +408,14 @@ fn inspect(path: &Path, json: bool) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
         println!(
-            "{}: {} sampler, {} bytes, format v{}, checksum ok",
+            "{}: {} {}, {} bytes, format v{}, checksum ok",
             path.display(),
             h.kind.name(),
+            if h.kind.is_sampler() {
+                "sampler"
+            } else {
+                "blob"
+            },
             bytes.len(),
             neusample::blob::FORMAT_VERSION
         );
@@ -238,7 +423,12 @@ fn inspect(path: &Path, json: bool) -> Result<()> {
             "  storage {:?}, φ dim {}, {} params",
             h.dtype, h.feature_dim, h.param_count
         );
-        if h.t_levels > 0 {
+        if h.kind == neusample::blob::SamplerKind::NeuralMaterial {
+            println!(
+                "  neural material: feature texture {}×{}×8 (NEURAL.md)",
+                h.resolution, h.t_levels
+            );
+        } else if h.t_levels > 0 {
             println!(
                 "  tables: K={} T={} N={} ({:?} in t)",
                 h.basis, h.t_levels, h.resolution, h.interpolation

@@ -23,6 +23,7 @@
 //! | `tiles`          | [`tiles`]       | a different material per tile (ceramic, metal, stone, grout) |
 //! | `conductor`      | [`conductor`]   | homogeneous GGX conductor, isotropic or anisotropic          |
 //! | `tabulated`      | [`tabulated`]   | BRDF values read from a table file (isotropic)               |
+//! | `neural`         | [`crate::neural`] | a neural material blob (`params.blob = "x.nsb"`): learned features + decoder |
 //!
 //! Each module documents its φ layout and ranges. The analytic models share the microfacet
 //! pieces in [`microfacet`] (GGX, height-correlated Smith, Fresnel) and the "standard
@@ -159,9 +160,13 @@ pub fn builtin(name: &str) -> anyhow::Result<Box<dyn Material>> {
     })
 }
 
-/// Loads a material file (TOML, or JSON when the extension is `.json`). Side files (tables)
-/// are resolved relative to the file's directory.
+/// Loads a material file (TOML, or JSON when the extension is `.json`), or a neural-material
+/// blob (`.nsb` or any file starting with the blob magic, [`crate::neural`]). Side files
+/// (tables, blobs) are resolved relative to the file's directory.
 pub fn load(path: &Path) -> anyhow::Result<Box<dyn Material>> {
+    if crate::neural::is_blob_file(path) {
+        return Ok(Box::new(crate::neural::NeuralMaterialModel::load(path)?));
+    }
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read material file {}", path.display()))?;
     let format = match path.extension().and_then(|e| e.to_str()) {
@@ -246,6 +251,17 @@ pub fn parse(
             tabulated::Tabulated::new(file::<tabulated::Params>(text, format).map_err(ctx)?, side)
                 .map_err(ctx)?,
         ),
+        "neural" => {
+            let f = file::<NeuralParams>(text, format).map_err(ctx)?;
+            let bytes = side(&f.params.blob).map_err(ctx)?;
+            Box::new(
+                crate::neural::NeuralMaterialModel::from_blob(&bytes, &f.name)
+                    .map(|m| m.renamed(&f.name))
+                    .map_err(|e| {
+                        anyhow!("{origin}: field `params.blob` ({}): {e:#}", f.params.blob)
+                    })?,
+            )
+        }
         other => bail!(
             "{origin}: field `model`: unknown model `{other}` (one of: {})",
             MODELS.join(", ")
@@ -254,8 +270,16 @@ pub fn parse(
     Ok(m)
 }
 
+/// Parameters of `model = "neural"`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NeuralParams {
+    /// The neural-material blob, relative to the material file.
+    pub blob: String,
+}
+
 /// The model names a file's `model` field accepts.
-pub const MODELS: [&str; 9] = [
+pub const MODELS: [&str; 10] = [
     "normal_mapped",
     "anisotropic",
     "clearcoat",
@@ -265,6 +289,7 @@ pub const MODELS: [&str; 9] = [
     "tiles",
     "conductor",
     "tabulated",
+    "neural",
 ];
 
 /// A parsed material file with model parameters `P`.
