@@ -105,7 +105,15 @@ pub fn exp_in_range(x: f32) -> f32 {
     } else {
         0.0
     };
-    // Reduction (k·LN2_HI is exact) and libm's approximation, operation for operation.
+    exp_reduced(x, ax, kf)
+}
+
+/// The branch-free exps' common tail: given `x`, `|x|` and libm's `k` (as a float), the
+/// reduction `x = k·ln 2 + r`, libm's rational approximation of `eʳ` and the scaling by `2ᵏ`,
+/// operation for operation as libm's `expf`.
+#[inline(always)]
+fn exp_reduced(x: f32, ax: f32, kf: f32) -> f32 {
+    // Reduction (k·LN2_HI is exact) and libm's approximation.
     let hi = x - kf * LN2_HI;
     let lo = kf * LN2_LO;
     let xr = hi - lo;
@@ -232,19 +240,7 @@ pub(crate) fn exp_nonpositive(x: f32) -> f32 {
     } else {
         0.0
     };
-    let hi = x - kf * LN2_HI;
-    let lo = kf * LN2_LO;
-    let xr = hi - lo;
-    let xx = xr * xr;
-    let c = xr - xx * (P1 + xx * P2);
-    let y = 1.0 + (xr * c / (2.0 - c) - lo + hi);
-    let y = if ax > f32::from_bits(0x3900_0000) {
-        y
-    } else {
-        1.0 + x
-    };
-    let two_k = f32::from_bits((kf + SHIFT).to_bits().wrapping_sub(0x4B40_0000 - 127) << 23);
-    y * two_k
+    exp_reduced(x, ax, kf)
 }
 
 /// [`sigmoid`] through [`exp_in_range`]: bit for bit [`sigmoid`] for `x ≥ EXP_IN_RANGE_MIN`

@@ -40,7 +40,11 @@ use crate::train::{self, Method, TrainConfig};
 pub const DEFAULT_MATERIALS: [&str; 3] = ["goat_leather", "brushed_metal", "victorian_fabric"];
 
 /// Schema version of `report.json` (README.md documents it).
-pub const REPORT_SCHEMA: u32 = 2;
+pub const REPORT_SCHEMA: u32 = 3;
+
+/// Suffix of a neural material's name: `goat_leather_neural` is the neural version of
+/// `goat_leather` (`fixtures/materials/neural/goat_leather_neural.nsb`).
+pub const NEURAL_SUFFIX: &str = "_neural";
 
 /// Name of the improved baseline in reports (the reference of the speed-ups).
 pub const BASELINE: &str = "baseline";
@@ -60,12 +64,24 @@ pub struct DemoArgs {
     /// Use the committed fixture blobs instead of training.
     #[arg(long)]
     pub use_fixtures: bool,
-    /// Materials (built-in names or files); default: the three demo materials.
+    /// Materials (built-in names or files, `.nsb` neural materials included); default: the
+    /// neural versions of the three demo materials (or the procedural ones with
+    /// --procedural).
     #[arg(long, value_delimiter = ',')]
     pub materials: Vec<String>,
+    /// Use the procedural source materials of the defaults instead of their neural versions
+    /// (the paper's setting is neural materials).
+    #[arg(long)]
+    pub procedural: bool,
     /// Seed of training and evaluation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Multiplies every method's default training steps (1 = the defaults of `neusample
+    /// train`; the demo's 0.5 keeps the full run within ten minutes on 2 cores, at some cost in
+    /// fit: 1 gives the better samplers of `neusample train`). Not used with --quick or
+    /// --use-fixtures.
+    #[arg(long, default_value_t = 0.5)]
+    pub steps_scale: f64,
     /// Image width in pixels (height = 3/4 of it); default 160, 64 with --quick.
     #[arg(long)]
     pub width: Option<usize>,
@@ -105,7 +121,9 @@ impl DemoArgs {
             out: out.into(),
             use_fixtures: false,
             materials: Vec::new(),
+            procedural: false,
             seed: 1,
+            steps_scale: 0.5,
             width: None,
             spp: None,
             sun_radiance: 60.0,
@@ -116,6 +134,61 @@ impl DemoArgs {
             no_render: false,
         }
     }
+}
+
+/// The committed neural version of a built-in material (`neusample fixtures` writes it).
+#[must_use]
+pub fn neural_fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/materials/neural")
+        .join(format!("{name}{NEURAL_SUFFIX}.nsb"))
+}
+
+/// A material of the demo and, for a neural material, the source it approximates (the
+/// reference of its fit).
+pub struct DemoMaterial {
+    /// What is rendered and sampled.
+    pub material: Box<dyn Material>,
+    /// The source of a neural material, when it is known (a built-in name or a file in its
+    /// label's `source=` field).
+    pub source: Option<Box<dyn Material>>,
+}
+
+/// Resolves a `--materials` entry (or, with `neural`, the neural version of a built-in
+/// name), with the source of a neural material.
+pub fn resolve_demo_material(spec: &str, neural: bool) -> Result<DemoMaterial> {
+    if neural {
+        let path = neural_fixture(spec);
+        anyhow::ensure!(
+            path.exists(),
+            "no neural version of `{spec}` in fixtures ({}); make one with \
+             `neusample train-material --material {spec} --out FILE` and pass the file",
+            path.display()
+        );
+        return resolve_demo_material(&path.to_string_lossy(), false);
+    }
+    let material = resolve_material(spec)?;
+    let p = Path::new(spec);
+    let source = if p.exists() && crate::neural::is_blob_file(p) {
+        let bytes = io::read_blob(p)?;
+        let (_, label) = crate::neural::NeuralParts::from_blob(&bytes)?;
+        match crate::neural::label_field(&label, "source") {
+            Some(src) => match resolve_material(src) {
+                Ok(m) => Some(m),
+                Err(e) => {
+                    eprintln!(
+                        "note: source `{src}` of {} not found ({e:#}); fit against the source skipped",
+                        p.display()
+                    );
+                    None
+                }
+            },
+            None => None,
+        }
+    } else {
+        None
+    };
+    Ok(DemoMaterial { material, source })
 }
 
 /// A material given as a file path or a built-in name.
@@ -184,6 +257,10 @@ pub struct MethodReport {
     pub pdf_mse: f64,
     /// Mass inside the disk.
     pub mass_in_disk: f64,
+    /// For a neural material with a known source: mean KL(p*_source ‖ p) in nats, the
+    /// sampler (conditioned on the neural φ) against the source material's ground truth at
+    /// the same uv and wi; null otherwise.
+    pub kl_vs_source: Option<f64>,
     /// Single-thread cost.
     pub cost: Cost,
     /// prepare + sample + pdf, ns (same as cost.total_ns).
@@ -235,11 +312,26 @@ pub struct FigureReport {
     pub pdfs: String,
 }
 
+/// How well a neural material reproduces its source ([`crate::neural::train::FitReport`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct NeuralReport {
+    /// Source material name.
+    pub source: String,
+    /// Fit measures against the source.
+    pub fit: crate::neural::train::FitReport,
+    /// Single-thread cost of the neural material (`features`, `eval`), ns.
+    pub cost: crate::neural::EvalCost,
+    /// The same for the source material.
+    pub source_cost: crate::neural::EvalCost,
+}
+
 /// All methods on one material.
 #[derive(Clone, Debug, Serialize)]
 pub struct MaterialReport {
     /// Material name.
     pub material: String,
+    /// For a neural material with a known source: its fit and cost (null otherwise).
+    pub neural: Option<NeuralReport>,
     /// Per method.
     pub methods: Vec<MethodReport>,
     /// The reference render (null with `--no-render`).
@@ -280,6 +372,9 @@ pub struct Report {
     pub fixtures: bool,
     /// Seed.
     pub seed: u64,
+    /// Training steps relative to `neusample train`'s defaults (null with --quick or
+    /// fixtures).
+    pub steps_scale: Option<f64>,
     /// Evaluation conditions per material and method.
     pub eval_conditions: usize,
     /// Ground-truth resolution of the evaluation.
@@ -320,54 +415,104 @@ fn bar(len: u64, msg: &str) -> ProgressBar {
     pb
 }
 
+/// Which fixtures `neusample fixtures` regenerates.
+#[derive(clap::ValueEnum, Copy, Clone, Debug, PartialEq, Eq)]
+pub enum FixtureSet {
+    /// Samplers on the procedural default materials.
+    Procedural,
+    /// The neural versions of the default materials and the samplers trained on them.
+    Neural,
+    /// Both.
+    All,
+}
+
 /// `neusample fixtures`: trains every method on the default materials with fixed seeds and
 /// writes `<out>/<material>/<method>.nsb` (f32, histogram tables T = 8, N = 32) plus
-/// `<out>/cosine.nsb`.
-pub fn regenerate_fixtures(out: &Path, quick: bool) -> Result<()> {
-    let pb = bar(
-        (DEFAULT_MATERIALS.len() * Method::ALL.len()) as u64,
-        "fixtures",
-    );
+/// `<out>/cosine.nsb`; for the neural set, first fits the neural version of each default
+/// material (`train-material` defaults, seed 1, f32) into `<materials>/<name>_neural.nsb`
+/// and then trains the samplers on it into `<out>/<name>_neural/`.
+pub fn regenerate_fixtures(
+    out: &Path,
+    materials_out: &Path,
+    set: FixtureSet,
+    quick: bool,
+) -> Result<()> {
     io::atomic_write(
         &out.join("cosine.nsb"),
         &BlobWriter::new(SamplerKind::Cosine, DType::F32, "cosine").to_bytes(),
     )?;
-    for name in DEFAULT_MATERIALS {
-        let m = materials::builtin(name)?;
-        // Conditions drawn from the material, for the runtime's statistical tests (which do
-        // not link the materials): one "φ0 … φ7 wi.x wi.y wi.z" line each.
-        let conds = crate::groundtruth::conditions(m.as_ref(), 256, 0xC0DE);
-        let mut text =
-            String::from("# phi0..phi7 wi.x wi.y wi.z (local frame), from the material\n");
-        for c in &conds {
-            for v in c.phi {
-                text.push_str(&format!("{v:e} "));
-            }
-            text.push_str(&format!("{:e} {:e} {:e}\n", c.wi.x, c.wi.y, c.wi.z));
-        }
-        io::atomic_write(&out.join(name).join("conditions.txt"), text.as_bytes())?;
-        for method in Method::ALL {
-            pb.set_message(format!("{name}/{method}"));
-            let mut cfg = if quick {
-                TrainConfig::quick()
-            } else {
-                fixture_config(method)
-            };
-            cfg.seed = 1;
-            let trained = train::train(m.as_ref(), method, &cfg)?;
-            let label = format!(
-                "fixture material={name} method={method} steps={} seed=1",
-                cfg.steps
-            );
-            let bytes = bake::blob_bytes(&trained, DType::F32, &label)?;
-            bake::verify(&trained, &bytes, m.as_ref(), 8, 7)
-                .with_context(|| format!("fixture {name}/{method}"))?;
-            io::atomic_write(&fixture_path(out, name, method.name()), &bytes)?;
-            pb.inc(1);
+    if set != FixtureSet::Neural {
+        for name in DEFAULT_MATERIALS {
+            fixture_samplers(out, materials::builtin(name)?.as_ref(), quick)?;
         }
     }
-    pb.finish_with_message("fixtures written");
+    if set != FixtureSet::Procedural {
+        for name in DEFAULT_MATERIALS {
+            let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
+            let args = crate::neural::cli::TrainMaterialArgs {
+                material: name.to_string(),
+                out: path.clone(),
+                safetensors: None,
+                name: None,
+                texture: None,
+                steps: None,
+                batch: None,
+                lr: None,
+                quick,
+                f16: false,
+                seed: 1,
+                threads: None,
+                eval_conditions: 64,
+                eval_res: 64,
+                eval_points: 20_000,
+                report: None,
+                json: false,
+            };
+            crate::neural::cli::train_material(&args)
+                .with_context(|| format!("neural fixture of {name}"))?;
+            let m = crate::neural::NeuralMaterialModel::load(&path)?;
+            fixture_samplers(out, &m, quick)?;
+        }
+    }
     eprintln!("fixtures written to {}", out.display());
+    Ok(())
+}
+
+/// Every method trained on `m` into `<out>/<m.name()>/`, plus the conditions file.
+fn fixture_samplers(out: &Path, m: &dyn Material, quick: bool) -> Result<()> {
+    let name = slug(m.name());
+    let pb = bar(Method::ALL.len() as u64, &format!("fixtures {name}"));
+    // Conditions drawn from the material, for the runtime's statistical tests (which do not
+    // link the materials): one "φ0 … φ7 wi.x wi.y wi.z" line each.
+    let conds = crate::groundtruth::conditions(m, 256, 0xC0DE);
+    let mut text = String::from("# phi0..phi7 wi.x wi.y wi.z (local frame), from the material\n");
+    for c in &conds {
+        for v in c.phi {
+            text.push_str(&format!("{v:e} "));
+        }
+        text.push_str(&format!("{:e} {:e} {:e}\n", c.wi.x, c.wi.y, c.wi.z));
+    }
+    io::atomic_write(&out.join(&name).join("conditions.txt"), text.as_bytes())?;
+    for method in Method::ALL {
+        pb.set_message(format!("{name}/{method}"));
+        let mut cfg = if quick {
+            TrainConfig::quick()
+        } else {
+            fixture_config(method)
+        };
+        cfg.seed = 1;
+        let trained = train::train(m, method, &cfg)?;
+        let label = format!(
+            "fixture material={name} method={method} steps={} seed=1",
+            cfg.steps
+        );
+        let bytes = bake::blob_bytes(&trained, DType::F32, &label)?;
+        bake::verify(&trained, &bytes, m, 8, 7)
+            .with_context(|| format!("fixture {name}/{method}"))?;
+        io::atomic_write(&fixture_path(out, &name, method.name()), &bytes)?;
+        pb.inc(1);
+    }
+    pb.finish_with_message(format!("{name} done"));
     Ok(())
 }
 
@@ -391,6 +536,11 @@ fn preset(a: &DemoArgs) -> Result<Preset> {
     anyhow::ensure!(
         (8..=4096).contains(&width),
         "--width must be in 8..=4096, got {width}"
+    );
+    anyhow::ensure!(
+        a.steps_scale > 0.0 && a.steps_scale.is_finite(),
+        "--steps-scale must be positive, got {}",
+        a.steps_scale
     );
     let spp = a.spp.unwrap_or(if a.quick { 8 } else { 32 });
     anyhow::ensure!((1..=65536).contains(&spp), "--spp must be in 1..=65536");
@@ -459,10 +609,17 @@ fn slug(name: &str) -> String {
 /// `neusample demo`.
 pub fn run(a: &DemoArgs) -> Result<()> {
     let started = Instant::now();
-    let names: Vec<String> = if a.materials.is_empty() {
-        DEFAULT_MATERIALS.iter().map(|s| s.to_string()).collect()
+    let (names, neural_defaults): (Vec<String>, bool) = if a.materials.is_empty() {
+        (
+            DEFAULT_MATERIALS.iter().map(|s| s.to_string()).collect(),
+            !a.procedural,
+        )
     } else {
-        a.materials.clone()
+        anyhow::ensure!(
+            !a.procedural,
+            "--procedural selects the procedural default materials; with --materials name them directly"
+        );
+        (a.materials.clone(), false)
     };
     let p = preset(a)?;
     std::fs::create_dir_all(&a.out)
@@ -483,6 +640,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         quick: a.quick,
         fixtures: a.use_fixtures,
         seed: a.seed,
+        steps_scale: (!a.quick && !a.use_fixtures).then_some(a.steps_scale),
         eval_conditions: p.eval_conditions,
         eval_res: p.eval_res,
         render: (!a.no_render).then(|| RenderSetup {
@@ -498,33 +656,51 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         materials: Vec::new(),
     };
     for name in &names {
-        let m = resolve_material(name)?;
+        let DemoMaterial {
+            material: m,
+            source,
+        } = resolve_demo_material(name, neural_defaults)?;
         let mname = m.name().to_string();
+        let neural = source.as_ref().map(|src| {
+            pb.set_message(format!("{mname}: fit to {}", src.name()));
+            NeuralReport {
+                source: src.name().to_string(),
+                fit: crate::neural::train::fit_report(
+                    src.as_ref(),
+                    m.as_ref(),
+                    if a.quick { 2000 } else { 20000 },
+                    p.eval_conditions,
+                    p.eval_res,
+                    crate::neural::train::NeuralTrainConfig::default_run().epsilon,
+                    a.seed + 100,
+                ),
+                cost: crate::neural::eval_cost(m.as_ref(), p.cost_n, p.cost_passes),
+                source_cost: crate::neural::eval_cost(src.as_ref(), p.cost_n, p.cost_passes),
+            }
+        });
+        let src = source.as_deref();
         let mut methods = Vec::new();
         let mut blobs: Vec<(String, Vec<u8>)> = Vec::new();
 
         pb.set_message(format!("{mname}/cosine"));
-        let fit = eval::fit(
-            &CosineSampler,
-            m.as_ref(),
-            p.eval_conditions,
-            p.eval_res,
-            a.seed + 100,
-        );
+        let (fit, kl_src) = fits(&CosineSampler, m.as_ref(), src, &p, a.seed);
         let cost = eval::cost(&CosineSampler, m.as_ref(), p.cost_n, p.cost_passes);
         methods.push(method_report("cosine", 0.0, None, 0, None, fit, cost));
+        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
         pb.inc(1);
 
         for method in Method::ALL {
             pb.set_message(format!("{mname}/{method}"));
             let (bytes, secs, loss, check) = if a.use_fixtures {
-                let path = fixture_path(&fixtures_dir(), name, method.name());
+                let path = fixture_path(&fixtures_dir(), &slug(&mname), method.name());
                 (io::read_blob(&path)?, 0.0, None, None)
             } else {
                 let mut cfg = if a.quick {
                     TrainConfig::quick()
                 } else {
-                    TrainConfig::default_for(method)
+                    let mut c = TrainConfig::default_for(method);
+                    c.steps = ((c.steps as f64 * a.steps_scale).round() as usize).max(1);
+                    c
                 };
                 cfg.seed = a.seed;
                 let trained = train::train(m.as_ref(), method, &cfg)
@@ -547,13 +723,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
             )?;
             let blob = Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
             let sampler = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
-            let fit = eval::fit(
-                &sampler,
-                m.as_ref(),
-                p.eval_conditions,
-                p.eval_res,
-                a.seed + 100,
-            );
+            let (fit, kl_src) = fits(&sampler, m.as_ref(), src, &p, a.seed);
             let cost = eval::cost(&sampler, m.as_ref(), p.cost_n, p.cost_passes);
             methods.push(method_report(
                 method.name(),
@@ -564,21 +734,17 @@ pub fn run(a: &DemoArgs) -> Result<()> {
                 fit,
                 cost,
             ));
+            methods.last_mut().expect("pushed").kl_vs_source = kl_src;
             blobs.push((method.name().to_string(), bytes));
             pb.inc(1);
         }
 
         pb.set_message(format!("{mname}/{ORACLE}"));
         let oracle = OracleSampler::new(m.as_ref(), p.settings.oracle_res);
-        let fit = eval::fit(
-            &oracle,
-            m.as_ref(),
-            p.eval_conditions,
-            p.eval_res,
-            a.seed + 100,
-        );
+        let (fit, kl_src) = fits(&oracle, m.as_ref(), src, &p, a.seed);
         let cost = eval::cost(&oracle, m.as_ref(), p.oracle_cost_n, p.cost_passes.min(3));
         methods.push(method_report(ORACLE, 0.0, None, 0, None, fit, cost));
+        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
         pb.inc(1);
 
         let (reference, figures, budget) = if a.no_render {
@@ -589,6 +755,7 @@ pub fn run(a: &DemoArgs) -> Result<()> {
         };
         report.materials.push(MaterialReport {
             material: mname,
+            neural,
             methods,
             reference,
             figures,
@@ -878,6 +1045,30 @@ fn pdf_figure(
     )
 }
 
+/// The fit of a sampler to the material's ground truth and, when a source is given, the mean
+/// KL against the source's ground truth (same conditions).
+fn fits<S: Sampler + Sync>(
+    sampler: &S,
+    m: &dyn Material,
+    source: Option<&dyn Material>,
+    p: &Preset,
+    seed: u64,
+) -> (Fit, Option<f64>) {
+    let fit = eval::fit(sampler, m, p.eval_conditions, p.eval_res, seed + 100);
+    let kl_src = source.map(|src| {
+        eval::fit_to(
+            sampler,
+            m,
+            Some(src),
+            p.eval_conditions,
+            p.eval_res,
+            seed + 100,
+        )
+        .kl_divergence
+    });
+    (fit, kl_src)
+}
+
 fn method_report(
     method: &str,
     train_seconds: f64,
@@ -896,6 +1087,7 @@ fn method_report(
         kl_divergence: fit.kl_divergence,
         pdf_mse: fit.pdf_mse,
         mass_in_disk: fit.mass_in_disk,
+        kl_vs_source: None,
         ns_per_sample: cost.total_ns,
         cost_vs_material_eval: cost.total_ns / cost.material_eval_ns.max(1e-9),
         cost,
@@ -930,7 +1122,11 @@ pub fn markdown(r: &Report) -> String {
         "{} run, {}, seed {}, {:.0} s. Fit: mean over {} random conditions (φ, wi), ground truth on a {}² grid. \
          Cost: single thread, ns per call (median of passes).\n",
         if r.quick { "Quick" } else { "Full" },
-        if r.fixtures { "committed fixture blobs" } else { "freshly trained samplers" },
+        match (r.fixtures, r.steps_scale) {
+            (true, _) => "committed fixture blobs".to_string(),
+            (false, Some(f)) => format!("freshly trained samplers ({f}× the default training steps)"),
+            (false, None) => "freshly trained samplers (quick training)".to_string(),
+        },
         r.seed,
         r.seconds,
         r.eval_conditions,
@@ -1006,24 +1202,47 @@ pub fn markdown(r: &Report) -> String {
     }
     for m in &r.materials {
         let _ = writeln!(s, "## {}\n", m.material);
+        if let Some(n) = &m.neural {
+            let _ = writeln!(
+                s,
+                "Neural material (feature texture + decoder, NEURAL.md) fitted to `{}`: relative RGB error {:.1} % \
+                 (wo on the disk), {:.1} % (around the mirror direction), albedo error {:.1} %, \
+                 KL(p*_source ‖ p*_neural) = {:.4} nats (cosine sampling: {:.4}). Evaluation cost: {:.0} ns \
+                 (source {:.0} ns), feature lookup {:.0} ns (source {:.0} ns). The samplers are trained on the \
+                 neural material (φ = learned features, p* from the decoder); `KL(p*_src‖p)` measures them \
+                 against the source material.\n",
+                n.source,
+                100.0 * n.fit.relative_rgb_error,
+                100.0 * n.fit.relative_rgb_error_lobe,
+                100.0 * n.fit.albedo_relative_error,
+                n.fit.kl_pstar,
+                n.fit.kl_pstar_vs_cosine,
+                n.cost.eval_ns,
+                n.source_cost.eval_ns,
+                n.cost.features_ns,
+                n.source_cost.features_ns,
+            );
+        }
         let _ = writeln!(
             s,
             "### pdf fit and cost (Table 1 ratio: sampling cost / material evaluation)\n"
         );
         let _ = writeln!(
             s,
-            "| method | KL(p*‖p) | pdf MSE | mass in disk | prepare ns | sample ns | pdf ns | prepare+sample+pdf ns | material eval ns | ×material eval | train s | blob bytes |"
+            "| method | KL(p*‖p) | KL(p*_src‖p) | pdf MSE | mass in disk | prepare ns | sample ns | pdf ns | prepare+sample+pdf ns | material eval ns | ×material eval | train s | blob bytes |"
         );
         let _ = writeln!(
             s,
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         );
         for x in &m.methods {
             let _ = writeln!(
                 s,
-                "| {} | {:.4} | {:.3e} | {:.4} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {} |",
+                "| {} | {:.4} | {} | {:.3e} | {:.4} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {} |",
                 x.method,
                 x.kl_divergence,
+                x.kl_vs_source
+                    .map_or_else(|| "—".to_string(), |k| format!("{k:.4}")),
                 x.pdf_mse,
                 x.mass_in_disk,
                 x.cost.prepare_ns,

@@ -34,12 +34,37 @@ pub fn fit<S: Sampler + Sync>(
     res: usize,
     seed: u64,
 ) -> Fit {
+    fit_to(sampler, material, None, conditions, res, seed)
+}
+
+/// [`fit`] with the target taken from `reference` instead of `material`: the sampler is
+/// conditioned on `material`'s φ(uv) and `wi`, the ground truth p* is `reference`'s at the
+/// same uv and wi. For a neural material and its source this measures the samplers against
+/// the material the neural one approximates (the same conditions as [`fit`] with the same
+/// seed, so the two are comparable).
+pub fn fit_to<S: Sampler + Sync>(
+    sampler: &S,
+    material: &dyn Material,
+    reference: Option<&dyn Material>,
+    conditions: usize,
+    res: usize,
+    seed: u64,
+) -> Fit {
     use rayon::prelude::*;
     let conds = groundtruth::conditions(material, conditions, seed);
     let per: Vec<(f64, f64, f64)> = conds
         .par_iter()
         .map(|c| {
-            let target = TargetPdf::new(material, c, res);
+            let target = match reference {
+                None => TargetPdf::new(material, c, res),
+                Some(r) => {
+                    let rc = groundtruth::Condition {
+                        phi: r.features(c.uv),
+                        ..*c
+                    };
+                    TargetPdf::new(r, &rc, res)
+                }
+            };
             let Some(prep) = sampler.prepare(&c.phi, c.wi) else {
                 return (f64::INFINITY, f64::INFINITY, 0.0);
             };

@@ -44,9 +44,16 @@ enum Command {
     },
     /// Regenerate the committed fixture blobs (deterministic).
     Fixtures {
-        /// Output folder.
+        /// Output folder of the sampler blobs.
         #[arg(long, default_value = "fixtures/blobs")]
         out: PathBuf,
+        /// Output folder of the neural materials.
+        #[arg(long, default_value = "fixtures/materials/neural")]
+        materials_out: PathBuf,
+        /// Which fixtures: samplers on the procedural materials, the neural materials and
+        /// their samplers, or all.
+        #[arg(long, value_enum, default_value_t = demo::FixtureSet::All)]
+        set: demo::FixtureSet,
         /// Quick training (for tests of the command itself).
         #[arg(long)]
         quick: bool,
@@ -122,7 +129,12 @@ fn run(cli: Cli) -> Result<()> {
         Command::Materials { json } => list_materials(json),
         Command::Train(a) => train_cmd(a),
         Command::Inspect { blob, json } => inspect(&blob, json),
-        Command::Fixtures { out, quick } => demo::regenerate_fixtures(&out, quick),
+        Command::Fixtures {
+            out,
+            materials_out,
+            set,
+            quick,
+        } => demo::regenerate_fixtures(&out, &materials_out, set, quick),
         Command::Demo(a) => demo::run(&a),
         Command::TrainMaterial(a) => {
             neusample_precompute::neural::cli::train_material(&a).map(|_| ())

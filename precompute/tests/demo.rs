@@ -1,5 +1,6 @@
-//! `neusample demo --quick --use-fixtures` end to end: the report, its required fields, the
-//! images and plots.
+//! `neusample demo --quick --use-fixtures` end to end (on the committed neural materials, the
+//! demo's default setting): the report, its required fields, the fit against the source
+//! materials, the images and plots.
 
 use neusample_precompute::demo::{self, DemoArgs};
 
@@ -23,8 +24,16 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
         assert!(x.is_finite(), "{what} = {x}");
         x
     };
-    for m in mats {
+    for (m, source) in mats.iter().zip(demo::DEFAULT_MATERIALS) {
         let name = m["material"].as_str().unwrap();
+        assert_eq!(name, format!("{source}{}", demo::NEURAL_SUFFIX));
+        // The neural material is measured against its source.
+        let n = &m["neural"];
+        assert_eq!(n["source"], source);
+        let kl = finite(&n["fit"]["kl_pstar"], "neural kl_pstar");
+        let kl_cos = finite(&n["fit"]["kl_pstar_vs_cosine"], "kl_pstar_vs_cosine");
+        assert!(kl >= 0.0 && kl < kl_cos, "{name}: {kl} vs cosine {kl_cos}");
+        assert!(finite(&n["cost"]["eval_ns"], "eval_ns") > 0.0);
         let methods = m["methods"].as_array().unwrap();
         let names: Vec<&str> = methods
             .iter()
@@ -56,6 +65,7 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
                 let v = finite(&x[field], &format!("{what}.{field}"));
                 assert!(v >= 0.0, "{what}.{field} = {v}");
             }
+            assert!(finite(&x["kl_vs_source"], &format!("{what}.kl_vs_source")) >= 0.0);
             let rr = &x["render"];
             for field in [
                 "ns_per_sample",
@@ -94,4 +104,36 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
     }
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(md.contains("Table 2") && md.contains("![equal time]"));
+}
+
+#[test]
+fn procedural_demo_uses_the_source_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut a = DemoArgs::new(dir.path());
+    a.quick = true;
+    a.use_fixtures = true;
+    a.procedural = true;
+    a.no_render = true;
+    demo::run(&a).unwrap();
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
+            .unwrap();
+    let names: Vec<&str> = r["materials"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| {
+            assert!(m["neural"].is_null());
+            for x in m["methods"].as_array().unwrap() {
+                assert!(x["kl_vs_source"].is_null());
+                assert!(x["kl_divergence"].as_f64().unwrap().is_finite());
+            }
+            m["material"].as_str().unwrap()
+        })
+        .collect();
+    assert_eq!(names, demo::DEFAULT_MATERIALS);
+    // --procedural with explicit materials is a usage error.
+    a.materials = vec!["gold".into()];
+    let e = demo::run(&a).unwrap_err().to_string();
+    assert!(e.contains("--procedural"), "{e}");
 }
