@@ -18,8 +18,12 @@
 //!
 //! # Estimators ([`Estimator`])
 //!
-//! Direct lighting from the environment, no indirect bounces (multi-bounce global illumination
-//! is not implemented). A direction occluded by another object contributes nothing.
+//! By default direct lighting from the environment: a direction occluded by another object
+//! contributes nothing. With [`RenderOptions::max_bounces`] `> 1`, **global illumination**: a
+//! BSDF sample that hits the other object continues the path there (the sampler prepared
+//! again at that vertex, throughput `f · cos θo / pdf`, the same estimator at every vertex),
+//! up to that many surface interactions. The demo renders direct lighting (its reference, the
+//! oracle, would tabulate p* at every secondary vertex).
 //!
 //! * [`Estimator::Bsdf`] — the paper's main mode: one BSDF sample per pixel sample,
 //!   `L = f(φ, wi, wo) · cos θo · L_env(wo) / pdf(wo)`, pdf in solid angle.
@@ -983,6 +987,12 @@ pub struct RenderOptions {
     /// same point is shaded). Meant for the expensive [`OracleSampler`]; the time spent in
     /// `prepare` is then reported separately ([`Render::prepare_seconds`]).
     pub reuse_prepared: bool,
+    /// Path length in surface interactions: 1 = direct lighting only (the paper's main
+    /// mode); `k > 1` = global illumination: a BSDF sample that hits another surface
+    /// continues the path there (the sampler is prepared at every vertex, the throughput is
+    /// `f · cos θo / pdf`), up to `k` interactions. Unbiased for the light carried by paths of
+    /// at most `k` interactions; no Russian roulette.
+    pub max_bounces: u32,
 }
 
 impl RenderOptions {
@@ -996,6 +1006,7 @@ impl RenderOptions {
             estimator: Estimator::Bsdf,
             jitter: false,
             reuse_prepared: false,
+            max_bounces: 1,
         }
     }
 }
@@ -1062,7 +1073,33 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 }
 
 impl<S: Sampler> Ctx<'_, '_, S> {
-    /// Direct lighting at a shading point, one pixel sample.
+    /// Radiance leaving a secondary path vertex `hit` towards `-ray.d`, the vertex being the
+    /// `depth`-th surface interaction of the path.
+    fn radiance_at(
+        &self,
+        ray: &Ray,
+        hit: &Hit,
+        depth: u32,
+        rng: &mut rand_pcg::Pcg64Mcg,
+    ) -> [f32; 3] {
+        let Some(surface) = self.surfaces.get(hit.surface) else {
+            return [0.0; 3];
+        };
+        let frame = Frame::from_normal_tangent(hit.n, hit.tangent);
+        let wi = frame.to_local(-ray.d);
+        if !(wi.z > 0.0) {
+            return [0.0; 3];
+        }
+        let phi = surface.material.features(hit.uv);
+        match surface.sampler.prepare(&phi, wi) {
+            Some(p) => self.shade(surface.material, &phi, hit, &frame, wi, &p, depth, rng),
+            None => [0.0; 3],
+        }
+    }
+
+    /// Lighting at a shading point, one pixel sample: direct lighting, plus (while `depth <
+    /// max_bounces`) the light the BSDF sample brings from the surface it hits.
+    #[allow(clippy::too_many_arguments)]
     fn shade<P: Prepared>(
         &self,
         material: &dyn Material,
@@ -1071,6 +1108,7 @@ impl<S: Sampler> Ctx<'_, '_, S> {
         frame: &Frame,
         wi: Vec3,
         prep: &P,
+        depth: u32,
         rng: &mut rand_pcg::Pcg64Mcg,
     ) -> [f32; 3] {
         let env = &self.scene.env;
@@ -1081,7 +1119,28 @@ impl<S: Sampler> Ctx<'_, '_, S> {
         let u = Vec2::new(rng.random::<f32>(), rng.random::<f32>());
         if let Some(s) = prep.sample(u) {
             let wo_w = frame.from_local(s.wo).normalize();
-            if !self.scene.occluded(origin, wo_w) {
+            // Does the sample see the environment? With bounces left, a surface it hits
+            // instead continues the path (surfaces do not emit: no MIS weight there).
+            let escaped = if depth < self.opts.max_bounces {
+                let ray = Ray { o: origin, d: wo_w };
+                match self.scene.intersect(&ray) {
+                    None => true,
+                    Some(next) => {
+                        let l = self.radiance_at(&ray, &next, depth + 1, rng);
+                        if l != [0.0; 3] {
+                            let f = material.eval(phi, wi, s.wo);
+                            let k = s.wo.z / s.pdf;
+                            for c in 0..3 {
+                                out[c] += f[c] * l[c] * k;
+                            }
+                        }
+                        false
+                    }
+                }
+            } else {
+                !self.scene.occluded(origin, wo_w)
+            };
+            if escaped {
                 let l = env.radiance(wo_w);
                 let f = material.eval(phi, wi, s.wo);
                 let w = if mis {
@@ -1206,12 +1265,12 @@ impl<S: Sampler> Ctx<'_, '_, S> {
                 out.prepare_seconds += t0.elapsed().as_secs_f64();
             }
             match cached {
-                Some(Some(p)) => self.shade(surface.material, &phi, hit, &frame, wi, p, rng),
+                Some(Some(p)) => self.shade(surface.material, &phi, hit, &frame, wi, p, 1, rng),
                 _ => [0.0; 3],
             }
         } else {
             match surface.sampler.prepare(&phi, wi) {
-                Some(p) => self.shade(surface.material, &phi, hit, &frame, wi, &p, rng),
+                Some(p) => self.shade(surface.material, &phi, hit, &frame, wi, &p, 1, rng),
                 None => [0.0; 3],
             }
         }

@@ -283,3 +283,74 @@ fn environment_sampling_is_consistent() {
     eprintln!("E[L/pdf] = {est:.5}, quadrature {quad:.5}");
     assert!((est - quad).abs() < 0.01 * quad, "{est} vs {quad}");
 }
+
+/// Global illumination (`max_bounces > 1`): the light the patch and the sphere exchange is
+/// added (the image gets brighter where they see each other), and every sampler still
+/// converges to the same image (sampler prepared at every path vertex).
+#[test]
+fn global_illumination_is_unbiased_for_every_sampler() {
+    let m = materials::builtin("goat_leather").unwrap();
+    let scene = small_scene();
+    let blobs: Vec<(&str, Vec<u8>)> = ["analytic", "flow", "histogram-mixture"]
+        .iter()
+        .map(|n| (*n, blob_bytes("goat_leather", n)))
+        .collect();
+    let opened: Vec<(&str, Blob<'_>)> = blobs
+        .iter()
+        .map(|(n, b)| (*n, Blob::open(b).unwrap()))
+        .collect();
+    let gi = |spp: u32, seed: u64, bounces: u32| {
+        let mut o = RenderOptions::new(spp, seed);
+        o.estimator = Estimator::Mis;
+        o.checkpoints.clear();
+        o.max_bounces = bounces;
+        o
+    };
+    // Reference: the analytic mixture, MIS, 3 interactions, many samples.
+    let reference_t = Technique::Blob(opened[0].1.sampler().unwrap());
+    let reference = reference_t.render(&scene, m.as_ref(), &gi(2048, 99, 3));
+    let mask = reference.mask.clone();
+    let (rm, rse) = metrics::pixel_average(&reference, &mask);
+
+    // Indirect light is there: on a bright Lambertian scene (albedo 0.8) the image with three
+    // interactions is brighter than direct lighting alone, by many standard errors.
+    let white = Lambert([0.8; 3]);
+    let cosine = Technique::Blob(AnySampler::Cosine(CosineSampler));
+    let (gm, gse) = metrics::pixel_average(&cosine.render(&scene, &white, &gi(1024, 5, 3)), &mask);
+    let (dm, dse) = metrics::pixel_average(&cosine.render(&scene, &white, &gi(1024, 6, 1)), &mask);
+    for c in 0..3 {
+        let z = (gm[c] - dm[c]) / (gse[c] * gse[c] + dse[c] * dse[c]).sqrt();
+        eprintln!(
+            "GI {:.5} vs direct {:.5} (channel {c}, z = {z:.1})",
+            gm[c], dm[c]
+        );
+        assert!(z > 5.0, "channel {c}: GI {} vs direct {}", gm[c], dm[c]);
+    }
+
+    let mut techniques: Vec<(String, Technique<'_>)> = vec![(
+        "cosine".into(),
+        Technique::Blob(AnySampler::Cosine(CosineSampler)),
+    )];
+    for (n, b) in &opened {
+        techniques.push((n.to_string(), Technique::Blob(b.sampler().unwrap())));
+    }
+    for (name, t) in &techniques {
+        for estimator in [Estimator::Bsdf, Estimator::Mis] {
+            let mut o = gi(512, 7, 3);
+            o.estimator = estimator;
+            let r = t.render(&scene, m.as_ref(), &o);
+            let (mm, se) = metrics::pixel_average(&r, &mask);
+            for c in 0..3 {
+                let z = (mm[c] - rm[c]) / (se[c] * se[c] + rse[c] * rse[c]).sqrt();
+                eprintln!(
+                    "{name:>18} {estimator:?} GI ch{c}: {:.5} vs {:.5}, z = {z:+.2}",
+                    mm[c], rm[c]
+                );
+                assert!(
+                    z.is_finite() && z.abs() < 4.5,
+                    "{name} {estimator:?} channel {c}: z = {z}"
+                );
+            }
+        }
+    }
+}
