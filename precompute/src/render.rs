@@ -1072,7 +1072,25 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     }
 }
 
-impl<S: Sampler> Ctx<'_, '_, S> {
+impl<'r, 'a, S: Sampler> Ctx<'r, 'a, S> {
+    /// The surface at a path vertex, its shading frame, the local direction towards the
+    /// previous vertex and φ; `None` off every surface or seen from below.
+    #[allow(clippy::type_complexity)]
+    fn vertex(
+        &self,
+        ray: &Ray,
+        hit: &Hit,
+    ) -> Option<(&'r Surface<'a, S>, Frame, Vec3, [f32; FEATURE_DIM])> {
+        let surface = self.surfaces.get(hit.surface)?;
+        let frame = Frame::from_normal_tangent(hit.n, hit.tangent);
+        let wi = frame.to_local(-ray.d);
+        if !(wi.z > 0.0) {
+            return None;
+        }
+        let phi = surface.material.features(hit.uv);
+        Some((surface, frame, wi, phi))
+    }
+
     /// Radiance leaving a secondary path vertex `hit` towards `-ray.d`, the vertex being the
     /// `depth`-th surface interaction of the path.
     fn radiance_at(
@@ -1082,15 +1100,9 @@ impl<S: Sampler> Ctx<'_, '_, S> {
         depth: u32,
         rng: &mut rand_pcg::Pcg64Mcg,
     ) -> [f32; 3] {
-        let Some(surface) = self.surfaces.get(hit.surface) else {
+        let Some((surface, frame, wi, phi)) = self.vertex(ray, hit) else {
             return [0.0; 3];
         };
-        let frame = Frame::from_normal_tangent(hit.n, hit.tangent);
-        let wi = frame.to_local(-ray.d);
-        if !(wi.z > 0.0) {
-            return [0.0; 3];
-        }
-        let phi = surface.material.features(hit.uv);
         match surface.sampler.prepare(&phi, wi) {
             Some(p) => self.shade(surface.material, &phi, hit, &frame, wi, &p, depth, rng),
             None => [0.0; 3],
@@ -1249,15 +1261,9 @@ impl<S: Sampler> Ctx<'_, '_, S> {
         rng: &mut rand_pcg::Pcg64Mcg,
         out: &mut RowOut,
     ) -> [f32; 3] {
-        let Some(surface) = self.surfaces.get(hit.surface) else {
+        let Some((surface, frame, wi, phi)) = self.vertex(ray, hit) else {
             return [0.0; 3];
         };
-        let frame = Frame::from_normal_tangent(hit.n, hit.tangent);
-        let wi = frame.to_local(-ray.d);
-        if !(wi.z > 0.0) {
-            return [0.0; 3];
-        }
-        let phi = surface.material.features(hit.uv);
         if reuse {
             if cached.is_none() {
                 let t0 = Instant::now();
