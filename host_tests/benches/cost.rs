@@ -17,7 +17,7 @@
 //! out of `prepare`'s return value.
 
 use std::hint::black_box;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use divan::Bencher;
@@ -63,25 +63,11 @@ impl Fixture {
 }
 
 fn blob_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/blobs")
+    neusample_host_tests::fixture_blobs_dir()
 }
 
 fn material() -> String {
     std::env::var("NEUSAMPLE_COST_MATERIAL").unwrap_or_else(|_| "goat_leather".into())
-}
-
-fn conditions(dir: &Path) -> Vec<([f32; 8], Vec3)> {
-    let text = std::fs::read_to_string(dir.join("conditions.txt"))
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
-    text.lines()
-        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
-        .map(|l| {
-            let v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            assert_eq!(v.len(), 11, "bad line in conditions.txt: {l}");
-            let phi: [f32; 8] = v[..8].try_into().unwrap();
-            (phi, Vec3::new(v[8], v[9], v[10]))
-        })
-        .collect()
 }
 
 fn load(method: &str) -> Fixture {
@@ -96,7 +82,7 @@ fn load(method: &str) -> Fixture {
         Vec::leak(std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display())));
     let blob = Blob::open(bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let sampler = blob.sampler().expect("fixture blob has no sampler");
-    let mut conds = conditions(&dir);
+    let mut conds = neusample_host_tests::fixture_conditions(&dir);
     assert!(!conds.is_empty());
     while conds.len() < CALLS {
         conds.extend_from_within(..);

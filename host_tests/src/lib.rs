@@ -2,7 +2,9 @@
 //! over the projected disk, and a χ² goodness-of-fit test of a sampler against its own pdf
 //! (after Mitsuba 3's `chi2` module: cells with small expected counts are pooled).
 
-use neusample::{Prepared, Vec2};
+use std::path::{Path, PathBuf};
+
+use neusample::{Prepared, Vec2, Vec3, FEATURE_DIM};
 use rand::{RngExt, SeedableRng};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -233,4 +235,31 @@ pub fn small_blob(
     }
     w.tensor(TensorRole::Params, &params);
     (w.to_bytes(), params)
+}
+
+/// The folder of the committed fixture blobs (`fixtures/blobs`, one folder per material).
+#[must_use]
+pub fn fixture_blobs_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/blobs")
+}
+
+/// The conditions `(φ, wi)` of a fixture material folder (`conditions.txt`, written by
+/// `neusample fixtures`: one `φ0 … φ7 wi.x wi.y wi.z` line each, `#` comments). Panics on a
+/// missing file or a malformed line (test input).
+#[must_use]
+pub fn fixture_conditions(dir: &Path) -> Vec<([f32; FEATURE_DIM], Vec3)> {
+    let text = std::fs::read_to_string(dir.join("conditions.txt"))
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            assert_eq!(v.len(), FEATURE_DIM + 3, "bad line in conditions.txt: {l}");
+            let phi: [f32; FEATURE_DIM] = v[..FEATURE_DIM].try_into().unwrap();
+            (
+                phi,
+                Vec3::new(v[FEATURE_DIM], v[FEATURE_DIM + 1], v[FEATURE_DIM + 2]),
+            )
+        })
+        .collect()
 }

@@ -7,29 +7,13 @@
 //! CI runs 12 conditions per blob with 40 000 samples; `NEUSAMPLE_FULL_TESTS=1` runs 128
 //! conditions per blob with 200 000 samples.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use neusample::blob::Blob;
-use neusample::{Sampler, Vec3};
-use neusample_host_tests::{bonferroni, chi2_test, full_tests, rng};
-
-fn fixtures() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/blobs")
-}
-
-fn conditions(dir: &Path) -> Vec<([f32; 8], Vec3)> {
-    let text = std::fs::read_to_string(dir.join("conditions.txt"))
-        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
-    text.lines()
-        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
-        .map(|l| {
-            let v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            assert_eq!(v.len(), 11, "bad line in conditions.txt: {l}");
-            let phi: [f32; 8] = v[..8].try_into().unwrap();
-            (phi, Vec3::new(v[8], v[9], v[10]))
-        })
-        .collect()
-}
+use neusample::Sampler;
+use neusample_host_tests::{
+    bonferroni, chi2_test, fixture_blobs_dir, fixture_conditions, full_tests, rng,
+};
 
 #[test]
 fn every_fixture_blob_passes_chi2() {
@@ -38,7 +22,7 @@ fn every_fixture_blob_passes_chi2() {
     } else {
         (12, 40_000)
     };
-    let mut materials: Vec<PathBuf> = std::fs::read_dir(fixtures())
+    let mut materials: Vec<PathBuf> = std::fs::read_dir(fixture_blobs_dir())
         .expect("fixtures/blobs is missing: run `neusample fixtures`")
         .flatten()
         .map(|e| e.path())
@@ -53,7 +37,7 @@ fn every_fixture_blob_passes_chi2() {
 
     let mut jobs = Vec::new();
     for dir in &materials {
-        let conds = conditions(dir);
+        let conds = fixture_conditions(dir);
         assert!(conds.len() >= per_blob);
         let mut blobs: Vec<PathBuf> = std::fs::read_dir(dir)
             .unwrap()
@@ -106,7 +90,11 @@ fn every_fixture_blob_passes_chi2() {
             // Sampling noise of the in-disk fraction is ~1/√samples; quadrature adds a little.
             max_gap = max_gap.max((out.pdf_integral - out.inside_fraction).abs());
         }
-        let name = path.strip_prefix(fixtures()).unwrap().display().to_string();
+        let name = path
+            .strip_prefix(fixture_blobs_dir())
+            .unwrap()
+            .display()
+            .to_string();
         eprintln!(
             "{name:<44} {:>6} {min_p:>10.2e} {:>9.1}% {max_gap:>12.2e}",
             conds.len(),
