@@ -120,18 +120,7 @@ pub fn cost<S: Sampler>(sampler: &S, material: &dyn Material, n: usize, passes: 
     let us: Vec<Vec2> = (0..n)
         .map(|_| Vec2::new(rng.random::<f32>(), rng.random::<f32>()))
         .collect();
-    let wos: Vec<Vec3> = (0..n)
-        .map(|_| {
-            crate::bake::direction(
-                rng.random::<f32>() * 1.4,
-                rng.random::<f32>() * std::f32::consts::TAU,
-            )
-        })
-        .collect();
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
+    let wos = timing_directions(&mut rng, n);
     let (mut tp, mut ts, mut tq, mut tt, mut te) = (vec![], vec![], vec![], vec![], vec![]);
     for _ in 0..passes {
         let t0 = Instant::now();
@@ -182,4 +171,22 @@ pub fn cost<S: Sampler>(sampler: &S, material: &dyn Material, n: usize, passes: 
         total_ns: median(tt),
         material_eval_ns: median(te),
     }
+}
+
+/// `n` random directions for timing `eval` (polar angle uniform in [0, 1.4], azimuth uniform).
+pub(crate) fn timing_directions(rng: &mut impl rand::Rng, n: usize) -> Vec<Vec3> {
+    (0..n)
+        .map(|_| {
+            crate::bake::direction(
+                rng.random::<f32>() * 1.4,
+                rng.random::<f32>() * std::f32::consts::TAU,
+            )
+        })
+        .collect()
+}
+
+/// The median of timing samples (the upper one of an even count); `v` is non-empty.
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }

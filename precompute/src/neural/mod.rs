@@ -22,7 +22,7 @@ use glam::{Vec2, Vec3};
 use neusample::blob::{Blob, BlobWriter, SamplerKind, TensorRole};
 use neusample::neural::{texture_len, NeuralMaterial, DECODER_PARAM_COUNT, MAX_TEXTURE_SIZE};
 use neusample::DType;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use serde::Serialize;
 
 use crate::groundtruth;
@@ -226,18 +226,8 @@ pub fn eval_cost(material: &dyn Material, n: usize, passes: usize) -> EvalCost {
     let conds: Vec<_> = (0..n)
         .map(|_| groundtruth::random_condition(material, &mut rng))
         .collect();
-    let wos: Vec<Vec3> = (0..n)
-        .map(|_| {
-            crate::bake::direction(
-                rng.random::<f32>() * 1.4,
-                rng.random::<f32>() * std::f32::consts::TAU,
-            )
-        })
-        .collect();
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
+    let wos = crate::eval::timing_directions(&mut rng, n);
+    let median = crate::eval::median;
     let (mut tf, mut te) = (Vec::new(), Vec::new());
     for _ in 0..passes.max(1) {
         let t0 = Instant::now();
