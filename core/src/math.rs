@@ -145,20 +145,6 @@ pub fn ln_1p(x: f32) -> f32 {
     libm::log1pf(x)
 }
 
-/// sin x.
-#[inline(always)]
-#[must_use]
-pub fn sin(x: f32) -> f32 {
-    libm::sinf(x)
-}
-
-/// cos x.
-#[inline(always)]
-#[must_use]
-pub fn cos(x: f32) -> f32 {
-    libm::cosf(x)
-}
-
 /// (sin x, cos x).
 #[inline(always)]
 #[must_use]
@@ -280,7 +266,7 @@ pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
 #[inline(always)]
 #[must_use]
 pub fn is_finite(x: f32) -> bool {
-    // NaN fails the comparison; written with `fabs` so shader targets need no bit casts.
+    // NaN fails the comparison. rust-gpu: written with `fabs` so shaders need no bit casts.
     libm::fabsf(x) < f32::INFINITY
 }
 
@@ -299,6 +285,35 @@ pub fn sanitize_u(u: f32) -> Option<f32> {
     } else {
         None
     }
+}
+
+/// Checks both components of `u` with [`sanitize_u`].
+#[inline(always)]
+#[must_use]
+pub fn sanitize_u2(u: glam::Vec2) -> Option<glam::Vec2> {
+    Some(glam::Vec2::new(sanitize_u(u.x)?, sanitize_u(u.y)?))
+}
+
+/// Makes a density safe to return: non-finite or negative values become 0.
+#[inline(always)]
+#[must_use]
+pub fn finite_density(p: f32) -> f32 {
+    if p >= 0.0 && is_finite(p) {
+        p
+    } else {
+        0.0
+    }
+}
+
+/// Bound applied to logits before a softmax (NaN → −bound), so that an infinite or NaN
+/// logit cannot turn the weights into NaN.
+pub const LOGIT_BOUND: f32 = 1.0e30;
+
+/// A logit clamped to ±[`LOGIT_BOUND`] (NaN → −bound).
+#[inline(always)]
+#[must_use]
+pub fn clamp_logit(x: f32) -> f32 {
+    clamp(x, -LOGIT_BOUND, LOGIT_BOUND)
 }
 
 /// Clamp a float to an index in `[0, n − 1]` (NaN → 0). `n` must be ≥ 1.

@@ -21,7 +21,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use neusample::blob::{AnySampler, Blob, BlobWriter, SamplerKind};
+use neusample::{AnySampler, Blob, BlobWriter, SamplerKind};
 use neusample::{CosineSampler, DType, Prepared, Sampler};
 use serde::Serialize;
 

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
-use neusample::blob::{Blob, TensorRole};
+use neusample::{Blob, TensorRole};
 use neusample::{DType, Weights};
 use neusample_precompute::train::{self, Method, TrainConfig};
 use neusample_precompute::{bake, demo, eval, io, materials};
@@ -243,14 +243,20 @@ fn train_config(a: &TrainArgs, method: Method) -> Result<TrainConfig> {
         cfg.threads = t;
     }
     if let Some(t) = a.t_levels {
-        if !(1..=neusample::histogram::MAX_T).contains(&t) {
-            bail!("--t-levels must be in 1..={}", neusample::histogram::MAX_T);
+        if !(1..=neusample::samplers::histogram_mixture::MAX_T).contains(&t) {
+            bail!(
+                "--t-levels must be in 1..={}",
+                neusample::samplers::histogram_mixture::MAX_T
+            );
         }
         cfg.hist_t_levels = t;
     }
     if let Some(n) = a.hist_res {
-        if !(1..=neusample::histogram::MAX_N).contains(&n) {
-            bail!("--hist-res must be in 1..={}", neusample::histogram::MAX_N);
+        if !(1..=neusample::samplers::histogram_mixture::MAX_N).contains(&n) {
+            bail!(
+                "--hist-res must be in 1..={}",
+                neusample::samplers::histogram_mixture::MAX_N
+            );
         }
         cfg.hist_res = n;
     }
@@ -435,7 +441,7 @@ fn inspect(path: &Path, json: bool) -> Result<()> {
             "  storage {:?}, φ dim {}, {} params",
             h.dtype, h.feature_dim, h.param_count
         );
-        if h.kind == neusample::blob::SamplerKind::NeuralMaterial {
+        if h.kind == neusample::SamplerKind::NeuralMaterial {
             println!(
                 "  neural material: feature texture {}×{}×8 (NEURAL.md)",
                 h.resolution, h.t_levels

@@ -47,8 +47,8 @@
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use neusample::blob::AnySampler;
 use neusample::warp;
+use neusample::AnySampler;
 use neusample::{Frame, Prepared, Sample, Sampler, Table2D, FEATURE_DIM};
 use rand::RngExt;
 use rayon::prelude::*;
@@ -804,7 +804,7 @@ pub fn demo_scene(p: &SceneParams) -> Scene {
 pub struct OracleSampler<'m> {
     /// The material.
     pub material: &'m dyn Material,
-    /// Grid resolution per side (≤ [`neusample::histogram::MAX_N`]).
+    /// Grid resolution per side (≤ [`neusample::samplers::histogram_mixture::MAX_N`]).
     pub res: usize,
     /// Stratified points per cell and axis.
     pub supersample: usize,
@@ -829,7 +829,7 @@ impl<'m> OracleSampler<'m> {
     pub fn new(material: &'m dyn Material, res: usize) -> Self {
         OracleSampler {
             material,
-            res: res.clamp(1, neusample::histogram::MAX_N),
+            res: res.clamp(1, neusample::samplers::histogram_mixture::MAX_N),
             supersample: 2,
             defensive: 0.02,
         }
@@ -865,8 +865,10 @@ impl Sampler for OracleSampler<'_> {
         Self: 's;
 
     fn prepare(&self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<OraclePrepared> {
-        let wi = neusample::sampler::check_condition(phi, wi)?;
-        let res = self.res.clamp(1, neusample::histogram::MAX_N);
+        let wi = neusample::nn::check_condition(phi, wi)?;
+        let res = self
+            .res
+            .clamp(1, neusample::samplers::histogram_mixture::MAX_N);
         let s = self.supersample.max(1);
         let h = 2.0 / res as f32;
         let hs = h / s as f32;
@@ -874,7 +876,7 @@ impl Sampler for OracleSampler<'_> {
         let mut total = 0.0f64;
         for r in 0..res {
             for c in 0..res {
-                if neusample::histogram::cell_outside_disk(r as u32, c as u32, res as u32) {
+                if neusample::distrib::table2d::cell_outside_disk(r as u32, c as u32, res as u32) {
                     continue;
                 }
                 let mut acc = 0.0f32;
@@ -907,7 +909,12 @@ impl Sampler for OracleSampler<'_> {
         }
         let mut marginal = vec![0f32; res];
         let mut conditional = vec![0f32; res * res];
-        neusample::histogram::running_sums(&values, res as u32, &mut marginal, &mut conditional);
+        neusample::distrib::table2d::running_sums(
+            &values,
+            res as u32,
+            &mut marginal,
+            &mut conditional,
+        );
         Some(OraclePrepared {
             values,
             marginal,
@@ -920,12 +927,15 @@ impl Sampler for OracleSampler<'_> {
 
 impl Prepared for OraclePrepared {
     fn sample(&self, u: Vec2) -> Option<Sample> {
-        let u = neusample::sampler::sanitize_u2(u)?;
+        if !(u.x >= 0.0 && u.x <= 1.0 && u.y >= 0.0 && u.y <= 1.0) {
+            return None;
+        }
+        let u = u.min(Vec2::splat(neusample::ONE_MINUS_EPSILON));
         let d = self.defensive;
         let p = if u.x < d {
             warp::sample_uniform_disk_concentric(Vec2::new(u.x / d, u.y))
         } else {
-            let ux = ((u.x - d) / (1.0 - d)).min(neusample::math::ONE_MINUS_EPSILON);
+            let ux = ((u.x - d) / (1.0 - d)).min(neusample::ONE_MINUS_EPSILON);
             self.table()?.sample(Vec2::new(ux, u.y))?.0
         };
         Sample::from_disk(p, self.pdf_disk(p))

@@ -3,7 +3,7 @@
 //! `train-material` run reduces its loss, and a neural material loads as a material and
 //! trains a sampler unchanged.
 
-use neusample::neural::{NeuralMaterial, DECODER_PARAM_COUNT};
+use neusample::neural_material::{NeuralMaterial, DECODER_PARAM_COUNT};
 use neusample::DType;
 use neusample::{Vec2, Vec3};
 use neusample_precompute::materials::{self, Material};

@@ -3,7 +3,7 @@
 //! consistency of the oracle and of environment sampling.
 
 use glam::{Vec2, Vec3};
-use neusample::blob::{AnySampler, Blob};
+use neusample::{AnySampler, Blob};
 use neusample::{CosineSampler, Prepared, Sampler};
 use neusample_precompute::demo::fixtures_dir;
 use neusample_precompute::materials::{self, Material, FEATURE_DIM};

@@ -8,10 +8,10 @@
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
-use neusample::flow::{AffineFlowSampler, FlowSampler};
-use neusample::histogram::{DirectHistogramSampler, HistogramMixtureSampler};
-use neusample::lobes::{AnalyticMixtureSampler, ImprovedBaselineSampler};
-use neusample::{Prepared, Sampler, Vec2, Vec3};
+use neusample::{
+    AffineFlowSampler, AnalyticMixtureSampler, DirectHistogramSampler, FlowSampler,
+    HistogramMixtureSampler, ImprovedBaselineSampler, Prepared, Sampler, Vec2, Vec3,
+};
 use neusample_precompute::train::{
     self, graph_log_pdf, model_pdf_disk, train_with, Method, SyntheticSource, TargetSource,
     TrainConfig, Trained,
@@ -311,7 +311,7 @@ fn default_training_kl() {
 #[test]
 #[ignore]
 fn histogram_mixture_diagnostics() {
-    use neusample::histogram::Interpolation;
+    use neusample::Interpolation;
     use neusample_precompute::train::histogram_mixture::{bake, network_mean_kl};
     let env = |k: &str| std::env::var(k).ok();
     let materials: Vec<String> = env("HM_MATERIALS")

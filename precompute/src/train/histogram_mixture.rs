@@ -40,8 +40,10 @@ use burn::module::Module;
 use burn::tensor::activation;
 use burn::tensor::{Tensor, TensorData};
 use glam::{Vec2, Vec3};
-use neusample::histogram::{self, cell_outside_disk, Interpolation, BASES};
-use neusample::sampler::{raw_condition, RAW_CONDITION_DIM};
+use neusample::distrib::table2d::cell_outside_disk;
+use neusample::nn::{raw_condition, RAW_CONDITION_DIM};
+use neusample::samplers::histogram_mixture::{self as histogram, BASES};
+use neusample::Interpolation;
 use neusample::{DType, FEATURE_DIM};
 
 use super::data::{mix_seed, rng_for, PointKind, Pool};
@@ -72,7 +74,7 @@ pub const BASIS_SIZES: [usize; 5] = [
 #[derive(Clone, Debug)]
 pub struct BakedTables {
     /// mass, table, marginal and conditional as core builds them
-    /// ([`neusample::histogram::try_bake_slices`], f32 storage).
+    /// ([`neusample::samplers::histogram_mixture::try_bake_slices`], f32 storage).
     pub baked: histogram::BakedTables,
     /// How the runtime reads the latent axis.
     pub interpolation: Interpolation,
@@ -206,11 +208,11 @@ pub fn network_density(
         cond: Mlp::from_flat(&COND_SIZES, params, &device),
         basis: Mlp::from_flat(&BASIS_SIZES, basis_params, &device),
     };
-    let wi = neusample::sampler::check_condition(phi, wi).unwrap_or(Vec3::Z);
+    let wi = neusample::nn::check_condition(phi, wi).unwrap_or(Vec3::Z);
     let host = super::data::HostBatch {
         b: 1,
         s: points.len(),
-        cond: neusample::sampler::encode_condition(phi, wi).to_vec(),
+        cond: neusample::nn::encode_condition(phi, wi).to_vec(),
         raw: raw_condition(phi, wi).to_vec(),
         x: points.iter().map(|p| p.x).collect(),
         y: points.iter().map(|p| p.y).collect(),

@@ -32,7 +32,7 @@ use std::str::FromStr;
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use neusample::sampler::check_condition;
+use neusample::nn::check_condition;
 use neusample::FEATURE_DIM;
 
 use crate::materials::Material;
@@ -338,8 +338,8 @@ pub fn graph_log_pdf(
     let host = data::HostBatch {
         b: 1,
         s: points.len(),
-        cond: neusample::sampler::encode_condition(phi, wi).to_vec(),
-        raw: neusample::sampler::raw_condition(phi, wi).to_vec(),
+        cond: neusample::nn::encode_condition(phi, wi).to_vec(),
+        raw: neusample::nn::raw_condition(phi, wi).to_vec(),
         x: points.iter().map(|p| p.x).collect(),
         y: points.iter().map(|p| p.y).collect(),
         target: Vec::new(),

@@ -15,7 +15,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rand::RngExt;
 use rand_pcg::Pcg64;
 
-use neusample::mlp::LEAKY_RELU_SLOPE;
+use neusample::nn::LEAKY_RELU_SLOPE;
 
 use super::data::{make_batch, HostBatch, PointKind, Pool};
 use super::TrainConfig;
@@ -242,7 +242,7 @@ pub fn mlp_f64(params: &[f32], at: &mut usize, sizes: &[usize], act: Act, x: &[f
 // ---------------------------------------------------------------------------------------
 
 /// `encB(v) = [v, sin(πv), cos(πv), …, sin(2^(B−1)πv), cos(2^(B−1)πv)]` of a column
-/// `[n, 1]`, giving `[n, 1 + 2B]` (the same order as `neusample::mlp::encode_scalar`).
+/// `[n, 1]`, giving `[n, 1 + 2B]` (the same order as `neusample::nn::encode_scalar`).
 pub fn encode(v: Tensor<2>, bands: usize) -> Tensor<2> {
     let n = v.dims()[0];
     let device = v.device();
@@ -269,7 +269,7 @@ pub fn encode_f64(v: f64, bands: usize, out: &mut Vec<f64>) {
 /// zero gradient outside the range, and a network whose `log σ` overshoots the upper bound
 /// early in training then never recovers (its Gaussian loses all weight to the Lambert lobe).
 pub fn clamp_log_sigma<const D: usize>(x: Tensor<D>) -> Tensor<D> {
-    use neusample::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
+    use neusample::distrib::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
     let clamped = x.clone().clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
     x.clone() + (clamped - x).detach()
 }
@@ -334,16 +334,11 @@ impl Batch {
     /// Uploads a host batch to `device`.
     pub fn upload(host: HostBatch, device: &Device) -> Self {
         let (b, s) = (host.b, host.s);
-        let cond = tensor2(
-            host.cond.clone(),
-            b,
-            neusample::sampler::CONDITION_DIM,
-            device,
-        );
+        let cond = tensor2(host.cond.clone(), b, neusample::nn::CONDITION_DIM, device);
         let raw = tensor2(
             host.raw.clone(),
             b,
-            neusample::sampler::RAW_CONDITION_DIM,
+            neusample::nn::RAW_CONDITION_DIM,
             device,
         );
         let x = tensor2(host.x.clone(), b, s, device);
