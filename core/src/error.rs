@@ -95,6 +95,15 @@ pub enum Error {
         /// Index of the first bad element.
         index: u32,
     },
+    /// The slices of one batched call ([`crate::wavefront`]) differ in length.
+    BatchLength {
+        /// Which argument.
+        what: &'static str,
+        /// Length of the call's lanes (or of its first argument).
+        expected: u32,
+        /// Length of this argument.
+        found: u32,
+    },
     /// A baked table is negative, not normalised, or its CDFs do not match its values.
     TableNotNormalized {
         /// The tensor's role name.
@@ -171,6 +180,14 @@ impl fmt::Display for Error {
                     "tensor `{role}` has a NaN or infinite value at index {index}"
                 )
             }
+            Error::BatchLength {
+                what,
+                expected,
+                found,
+            } => write!(
+                f,
+                "batched call: `{what}` has {found} elements, the batch has {expected}"
+            ),
             Error::TableNotNormalized { role, index } => write!(
                 f,
                 "table `{role}` is negative, unnormalised or inconsistent with its CDF at {index}"

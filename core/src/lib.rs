@@ -76,6 +76,8 @@ pub mod neural_material;
 pub mod nn;
 pub mod samplers;
 pub mod warp;
+#[cfg(not(target_arch = "spirv"))]
+pub mod wavefront;
 mod weights;
 
 #[cfg(feature = "alloc")]

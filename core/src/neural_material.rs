@@ -289,3 +289,119 @@ impl<W: Weights> NeuralMaterial<W> {
         self.eval(&self.features(uv), wi, wo)
     }
 }
+
+#[cfg(not(target_arch = "spirv"))]
+mod batch {
+    //! The neural material over wavefronts: features per lane (texture reads), the decoder as
+    //! matrix products over a chunk's lanes; the same numbers as [`NeuralMaterial::features`]
+    //! and [`NeuralMaterial::eval`].
+
+    use super::*;
+    use crate::error::Result;
+    use crate::wavefront::{self, check_len, dense, Features, FeaturesMut, Soa, Vec2s, Vec3s};
+
+    /// Lanes per chunk (two 64-wide activations of 32 lanes: 16 KiB).
+    const CHUNK: usize = 32;
+
+    /// Where [`NeuralMaterial::eval_batch`] writes: the BRDF (no cosine) per RGB channel.
+    #[derive(Debug)]
+    pub struct RgbMut<'a> {
+        /// Red.
+        pub r: &'a mut [f32],
+        /// Green.
+        pub g: &'a mut [f32],
+        /// Blue.
+        pub b: &'a mut [f32],
+    }
+
+    impl<'a> RgbMut<'a> {
+        /// The `(3, n)` row-major array `rows` (r, g, b) as three slices; `None` unless
+        /// `rows.len() == 3n`.
+        #[must_use]
+        pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
+            if rows.len() != 3 * n {
+                return None;
+            }
+            let (r, gb) = rows.split_at_mut(n);
+            let (g, b) = gb.split_at_mut(n);
+            Some(RgbMut { r, g, b })
+        }
+    }
+
+    impl<W: Weights> NeuralMaterial<W> {
+        /// [`NeuralMaterial::features`] of every `uv[i]`, written to `phi` (structure of
+        /// arrays). Lengths must agree ([`crate::Error::BatchLength`]).
+        pub fn features_batch(&self, uv: Vec2s<'_>, mut phi: FeaturesMut<'_>) -> Result<()> {
+            let n = uv.len();
+            uv.check(n)?;
+            phi.check(n)?;
+            wavefront::simd::dispatch(|| {
+                for i in 0..n {
+                    phi.set(i, &self.features(uv.at(i)));
+                }
+            });
+            Ok(())
+        }
+
+        /// [`NeuralMaterial::eval`] of every `(phi[i], wi[i], wo[i])`: the RGB BRDF without
+        /// the cosine, `[0, 0, 0]` for refused lanes. Lengths must agree
+        /// ([`crate::Error::BatchLength`]).
+        pub fn eval_batch(
+            &self,
+            phi: Features<'_>,
+            wi: Vec3s<'_>,
+            wo: Vec3s<'_>,
+            out: RgbMut<'_>,
+        ) -> Result<()> {
+            let n = wi.len();
+            phi.check(n)?;
+            wi.check(n)?;
+            wo.check(n)?;
+            check_len("r", out.r.len(), n)?;
+            check_len("g", out.g.len(), n)?;
+            check_len("b", out.b.len(), n)?;
+            let w = &self.params;
+            wavefront::simd::dispatch(|| {
+                wavefront::chunks::<CHUNK>(n, |a, b| {
+                    let m = b - a;
+                    let mut x: Soa<DECODER_INPUTS, CHUNK> = [[0.0; CHUNK]; DECODER_INPUTS];
+                    let mut valid = [false; CHUNK];
+                    for l in 0..m {
+                        if let Some(v) = decoder_input(&phi.at(a + l), wi.at(a + l), wo.at(a + l)) {
+                            for (k, e) in v.iter().enumerate() {
+                                x[k][l] = *e;
+                            }
+                            valid[l] = true;
+                        }
+                    }
+                    let mut h: Soa<DECODER_HIDDEN, CHUNK> = [[0.0; CHUNK]; DECODER_HIDDEN];
+                    let mut g: Soa<DECODER_HIDDEN, CHUNK> = [[0.0; CHUNK]; DECODER_HIDDEN];
+                    let mut o: Soa<DECODER_OUTPUTS, CHUNK> = [[0.0; CHUNK]; DECODER_OUTPUTS];
+                    let relu = Activation::Relu;
+                    dense::dense(w, L0 as u32, &x, relu, &mut h, m);
+                    dense::dense(w, L1 as u32, &h, relu, &mut g, m);
+                    dense::dense(w, L2 as u32, &g, relu, &mut h, m);
+                    dense::dense(w, L3 as u32, &h, Activation::Identity, &mut o, m);
+                    for l in 0..m {
+                        let (r, gg, bb) = if valid[l] {
+                            (
+                                output_to_brdf(o[0][l]),
+                                output_to_brdf(o[1][l]),
+                                output_to_brdf(o[2][l]),
+                            )
+                        } else {
+                            (0.0, 0.0, 0.0)
+                        };
+                        out.r[a + l] = r;
+                        out.g[a + l] = gg;
+                        out.b[a + l] = bb;
+                    }
+                });
+            });
+            Ok(())
+        }
+    }
+}
+
+#[cfg(not(target_arch = "spirv"))]
+pub use batch::RgbMut;

@@ -28,6 +28,13 @@ pub trait Weights {
         self.len() == 0
     }
 
+    /// The elements as an `f32` slice, when they are stored as one (host arrays, aligned
+    /// f32 blob tensors); `None` for storage that must be decoded element by element.
+    #[inline(always)]
+    fn as_f32_slice(&self) -> Option<&[f32]> {
+        None
+    }
+
     /// `acc[j] += Σ_i x[i] · self[offset + (row0 + i)·O + j]` for `i < I`, `j < O`: the
     /// product of `x` with rows `row0 .. row0 + I` of the row-major `· × O` matrix stored at
     /// `offset`. This is the inner loop of every dense layer ([`crate::mlp`]); storages
@@ -315,6 +322,10 @@ impl Weights for [f32] {
         <[f32]>::len(self) as u32
     }
     #[inline(always)]
+    fn as_f32_slice(&self) -> Option<&[f32]> {
+        Some(self)
+    }
+    #[inline(always)]
     fn at(&self, i: u32) -> f32 {
         let i = i as usize;
         if i < <[f32]>::len(self) {
@@ -345,6 +356,10 @@ impl<const N: usize> Weights for [f32; N] {
     #[inline(always)]
     fn len(&self) -> u32 {
         N as u32
+    }
+    #[inline(always)]
+    fn as_f32_slice(&self) -> Option<&[f32]> {
+        Some(self)
     }
     #[inline(always)]
     fn at(&self, i: u32) -> f32 {
@@ -381,6 +396,10 @@ impl<W: Weights + ?Sized> Weights for &W {
     #[inline(always)]
     fn at(&self, i: u32) -> f32 {
         (**self).at(i)
+    }
+    #[inline(always)]
+    fn as_f32_slice(&self) -> Option<&[f32]> {
+        (**self).as_f32_slice()
     }
     #[inline(always)]
     fn accumulate<const I: usize, const O: usize>(
@@ -456,6 +475,14 @@ impl Weights for Tensor<'_> {
             Tensor::F32(f) => <[f32]>::len(f) as u32,
             Tensor::F32Bytes(b) => (b.len() / 4) as u32,
             Tensor::F16Bytes(b) => (b.len() / 2) as u32,
+        }
+    }
+
+    #[inline(always)]
+    fn as_f32_slice(&self) -> Option<&[f32]> {
+        match self {
+            Tensor::F32(f) => Some(f),
+            _ => None,
         }
     }
 

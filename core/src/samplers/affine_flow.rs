@@ -19,6 +19,9 @@ pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OT
 use super::traits::{params_constructors, Held};
 use super::{Prepared, Sample, Sampler};
 
+#[cfg(not(target_arch = "spirv"))]
+mod batch;
+
 /// Coupling layers of [`AffineFlowSampler`]; layer `l` transforms coordinate `l mod 2`.
 pub const AFFINE_LAYERS: usize = 4;
 /// Bound of the affine log-scale: `s = AFFINE_SCALE_BOUND · tanh(s_raw / AFFINE_SCALE_BOUND)`.
@@ -44,6 +47,12 @@ fn affine_params<W: Weights>(w: &W, l: usize, share: &[f32; HIDDEN], v: f32) -> 
     Activation::Relu.apply_all(&mut h);
     let h = nn::dense::<W, HIDDEN, HIDDEN>(w, offset + AFFINE_NET_L1 as u32, &h, Activation::Relu);
     let o = nn::linear::<W, HIDDEN, AFFINE_OUTPUTS>(w, offset + AFFINE_NET_L2 as u32, &h);
+    scale_shift(&o)
+}
+
+/// `(s, t)` from a coupling network's outputs `[s_raw, t]`: `s = 4·tanh(s_raw / 4)`.
+#[inline(always)]
+fn scale_shift(o: &[f32; AFFINE_OUTPUTS]) -> (f32, f32) {
     let s = AFFINE_SCALE_BOUND * math::tanh(o[0] / AFFINE_SCALE_BOUND);
     (s, o[1])
 }
@@ -67,14 +76,36 @@ impl<W: Weights> AffineFlowSampler<W> {
     params_constructors!();
 }
 
-/// [`AffineFlowSampler`] prepared for one condition: the condition's share of every coupling
-/// network's first layer.
+/// The affine flow at one shading point without its weights handle (the lane of the batched
+/// API): the condition's share of every coupling network's first layer.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct AffineLane {
+    share: [[f32; HIDDEN]; AFFINE_LAYERS],
+}
+
+impl AffineLane {
+    /// The state from the couplings' condition shares; `None` when any is not finite.
+    #[inline(always)]
+    fn new(share: [[f32; HIDDEN]; AFFINE_LAYERS]) -> Option<AffineLane> {
+        let mut l = 0;
+        while l < AFFINE_LAYERS {
+            if !all_finite(&share[l]) {
+                return None;
+            }
+            l += 1;
+        }
+        Some(AffineLane { share })
+    }
+}
+
+/// [`AffineFlowSampler`] prepared for one condition: its [`AffineLane`] and a copy of the
+/// weights handle.
 #[derive(Debug)]
 pub struct AffineFlowPrepared<'s, W> {
     /// A copy of the sampler's weights handle (see `Held`).
     params: Held<W>,
     _sampler: PhantomData<&'s W>,
-    share: [[f32; HIDDEN]; AFFINE_LAYERS],
+    lane: AffineLane,
 }
 
 impl<W: Copy> Clone for AffineFlowPrepared<'_, W> {
@@ -83,7 +114,7 @@ impl<W: Copy> Clone for AffineFlowPrepared<'_, W> {
         AffineFlowPrepared {
             params: self.params.clone(),
             _sampler: PhantomData,
-            share: self.share,
+            lane: self.lane,
         }
     }
 }
@@ -106,15 +137,12 @@ impl<W: Weights + Copy> Sampler for AffineFlowSampler<W> {
         let mut l = 0;
         while l < AFFINE_LAYERS {
             share[l] = condition_share(w, (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32, &c);
-            if !all_finite(&share[l]) {
-                return None;
-            }
             l += 1;
         }
         Some(AffineFlowPrepared {
             params: Held::new(self.params),
             _sampler: PhantomData,
-            share,
+            lane: AffineLane::new(share)?,
         })
     }
 }
@@ -129,7 +157,7 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
         if !inside_disk(p) {
             return None;
         }
-        let st0 = affine_params(&self.params.get(), 0, &self.share[0], p.y);
+        let st0 = affine_params(&self.params.get(), 0, &self.lane.share[0], p.y);
         let unused = [[0.0f32; 3]; AFFINE_LAYERS];
         Some(self.latent_with_layer0(p, st0, &unused, false))
     }
@@ -156,7 +184,7 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
             let (s, t) = if reuse && v.to_bits() == seen[l][0].to_bits() {
                 (seen[l][1], seen[l][2])
             } else {
-                affine_params(&self.params.get(), l, &self.share[l], v)
+                affine_params(&self.params.get(), l, &self.lane.share[l], v)
             };
             if l % 2 == 0 {
                 x = x * math::exp(s) + t;
@@ -188,7 +216,7 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
         let mut l = AFFINE_LAYERS - 1;
         while l > 0 {
             let v = if l % 2 == 0 { y } else { x };
-            let (s, t) = affine_params(&self.params.get(), l, &self.share[l], v);
+            let (s, t) = affine_params(&self.params.get(), l, &self.lane.share[l], v);
             seen[l] = [v, s, t];
             if l % 2 == 0 {
                 x = (x - t) * math::exp(-s);
@@ -198,7 +226,7 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
             ld -= s;
             l -= 1;
         }
-        let (s0, t0) = affine_params(&self.params.get(), 0, &self.share[0], y);
+        let (s0, t0) = affine_params(&self.params.get(), 0, &self.lane.share[0], y);
         x = (x - t0) * math::exp(-s0);
         ld -= s0;
         (Vec2::new(x, y), ld, (s0, t0), seen)

@@ -137,3 +137,200 @@ impl Prepared for AnyPrepared<'_, '_> {
         dispatch!(self, p => p.invert(wo))
     }
 }
+
+#[cfg(not(target_arch = "spirv"))]
+mod batch {
+    //! [`AnySampler`] over wavefronts: one `match` per call, then the concrete sampler's
+    //! batched kernels.
+
+    use super::*;
+    use crate::error::{Error, Result};
+    use crate::samplers::{
+        AffineLane, AnalyticMixturePrepared, CosinePrepared, DirectHistogramPrepared, FlowLane,
+        ImprovedBaselinePrepared, MixtureLane,
+    };
+    use crate::wavefront::{
+        BatchSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s, FUSED_CHUNK,
+    };
+
+    /// The lane of an [`AnySampler`]: the concrete sampler's lane. It is as large as the
+    /// largest lane (the direct histogram's 2 KiB table); prefer the concrete sampler's
+    /// lanes, or the fused calls, for wavefronts of other kinds.
+    #[derive(Copy, Clone, Debug, Default)]
+    #[allow(clippy::large_enum_variant)]
+    pub enum AnyLane {
+        /// A refused lane.
+        #[default]
+        Refused,
+        /// [`SamplerKind::Cosine`].
+        Cosine(CosinePrepared),
+        /// [`SamplerKind::ImprovedBaseline`].
+        ImprovedBaseline(ImprovedBaselinePrepared),
+        /// [`SamplerKind::AnalyticMixture`].
+        AnalyticMixture(AnalyticMixturePrepared),
+        /// [`SamplerKind::Flow`].
+        Flow(FlowLane),
+        /// [`SamplerKind::AffineFlow`].
+        AffineFlow(AffineLane),
+        /// [`SamplerKind::DirectHistogram`].
+        DirectHistogram(DirectHistogramPrepared),
+        /// [`SamplerKind::HistogramMixture`].
+        HistogramMixture(MixtureLane),
+    }
+
+    /// Runs `f` on chunks of typed lanes converted from and to [`AnyLane`]s.
+    macro_rules! typed {
+        ($lanes:expr, $variant:ident, $lane:ty, |$typed:ident, $a:ident| $body:expr) => {{
+            let lanes = $lanes;
+            let mut buf: [Option<$lane>; FUSED_CHUNK] = [None; FUSED_CHUNK];
+            let mut $a = 0;
+            while $a < lanes.len() {
+                let b = ($a + FUSED_CHUNK).min(lanes.len());
+                for (t, l) in buf.iter_mut().zip(&lanes[$a..b]) {
+                    *t = match l {
+                        AnyLane::$variant(x) => Some(*x),
+                        _ => None,
+                    };
+                }
+                let $typed = &buf[..b - $a];
+                $body?;
+                $a = b;
+            }
+            Ok(())
+        }};
+    }
+
+    /// One arm per kind: `$m!(sampler, Variant, LaneType)`.
+    macro_rules! each_kind {
+        ($s:expr, $m:ident) => {
+            match $s {
+                AnySampler::Cosine(s) => $m!(s, Cosine, CosinePrepared),
+                AnySampler::ImprovedBaseline(s) => $m!(s, ImprovedBaseline, ImprovedBaselinePrepared),
+                AnySampler::AnalyticMixture(s) => $m!(s, AnalyticMixture, AnalyticMixturePrepared),
+                AnySampler::Flow(s) => $m!(s, Flow, FlowLane),
+                AnySampler::AffineFlow(s) => $m!(s, AffineFlow, AffineLane),
+                AnySampler::DirectHistogram(s) => $m!(s, DirectHistogram, DirectHistogramPrepared),
+                AnySampler::HistogramMixture(s) => $m!(s, HistogramMixture, MixtureLane),
+            }
+        };
+    }
+
+    impl BatchSampler for AnySampler<'_> {
+        type Lane = AnyLane;
+
+        fn prepare_batch(
+            &self,
+            phi: Features<'_>,
+            wi: Vec3s<'_>,
+            lanes: &mut [AnyLane],
+        ) -> Result<()> {
+            let n = crate::wavefront::check_prepare_args(&phi, &wi, lanes)?;
+            macro_rules! prep {
+                ($s:expr, $variant:ident, $lane:ty) => {{
+                    let mut buf: [Option<$lane>; FUSED_CHUNK] = [None; FUSED_CHUNK];
+                    let mut a = 0;
+                    while a < n {
+                        let b = (a + FUSED_CHUNK).min(n);
+                        $s.prepare_batch(phi.range(a, b), wi.range(a, b), &mut buf[..b - a])?;
+                        for (l, t) in lanes[a..b].iter_mut().zip(&buf[..b - a]) {
+                            *l = match t {
+                                Some(x) => AnyLane::$variant(*x),
+                                None => AnyLane::Refused,
+                            };
+                        }
+                        a = b;
+                    }
+                    Ok::<(), Error>(())
+                }};
+            }
+            each_kind!(self, prep)
+        }
+
+        fn sample_batch(
+            &self,
+            lanes: &[AnyLane],
+            u: Vec2s<'_>,
+            mut out: SamplesMut<'_>,
+        ) -> Result<()> {
+            crate::wavefront::check_sample_args(lanes, &u, &out)?;
+            macro_rules! samp {
+                ($s:expr, $variant:ident, $lane:ty) => {
+                    typed!(lanes, $variant, $lane, |t, a| $s.sample_batch(
+                        t,
+                        u.range(a, a + t.len()),
+                        out.range(a, a + t.len())
+                    ))
+                };
+            }
+            each_kind!(self, samp)
+        }
+
+        fn pdf_batch(&self, lanes: &[AnyLane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+            crate::wavefront::check_pdf_args(lanes, &wo, pdf)?;
+            macro_rules! dens {
+                ($s:expr, $variant:ident, $lane:ty) => {
+                    typed!(lanes, $variant, $lane, |t, a| $s.pdf_batch(
+                        t,
+                        wo.range(a, a + t.len()),
+                        &mut pdf[a..a + t.len()]
+                    ))
+                };
+            }
+            each_kind!(self, dens)
+        }
+
+        fn invert_batch(
+            &self,
+            lanes: &[AnyLane],
+            wo: Vec3s<'_>,
+            mut u: Vec2sMut<'_>,
+            ok: &mut [bool],
+        ) -> Result<()> {
+            crate::wavefront::check_invert_args(lanes, &wo, &u, ok)?;
+            macro_rules! inv {
+                ($s:expr, $variant:ident, $lane:ty) => {
+                    typed!(lanes, $variant, $lane, |t, a| $s.invert_batch(
+                        t,
+                        wo.range(a, a + t.len()),
+                        u.range(a, a + t.len()),
+                        &mut ok[a..a + t.len()]
+                    ))
+                };
+            }
+            each_kind!(self, inv)
+        }
+
+        fn sample_fused(
+            &self,
+            phi: Features<'_>,
+            wi: Vec3s<'_>,
+            u: Vec2s<'_>,
+            out: SamplesMut<'_>,
+        ) -> Result<()> {
+            macro_rules! fused {
+                ($s:expr, $variant:ident, $lane:ty) => {
+                    $s.sample_fused(phi, wi, u, out)
+                };
+            }
+            each_kind!(self, fused)
+        }
+
+        fn pdf_fused(
+            &self,
+            phi: Features<'_>,
+            wi: Vec3s<'_>,
+            wo: Vec3s<'_>,
+            pdf: &mut [f32],
+        ) -> Result<()> {
+            macro_rules! fused {
+                ($s:expr, $variant:ident, $lane:ty) => {
+                    $s.pdf_fused(phi, wi, wo, pdf)
+                };
+            }
+            each_kind!(self, fused)
+        }
+    }
+}
+
+#[cfg(not(target_arch = "spirv"))]
+pub use batch::AnyLane;

@@ -43,3 +43,23 @@ impl Prepared for CosinePrepared {
         Some(warp::invert_uniform_disk_concentric(warp::to_disk(w)))
     }
 }
+
+#[cfg(not(target_arch = "spirv"))]
+impl crate::wavefront::BatchSampler for CosineSampler {
+    type Lane = Option<CosinePrepared>;
+
+    fn prepare_batch(
+        &self,
+        phi: crate::wavefront::Features<'_>,
+        wi: crate::wavefront::Vec3s<'_>,
+        lanes: &mut [Option<CosinePrepared>],
+    ) -> crate::Result<()> {
+        let n = crate::wavefront::check_prepare_args(&phi, &wi, lanes)?;
+        for (i, lane) in lanes.iter_mut().enumerate().take(n) {
+            *lane = self.prepare(&phi.at(i), wi.at(i));
+        }
+        Ok(())
+    }
+
+    crate::wavefront::per_lane_methods!(CosinePrepared);
+}

@@ -207,6 +207,15 @@ impl<W: Weights> HistogramMixtureSampler<W> {
     where
         W: Copy,
     {
+        Some(self.with_lane(self.lane_from_outputs(o)?))
+    }
+
+    /// [`Self::prepare_outputs`] without the weights handle: the lane of the batched API.
+    #[inline(always)]
+    pub(crate) fn lane_from_outputs(&self, o: &[f32; MIX_OUTPUTS]) -> Option<MixtureLane>
+    where
+        W: Copy,
+    {
         let t_levels = self.t_levels;
         let mut soft = [0.0f32; BASES];
         let mut k = 0;
@@ -329,9 +338,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             weights[k] *= inv;
             k += 1;
         }
-        Some(HistogramMixturePrepared {
-            sampler: Held::new(*self),
-            _sampler: core::marker::PhantomData,
+        Some(MixtureLane {
             weights,
             rotation,
             slice0,
@@ -343,13 +350,10 @@ impl<W: Weights> HistogramMixtureSampler<W> {
     }
 }
 
-/// The histogram mixture at one shading point: per-basis weight, rotation and table slices.
-/// Borrows the sampler's tables.
-#[derive(Debug)]
-pub struct HistogramMixturePrepared<'s, W> {
-    /// A copy of the sampler: weight and table handles (see `sampler::Held`).
-    sampler: Held<HistogramMixtureSampler<W>>,
-    _sampler: core::marker::PhantomData<&'s W>,
+/// The histogram mixture at one shading point without its weights handle (the lane of the
+/// batched API): per-basis weight, rotation and table slices.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct MixtureLane {
     weights: [f32; BASES],
     rotation: [Vec2; BASES],
     slice0: [u32; BASES],
@@ -361,19 +365,146 @@ pub struct HistogramMixturePrepared<'s, W> {
     inv_integral: [f32; BASES],
 }
 
+/// The histogram mixture at one shading point: its [`MixtureLane`] and a copy of the
+/// sampler's weight and table handles.
+#[derive(Debug)]
+pub struct HistogramMixturePrepared<'s, W> {
+    /// A copy of the sampler: weight and table handles (see `Held`).
+    sampler: Held<HistogramMixtureSampler<W>>,
+    _sampler: core::marker::PhantomData<&'s W>,
+    lane: MixtureLane,
+}
+
 impl<W: Copy> Clone for HistogramMixturePrepared<'_, W> {
     fn clone(&self) -> Self {
         HistogramMixturePrepared {
             sampler: self.sampler.clone(),
             _sampler: core::marker::PhantomData,
-            weights: self.weights,
-            rotation: self.rotation,
-            slice0: self.slice0,
-            slice1: self.slice1,
-            lerp: self.lerp,
-            total: self.total,
-            inv_integral: self.inv_integral,
+            lane: self.lane,
         }
+    }
+}
+
+impl<W: Weights + Copy> HistogramMixtureSampler<W> {
+    /// The scalar prepared state of a lane.
+    #[inline(always)]
+    pub(crate) fn with_lane(&self, lane: MixtureLane) -> HistogramMixturePrepared<'_, W> {
+        HistogramMixturePrepared {
+            sampler: Held::new(*self),
+            _sampler: core::marker::PhantomData,
+            lane,
+        }
+    }
+
+    /// [`HistogramMixturePrepared::table`] of a lane.
+    #[inline(always)]
+    pub(crate) fn lane_table(&self, lane: &MixtureLane, k: usize) -> Table2D<W> {
+        let k = if k < BASES { k } else { BASES - 1 };
+        Table2D::from_normalized_parts(
+            self.table,
+            self.marginal,
+            self.conditional,
+            self.resolution,
+            (lane.slice0[k], lane.slice1[k], lane.lerp[k]),
+            lane.total[k],
+            lane.inv_integral[k],
+        )
+    }
+
+    /// [`Prepared::sample`] of a lane: chooses basis `k` by the weights (remapping `u.x`),
+    /// samples its table in rotated coordinates and rotates back, `ω⊥ = R_k q`; the density
+    /// is the full mixture at the drawn point.
+    #[inline(always)]
+    pub(crate) fn lane_sample(&self, lane: &MixtureLane, u: Vec2) -> Option<Sample> {
+        let u = math::sanitize_u2(u)?;
+        let (k, u0) = gaussian::select_component(&lane.weights, u.x);
+        let k = if k < BASES { k } else { BASES - 1 };
+        let (q, _) = self.lane_table(lane, k).sample(Vec2::new(u0, u.y))?;
+        let p = warp::rotate(q, lane.rotation[k]);
+        Sample::from_disk(p, self.lane_pdf_disk(lane, p))
+    }
+
+    /// [`Prepared::pdf_disk`] of a lane, Eq. 5: `Σ_k w_k · H_k(Rᵀ_k ω⊥)`.
+    #[inline(always)]
+    pub(crate) fn lane_pdf_disk(&self, lane: &MixtureLane, p: Vec2) -> f32 {
+        if !(p.x * p.x + p.y * p.y < 1.0) {
+            return 0.0;
+        }
+        // `Σ_k w_k · table(k).pdf(Rᵀ_k p)` in three passes: the cells first, then every
+        // basis's table read (independent loads from a table too big for L1 overlap), then
+        // the sum in basis order.
+        let n = self.resolution;
+        let mut cell = [0u32; BASES];
+        let mut inside = [0u32; BASES];
+        let mut k = 0;
+        while k < BASES {
+            let q = warp::rotate_inverse(p, lane.rotation[k]);
+            inside[k] = u32::from(in_square(q));
+            cell[k] = cell_of(q, n);
+            k += 1;
+        }
+        let mut density = [0.0f32; BASES];
+        k = 0;
+        while k < BASES {
+            density[k] = if inside[k] != 0 {
+                self.lane_table(lane, k).density_at_cell(cell[k])
+            } else {
+                0.0
+            };
+            k += 1;
+        }
+        let mut sum = 0.0f32;
+        k = 0;
+        while k < BASES {
+            let w = lane.weights[k];
+            if w > 0.0 {
+                sum += w * density[k];
+            }
+            k += 1;
+        }
+        math::finite_density(sum)
+    }
+
+    /// [`HistogramMixturePrepared::invert_basis`] of a lane.
+    #[inline(always)]
+    pub(crate) fn lane_invert_basis(&self, lane: &MixtureLane, k: usize, wo: Vec3) -> Option<Vec2> {
+        if k >= BASES || !(lane.weights[k] > 0.0) {
+            return None;
+        }
+        let w = warp::upper_hemisphere(wo)?;
+        let q = warp::rotate_inverse(warp::to_disk(w), lane.rotation[k]);
+        let v = self.lane_table(lane, k).invert(q)?;
+        // Start of basis k's interval, summed as gaussian::select_component does.
+        let mut lo = 0.0f32;
+        let mut i = 0;
+        while i < k {
+            if lane.weights[i] > 0.0 {
+                lo += lane.weights[i];
+            }
+            i += 1;
+        }
+        let ux = lo + v.x * lane.weights[k];
+        Some(Vec2::new(
+            math::clamp(ux, 0.0, math::ONE_MINUS_EPSILON),
+            v.y,
+        ))
+    }
+
+    /// [`Prepared::invert`] of a lane: the basis inverse when exactly one basis has weight.
+    #[inline(always)]
+    pub(crate) fn lane_invert(&self, lane: &MixtureLane, wo: Vec3) -> Option<Vec2> {
+        let mut only = BASES;
+        let mut k = 0;
+        while k < BASES {
+            if lane.weights[k] > 0.0 {
+                if only < BASES {
+                    return None;
+                }
+                only = k;
+            }
+            k += 1;
+        }
+        self.lane_invert_basis(lane, only, wo)
     }
 }
 
@@ -381,13 +512,19 @@ impl<'s, W: Weights + Copy> HistogramMixturePrepared<'s, W> {
     /// Mixture weights `w_k` (sum 1).
     #[must_use]
     pub fn weights(&self) -> [f32; BASES] {
-        self.weights
+        self.lane.weights
     }
 
     /// Rotation `(cos, sin)` of basis `k` (index clamped to `[0, K − 1]`).
     #[must_use]
     pub fn rotation(&self, k: usize) -> Vec2 {
-        self.rotation[if k < BASES { k } else { BASES - 1 }]
+        self.lane.rotation[if k < BASES { k } else { BASES - 1 }]
+    }
+
+    /// The prepared state without the weights handle.
+    #[must_use]
+    pub fn lane(&self) -> MixtureLane {
+        self.lane
     }
 
     /// The (possibly blended) table `H_k` of basis `k` (index clamped to `[0, K − 1]`), in
@@ -395,17 +532,7 @@ impl<'s, W: Weights + Copy> HistogramMixturePrepared<'s, W> {
     #[inline]
     #[must_use]
     pub fn table(&self, k: usize) -> Table2D<W> {
-        let k = if k < BASES { k } else { BASES - 1 };
-        let s = self.sampler.get();
-        Table2D::from_normalized_parts(
-            s.table,
-            s.marginal,
-            s.conditional,
-            s.resolution,
-            (self.slice0[k], self.slice1[k], self.lerp[k]),
-            self.total[k],
-            self.inv_integral[k],
-        )
+        self.sampler.get().lane_table(&self.lane, k)
     }
 
     /// The `u` that [`Prepared::sample`] maps to `wo` *through basis `k`*: the basis's table
@@ -413,26 +540,7 @@ impl<'s, W: Weights + Copy> HistogramMixturePrepared<'s, W> {
     /// `None` when basis `k` has zero weight or zero density at `wo`, or for invalid `wo`.
     #[must_use]
     pub fn invert_basis(&self, k: usize, wo: Vec3) -> Option<Vec2> {
-        if k >= BASES || !(self.weights[k] > 0.0) {
-            return None;
-        }
-        let w = warp::upper_hemisphere(wo)?;
-        let q = warp::rotate_inverse(warp::to_disk(w), self.rotation[k]);
-        let v = self.table(k).invert(q)?;
-        // Start of basis k's interval, summed as gaussian::select_component does.
-        let mut lo = 0.0f32;
-        let mut i = 0;
-        while i < k {
-            if self.weights[i] > 0.0 {
-                lo += self.weights[i];
-            }
-            i += 1;
-        }
-        let ux = lo + v.x * self.weights[k];
-        Some(Vec2::new(
-            math::clamp(ux, 0.0, math::ONE_MINUS_EPSILON),
-            v.y,
-        ))
+        self.sampler.get().lane_invert_basis(&self.lane, k, wo)
     }
 }
 
@@ -460,53 +568,14 @@ impl<W: Weights + Copy> Prepared for HistogramMixturePrepared<'_, W> {
     /// (Eq. 5) at the drawn point; `None` when it lands outside the disk.
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
-        let u = math::sanitize_u2(u)?;
-        let (k, u0) = gaussian::select_component(&self.weights, u.x);
-        let (q, _) = self.table(k).sample(Vec2::new(u0, u.y))?;
-        let p = warp::rotate(q, self.rotation(k));
-        Sample::from_disk(p, self.pdf_disk(p))
+        self.sampler.get().lane_sample(&self.lane, u)
     }
 
     /// Eq. 5: `Σ_k w_k · H_k(Rᵀ_k ω⊥)` with respect to area on the projected disk; 0 outside
     /// the open unit disk.
     #[inline]
     fn pdf_disk(&self, p: Vec2) -> f32 {
-        if !(p.x * p.x + p.y * p.y < 1.0) {
-            return 0.0;
-        }
-        // `Σ_k w_k · table(k).pdf(Rᵀ_k p)` in three passes: the cells first, then every
-        // basis's table read (independent loads from a table too big for L1 overlap), then
-        // the sum in basis order.
-        let n = self.sampler.get().resolution;
-        let mut cell = [0u32; BASES];
-        let mut inside = [0u32; BASES];
-        let mut k = 0;
-        while k < BASES {
-            let q = warp::rotate_inverse(p, self.rotation[k]);
-            inside[k] = u32::from(in_square(q));
-            cell[k] = cell_of(q, n);
-            k += 1;
-        }
-        let mut density = [0.0f32; BASES];
-        k = 0;
-        while k < BASES {
-            density[k] = if inside[k] != 0 {
-                self.table(k).density_at_cell(cell[k])
-            } else {
-                0.0
-            };
-            k += 1;
-        }
-        let mut sum = 0.0f32;
-        k = 0;
-        while k < BASES {
-            let w = self.weights[k];
-            if w > 0.0 {
-                sum += w * density[k];
-            }
-            k += 1;
-        }
-        math::finite_density(sum)
+        self.sampler.get().lane_pdf_disk(&self.lane, p)
     }
 
     /// The unique `u` that `sample` maps to `wo` when exactly one basis has positive weight;
@@ -515,17 +584,115 @@ impl<W: Weights + Copy> Prepared for HistogramMixturePrepared<'_, W> {
     /// [`HistogramMixturePrepared::invert_basis`] for the per-basis inverse.
     #[inline]
     fn invert(&self, wo: Vec3) -> Option<Vec2> {
-        let mut only = BASES;
-        let mut k = 0;
-        while k < BASES {
-            if self.weights[k] > 0.0 {
-                if only < BASES {
-                    return None;
-                }
-                only = k;
-            }
-            k += 1;
+        self.sampler.get().lane_invert(&self.lane, wo)
+    }
+}
+
+#[cfg(not(target_arch = "spirv"))]
+mod batch {
+    //! The histogram mixture over wavefronts: the network as matrix products over a chunk's
+    //! lanes, then per lane the scalar path's own functions (`lane_from_outputs`,
+    //! `lane_sample`, `lane_pdf_disk`, `lane_invert`).
+
+    use super::*;
+    use crate::wavefront::{
+        self, dense, BatchSampler, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s,
+    };
+
+    /// Lanes per chunk.
+    const CHUNK: usize = 32;
+
+    impl<W: Weights + Copy> BatchSampler for HistogramMixtureSampler<W> {
+        type Lane = Option<MixtureLane>;
+
+        fn prepare_batch(
+            &self,
+            phi: Features<'_>,
+            wi: Vec3s<'_>,
+            lanes: &mut [Option<MixtureLane>],
+        ) -> crate::Result<()> {
+            let n = wavefront::check_prepare_args(&phi, &wi, lanes)?;
+            let w = &self.params;
+            wavefront::simd::dispatch(|| {
+                wavefront::chunks::<CHUNK>(n, |a, b| {
+                    let m = b - a;
+                    let (c, valid) =
+                        wavefront::raw_conditions::<CHUNK>(&phi.range(a, b), &wi.range(a, b));
+                    let mut h: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
+                    let mut g: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
+                    let mut o: Soa<MIX_OUTPUTS, CHUNK> = [[0.0; CHUNK]; MIX_OUTPUTS];
+                    let relu = Activation::Relu;
+                    dense::dense(w, MIX_L0 as u32, &c, relu, &mut h, m);
+                    dense::dense(w, MIX_L1 as u32, &h, relu, &mut g, m);
+                    dense::dense(w, MIX_L2 as u32, &g, relu, &mut h, m);
+                    dense::dense(w, MIX_L3 as u32, &h, Activation::Identity, &mut o, m);
+                    for l in 0..m {
+                        lanes[a + l] = if valid[l] {
+                            self.lane_from_outputs(&wavefront::column(&o, l))
+                        } else {
+                            None
+                        };
+                    }
+                });
+            });
+            Ok(())
         }
-        self.invert_basis(only, wo)
+
+        fn sample_batch(
+            &self,
+            lanes: &[Option<MixtureLane>],
+            u: Vec2s<'_>,
+            mut out: SamplesMut<'_>,
+        ) -> crate::Result<()> {
+            let n = wavefront::check_sample_args(lanes, &u, &out)?;
+            wavefront::simd::dispatch(|| {
+                for i in 0..n {
+                    let s = lanes[i].as_ref().and_then(|l| self.lane_sample(l, u.at(i)));
+                    out.set(i, s);
+                }
+            });
+            Ok(())
+        }
+
+        fn pdf_batch(
+            &self,
+            lanes: &[Option<MixtureLane>],
+            wo: Vec3s<'_>,
+            pdf: &mut [f32],
+        ) -> crate::Result<()> {
+            let n = wavefront::check_pdf_args(lanes, &wo, pdf)?;
+            wavefront::simd::dispatch(|| {
+                for i in 0..n {
+                    pdf[i] = match (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
+                        (Some(l), Some(w)) => warp::disk_to_solid_angle(
+                            self.lane_pdf_disk(l, warp::to_disk(w)),
+                            w.z,
+                        ),
+                        _ => 0.0,
+                    };
+                }
+            });
+            Ok(())
+        }
+
+        fn invert_batch(
+            &self,
+            lanes: &[Option<MixtureLane>],
+            wo: Vec3s<'_>,
+            mut u: Vec2sMut<'_>,
+            ok: &mut [bool],
+        ) -> crate::Result<()> {
+            let n = wavefront::check_invert_args(lanes, &wo, &u, ok)?;
+            wavefront::simd::dispatch(|| {
+                for i in 0..n {
+                    let r = lanes[i].as_ref().and_then(|l| self.lane_invert(l, wo.at(i)));
+                    ok[i] = r.is_some();
+                    if let Some(v) = r {
+                        u.set(i, v);
+                    }
+                }
+            });
+            Ok(())
+        }
     }
 }

@@ -25,14 +25,16 @@ mod mixture_tables;
 pub mod spline_flow;
 mod traits;
 
-pub use affine_flow::{AffineFlowPrepared, AffineFlowSampler};
+pub use affine_flow::{AffineFlowPrepared, AffineFlowSampler, AffineLane};
+#[cfg(not(target_arch = "spirv"))]
+pub use any::AnyLane;
 pub use any::{AnyPrepared, AnySampler};
 pub use cosine::{CosinePrepared, CosineSampler};
 pub use direct_histogram::{DirectHistogramPrepared, DirectHistogramSampler};
-pub use histogram_mixture::{HistogramMixturePrepared, HistogramMixtureSampler};
+pub use histogram_mixture::{HistogramMixturePrepared, HistogramMixtureSampler, MixtureLane};
 pub use lobes::{
     AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,
     ImprovedBaselineSampler,
 };
-pub use spline_flow::{FlowPrepared, FlowSampler};
+pub use spline_flow::{FlowLane, FlowPrepared, FlowSampler};
 pub use traits::{Prepared, Sample, Sampler};

@@ -36,6 +36,9 @@ pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OT
 use super::traits::{params_constructors, Held};
 use super::{Prepared, Sample, Sampler};
 
+#[cfg(not(target_arch = "spirv"))]
+mod batch;
+
 /// Bins of every spline of [`FlowSampler`] (release: 20).
 pub const SPLINE_BINS: usize = 20;
 /// Tail bound `B` of every spline of [`FlowSampler`]: splines act on `[−1, 1]`.
@@ -97,23 +100,91 @@ impl<W: Weights> FlowSampler<W> {
     params_constructors!();
 }
 
-/// [`FlowSampler`] prepared for one condition: the base Gaussian and the condition's share
-/// of both coupling networks' first layers.
+/// The flow at one shading point without its weights handle (the lane of the batched API):
+/// the base Gaussian and the condition's share of both coupling networks' first layers.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct FlowLane {
+    /// Mean of the base Gaussian.
+    mu: Vec2,
+    /// Standard deviations of the base Gaussian (clamped `exp(log σ)`).
+    sigma: Vec2,
+    /// `ln(σx·σy)`, the base density's normalisation.
+    ln_sigma: f32,
+    /// Condition's share (bias included) of coupling network 0's and 1's first layer.
+    share: [[f32; HIDDEN]; 2],
+}
+
+impl FlowLane {
+    /// The state from the base network's outputs `[μx, μy, log σx, log σy]` and the
+    /// couplings' condition shares; `None` when any of them is not finite.
+    #[inline(always)]
+    fn new(o: &[f32; BASE_OUTPUTS], share: [[f32; HIDDEN]; 2]) -> Option<FlowLane> {
+        if !all_finite(o) || !all_finite(&share[0]) || !all_finite(&share[1]) {
+            return None;
+        }
+        let sigma = Vec2::new(
+            gaussian::sigma_from_log(o[2]),
+            gaussian::sigma_from_log(o[3]),
+        );
+        Some(FlowLane {
+            mu: Vec2::new(o[0], o[1]),
+            sigma,
+            ln_sigma: math::ln(sigma.x * sigma.y),
+            share,
+        })
+    }
+
+    /// Mean of the base Gaussian.
+    #[must_use]
+    pub fn mean(&self) -> Vec2 {
+        self.mu
+    }
+
+    /// Standard deviations of the base Gaussian.
+    #[must_use]
+    pub fn sigma(&self) -> Vec2 {
+        self.sigma
+    }
+
+    /// The base point `z = μ + σ ⊙ n` of Box–Muller's `n` from `u` (already sanitised).
+    #[inline(always)]
+    fn base_point(&self, u: Vec2) -> Vec2 {
+        self.mu + self.sigma * gaussian::box_muller(u)
+    }
+
+    /// `ln N(z; μ, diag σ²) + ld`, NaN → −∞ (`gaussian::log_normal_pdf` with `ln(σx·σy)`
+    /// computed once).
+    #[inline(always)]
+    fn log_density(&self, z: Vec2, ld: f32) -> f32 {
+        let dx = (z.x - self.mu.x) / self.sigma.x;
+        let dy = (z.y - self.mu.y) / self.sigma.y;
+        let l = -0.5 * (dx * dx + dy * dy) - math::LN_TWO_PI - self.ln_sigma + ld;
+        if l.is_nan() {
+            f32::NEG_INFINITY
+        } else {
+            l
+        }
+    }
+
+    /// The `u` whose Box–Muller point under this base Gaussian is `z`.
+    #[inline(always)]
+    fn invert_base(&self, z: Vec2) -> Option<Vec2> {
+        let n = (z - self.mu) / self.sigma;
+        if !math::is_finite(n.x) || !math::is_finite(n.y) {
+            return None;
+        }
+        Some(gaussian::invert_box_muller(n))
+    }
+}
+
+/// [`FlowSampler`] prepared for one condition: its [`FlowLane`] and a copy of the weights
+/// handle.
 #[derive(Debug)]
 pub struct FlowPrepared<'s, W> {
     /// A copy of the sampler's weights handle (see `Held`).
     params: Held<W>,
     _sampler: PhantomData<&'s W>,
-    /// Mean of the base Gaussian.
-    pub mu: Vec2,
-    /// Standard deviations of the base Gaussian (clamped `exp(log σ)`).
-    pub sigma: Vec2,
-    /// Condition's share (bias included) of coupling network 0's and 1's first layer.
-    share: [[f32; HIDDEN]; 2],
-    /// `ln(σx·σy)`, the base density's normalisation (computed once) …
-    ln_sigma: f32,
-    /// … for this `σ` (`sigma` is public: a changed `σ` is not served from the cache).
-    ln_sigma_of: Vec2,
+    lane: FlowLane,
 }
 
 impl<W: Copy> Clone for FlowPrepared<'_, W> {
@@ -122,11 +193,7 @@ impl<W: Copy> Clone for FlowPrepared<'_, W> {
         FlowPrepared {
             params: self.params.clone(),
             _sampler: PhantomData,
-            mu: self.mu,
-            sigma: self.sigma,
-            share: self.share,
-            ln_sigma: self.ln_sigma,
-            ln_sigma_of: self.ln_sigma_of,
+            lane: self.lane,
         }
     }
 }
@@ -147,26 +214,34 @@ impl<W: Weights + Copy> Sampler for FlowSampler<W> {
             condition_share(w, FLOW_COUPLING0 as u32, &c),
             condition_share(w, FLOW_COUPLING1 as u32, &c),
         ];
-        if !all_finite(&o) || !all_finite(&share[0]) || !all_finite(&share[1]) {
-            return None;
-        }
-        let sigma = Vec2::new(
-            gaussian::sigma_from_log(o[2]),
-            gaussian::sigma_from_log(o[3]),
-        );
         Some(FlowPrepared {
             params: Held::new(self.params),
             _sampler: PhantomData,
-            mu: Vec2::new(o[0], o[1]),
-            sigma,
-            share,
-            ln_sigma: math::ln(sigma.x * sigma.y),
-            ln_sigma_of: sigma,
+            lane: FlowLane::new(&o, share)?,
         })
     }
 }
 
+
 impl<W: Weights + Copy> FlowPrepared<'_, W> {
+    /// Mean of the base Gaussian.
+    #[must_use]
+    pub fn mean(&self) -> Vec2 {
+        self.lane.mu
+    }
+
+    /// Standard deviations of the base Gaussian.
+    #[must_use]
+    pub fn sigma(&self) -> Vec2 {
+        self.lane.sigma
+    }
+
+    /// The prepared state without the weights handle.
+    #[must_use]
+    pub fn lane(&self) -> FlowLane {
+        self.lane
+    }
+
     /// Density direction: the latent point `z = (x', y')` of disk point `p` and
     /// `ln |det ∂z/∂p|`, or `None` when `p` is not strictly inside the unit disk.
     ///
@@ -182,7 +257,7 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
         let k1 = spline_knots(
             &self.params.get(),
             FLOW_COUPLING1 as u32,
-            &self.share[1],
+            &self.lane.share[1],
             p.x,
         );
         Some(self.latent_with_k1(p, &k1))
@@ -195,7 +270,7 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
         let k0 = spline_knots(
             &self.params.get(),
             FLOW_COUPLING0 as u32,
-            &self.share[0],
+            &self.lane.share[0],
             yl,
         );
         let (xl, ld0) = k0.forward(p.x);
@@ -223,34 +298,13 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
         let k0 = spline_knots(
             &self.params.get(),
             FLOW_COUPLING0 as u32,
-            &self.share[0],
+            &self.lane.share[0],
             z.y,
         );
         let x = k0.inverse_point(z.x);
-        let k1 = spline_knots(&self.params.get(), FLOW_COUPLING1 as u32, &self.share[1], x);
+        let k1 = spline_knots(&self.params.get(), FLOW_COUPLING1 as u32, &self.lane.share[1], x);
         let y = k1.inverse_point(z.y);
         (Vec2::new(x, y), k0, k1)
-    }
-
-    /// `ln N(z; μ, diag σ²) + ld`, NaN → −∞. `gaussian::log_normal_pdf` with its
-    /// `ln(σx·σy)` taken from `prepare`.
-    #[inline(always)]
-    fn log_density(&self, z: Vec2, ld: f32) -> f32 {
-        let dx = (z.x - self.mu.x) / self.sigma.x;
-        let dy = (z.y - self.mu.y) / self.sigma.y;
-        let cached = self.sigma.x.to_bits() == self.ln_sigma_of.x.to_bits()
-            && self.sigma.y.to_bits() == self.ln_sigma_of.y.to_bits();
-        let ln_sigma = if cached {
-            self.ln_sigma
-        } else {
-            math::ln(self.sigma.x * self.sigma.y)
-        };
-        let l = -0.5 * (dx * dx + dy * dy) - math::LN_TWO_PI - ln_sigma + ld;
-        if l.is_nan() {
-            f32::NEG_INFINITY
-        } else {
-            l
-        }
     }
 
     /// `ln p(p)` on the projected disk (area measure): `ln N(z; μ, diag σ²) + ln |det ∂z/∂p|`
@@ -259,7 +313,7 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
     #[must_use]
     pub fn log_pdf_disk(&self, p: Vec2) -> f32 {
         match self.to_latent(p) {
-            Some((z, ld)) => self.log_density(z, ld),
+            Some((z, ld)) => self.lane.log_density(z, ld),
             None => f32::NEG_INFINITY,
         }
     }
@@ -279,7 +333,7 @@ impl<W: Weights + Copy> Prepared for FlowPrepared<'_, W> {
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
         let u = math::sanitize_u2(u)?;
-        let z = self.mu + self.sigma * gaussian::box_muller(u);
+        let z = self.lane.base_point(u);
         let (p, k0, k1) = self.point_and_knots(z);
         if !inside_disk(p) {
             return None;
@@ -292,12 +346,12 @@ impl<W: Weights + Copy> Prepared for FlowPrepared<'_, W> {
             spline_knots(
                 &self.params.get(),
                 FLOW_COUPLING0 as u32,
-                &self.share[0],
+                &self.lane.share[0],
                 yl,
             )
         };
         let (xl, ld0) = k0.forward(p.x);
-        let log_p = self.log_density(Vec2::new(xl, yl), ld0 + ld1);
+        let log_p = self.lane.log_density(Vec2::new(xl, yl), ld0 + ld1);
         Sample::from_disk(p, density_from_log(log_p))
     }
 
@@ -312,10 +366,6 @@ impl<W: Weights + Copy> Prepared for FlowPrepared<'_, W> {
     fn invert(&self, wo: Vec3) -> Option<Vec2> {
         let w = warp::upper_hemisphere(wo)?;
         let (z, _) = self.to_latent(warp::to_disk(w))?;
-        let n = (z - self.mu) / self.sigma;
-        if !math::is_finite(n.x) || !math::is_finite(n.y) {
-            return None;
-        }
-        Some(gaussian::invert_box_muller(n))
+        self.lane.invert_base(z)
     }
 }

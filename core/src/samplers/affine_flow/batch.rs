@@ -1,0 +1,330 @@
+//! [`AffineFlowSampler`] over wavefronts ([`BatchSampler`]): the coupling networks as matrix
+//! products over a chunk's lanes, the affine updates per lane in the scalar path's order.
+
+use glam::Vec2;
+
+use super::{
+    scale_shift, AffineFlowPrepared, AffineFlowSampler, AffineLane, AFFINE_LAYERS,
+    AFFINE_NET_L0, AFFINE_NET_L1, AFFINE_NET_L2, AFFINE_NET_LEN, AFFINE_OUTPUTS,
+};
+use crate::distrib::gaussian;
+use crate::error::Result;
+use crate::math;
+use crate::nn::{Activation, CONDITION_DIM};
+use crate::samplers::coupling::{density_from_log, encode_other, COUPLING_INPUTS, HIDDEN, OTHER_DIM};
+use crate::samplers::Sample;
+use crate::warp::{self, inside_disk};
+use crate::wavefront::{
+    self, check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, dense,
+    BatchSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s,
+};
+use crate::weights::Weights;
+
+/// Lanes per chunk.
+const CHUNK: usize = 32;
+
+type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
+
+impl<W: Weights + Copy> AffineFlowSampler<W> {
+    /// `(s, t)` of coupling network `l` for the lanes `idx[..m]` of a chunk, each at its own
+    /// other coordinate `v[lane]` (`affine_params`, lane by lane); written to `st[lane]`.
+    #[inline(always)]
+    fn scale_shift_for(
+        &self,
+        l: usize,
+        lanes: &[Option<AffineLane>],
+        idx: &[usize; CHUNK],
+        m: usize,
+        v: &[f32; CHUNK],
+        st: &mut [(f32, f32); CHUNK],
+    ) {
+        let w = &self.params;
+        let off = (l * AFFINE_NET_LEN) as u32;
+        let mut h: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
+        let mut e: Soa<OTHER_DIM> = [[0.0; CHUNK]; OTHER_DIM];
+        for k in 0..m {
+            if let Some(s) = &lanes[idx[k]] {
+                for j in 0..HIDDEN {
+                    h[j][k] = s.share[l][j];
+                }
+            }
+            let enc = encode_other(v[idx[k]]);
+            for (j, x) in enc.iter().enumerate() {
+                e[j][k] = *x;
+            }
+        }
+        let l0 = off + AFFINE_NET_L0 as u32;
+        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(w, l0, CONDITION_DIM as u32, &e, &mut h, m);
+        dense::activate(Activation::Relu, &mut h, m);
+        let mut g: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
+        dense::dense(w, off + AFFINE_NET_L1 as u32, &h, Activation::Relu, &mut g, m);
+        let mut o: Soa<AFFINE_OUTPUTS> = [[0.0; CHUNK]; AFFINE_OUTPUTS];
+        dense::dense(w, off + AFFINE_NET_L2 as u32, &g, Activation::Identity, &mut o, m);
+        for k in 0..m {
+            st[idx[k]] = scale_shift(&[o[0][k], o[1][k]]);
+        }
+    }
+
+    #[inline(always)]
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<AffineLane>]) {
+        let m = out.len();
+        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+        let w = &self.params;
+        let mut share: [Soa<HIDDEN>; AFFINE_LAYERS] = [[[0.0; CHUNK]; HIDDEN]; AFFINE_LAYERS];
+        for (l, s) in share.iter_mut().enumerate() {
+            let off = (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32;
+            dense::bias::<W, COUPLING_INPUTS, HIDDEN, CHUNK>(w, off, s);
+            dense::accumulate::<W, CONDITION_DIM, HIDDEN, CHUNK>(w, off, 0, &c, s, m);
+        }
+        for l in 0..m {
+            out[l] = if valid[l] {
+                let mut sh = [[0.0f32; HIDDEN]; AFFINE_LAYERS];
+                for (dst, src) in sh.iter_mut().zip(share.iter()) {
+                    *dst = wavefront::column(src, l);
+                }
+                AffineLane::new(sh)
+            } else {
+                None
+            };
+        }
+    }
+
+    /// The density direction (`latent_with_layer0`) of disk points `p` given layer 0's
+    /// `(s, t)`: layers 1‥3 rerun where their input differs from `seen` (`reuse`) or always.
+    #[inline(always)]
+    fn latent_chunk(
+        &self,
+        lanes: &[Option<AffineLane>],
+        p: &[Vec2; CHUNK],
+        st0: &[(f32, f32); CHUNK],
+        seen: Option<&[[(f32, f32, f32); CHUNK]; AFFINE_LAYERS]>,
+        zl: &mut [Vec2; CHUNK],
+        ld: &mut [f32; CHUNK],
+    ) {
+        let m = lanes.len();
+        for i in 0..m {
+            let (s0, t0) = st0[i];
+            zl[i] = Vec2::new(p[i].x * math::exp(s0) + t0, p[i].y);
+            ld[i] = s0;
+        }
+        let mut st = [(0.0f32, 0.0f32); CHUNK];
+        let mut v = [0.0f32; CHUNK];
+        for l in 1..AFFINE_LAYERS {
+            let mut idx = [0usize; CHUNK];
+            let mut n_run = 0;
+            for i in 0..m {
+                v[i] = if l % 2 == 0 { zl[i].y } else { zl[i].x };
+                match seen {
+                    Some(sn) if v[i].to_bits() == sn[l][i].0.to_bits() => {
+                        st[i] = (sn[l][i].1, sn[l][i].2);
+                    }
+                    _ => {
+                        idx[n_run] = i;
+                        n_run += 1;
+                    }
+                }
+            }
+            if n_run > 0 {
+                self.scale_shift_for(l, lanes, &idx, n_run, &v, &mut st);
+            }
+            for i in 0..m {
+                let (s, t) = st[i];
+                if l % 2 == 0 {
+                    zl[i].x = zl[i].x * math::exp(s) + t;
+                } else {
+                    zl[i].y = zl[i].y * math::exp(s) + t;
+                }
+                ld[i] += s;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn sample_chunk(&self, lanes: &[Option<AffineLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+        let m = lanes.len();
+        let all = wavefront::identity_index::<CHUNK>();
+        let mut ok = [false; CHUNK];
+        let mut xy = [Vec2::ZERO; CHUNK];
+        for i in 0..m {
+            if let (Some(_), Some(uu)) = (&lanes[i], math::sanitize_u2(u.at(i))) {
+                xy[i] = gaussian::box_muller(uu);
+                ok[i] = true;
+            }
+        }
+        // Sampling direction (`point_and_layer0`): layers 3‥1, then layer 0 at the final y.
+        let mut seen = [[(0.0f32, 0.0f32, 0.0f32); CHUNK]; AFFINE_LAYERS];
+        let mut st = [(0.0f32, 0.0f32); CHUNK];
+        let mut v = [0.0f32; CHUNK];
+        for l in (1..AFFINE_LAYERS).rev() {
+            for i in 0..m {
+                v[i] = if l % 2 == 0 { xy[i].y } else { xy[i].x };
+            }
+            self.scale_shift_for(l, lanes, &all, m, &v, &mut st);
+            for i in 0..m {
+                let (s, t) = st[i];
+                seen[l][i] = (v[i], s, t);
+                if l % 2 == 0 {
+                    xy[i].x = (xy[i].x - t) * math::exp(-s);
+                } else {
+                    xy[i].y = (xy[i].y - t) * math::exp(-s);
+                }
+            }
+        }
+        for i in 0..m {
+            v[i] = xy[i].y;
+        }
+        let mut st0 = [(0.0f32, 0.0f32); CHUNK];
+        self.scale_shift_for(0, lanes, &all, m, &v, &mut st0);
+        for i in 0..m {
+            let (s0, t0) = st0[i];
+            xy[i].x = (xy[i].x - t0) * math::exp(-s0);
+            ok[i] = ok[i] && inside_disk(xy[i]);
+        }
+        let mut zl = [Vec2::ZERO; CHUNK];
+        let mut ld = [0.0f32; CHUNK];
+        self.latent_chunk(lanes, &xy, &st0, Some(&seen), &mut zl, &mut ld);
+        for i in 0..m {
+            let s = if ok[i] {
+                let log_p = AffineFlowPrepared::<W>::log_density(zl[i], ld[i]);
+                Sample::from_disk(xy[i], density_from_log(log_p))
+            } else {
+                None
+            };
+            out.set(i, s);
+        }
+    }
+
+    /// The density direction (`to_latent`) at the directions `wo`: disk points, their
+    /// validity and cos θ, the latent points and the log-dets.
+    #[inline(always)]
+    fn to_latent_chunk(
+        &self,
+        lanes: &[Option<AffineLane>],
+        wo: Vec3s<'_>,
+        ok: &mut [bool; CHUNK],
+        cos: &mut [f32; CHUNK],
+        zl: &mut [Vec2; CHUNK],
+        ld: &mut [f32; CHUNK],
+    ) {
+        let m = lanes.len();
+        let all = wavefront::identity_index::<CHUNK>();
+        let mut p = [Vec2::ZERO; CHUNK];
+        let mut v = [0.0f32; CHUNK];
+        for i in 0..m {
+            if let (Some(_), Some(w)) = (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
+                p[i] = warp::to_disk(w);
+                cos[i] = w.z;
+                ok[i] = inside_disk(p[i]);
+            }
+            v[i] = p[i].y;
+        }
+        let mut st0 = [(0.0f32, 0.0f32); CHUNK];
+        self.scale_shift_for(0, lanes, &all, m, &v, &mut st0);
+        self.latent_chunk(lanes, &p, &st0, None, zl, ld);
+    }
+
+    #[inline(always)]
+    fn pdf_chunk(&self, lanes: &[Option<AffineLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+        let mut ok = [false; CHUNK];
+        let mut cos = [0.0f32; CHUNK];
+        let mut zl = [Vec2::ZERO; CHUNK];
+        let mut ld = [0.0f32; CHUNK];
+        self.to_latent_chunk(lanes, wo, &mut ok, &mut cos, &mut zl, &mut ld);
+        for i in 0..lanes.len() {
+            pdf[i] = if ok[i] {
+                let d = density_from_log(AffineFlowPrepared::<W>::log_density(zl[i], ld[i]));
+                warp::disk_to_solid_angle(d, cos[i])
+            } else {
+                0.0
+            };
+        }
+    }
+
+    #[inline(always)]
+    fn invert_chunk(
+        &self,
+        lanes: &[Option<AffineLane>],
+        wo: Vec3s<'_>,
+        u: &mut Vec2sMut<'_>,
+        a: usize,
+        ok_out: &mut [bool],
+    ) {
+        let mut ok = [false; CHUNK];
+        let mut cos = [0.0f32; CHUNK];
+        let mut zl = [Vec2::ZERO; CHUNK];
+        let mut ld = [0.0f32; CHUNK];
+        self.to_latent_chunk(lanes, wo, &mut ok, &mut cos, &mut zl, &mut ld);
+        for i in 0..lanes.len() {
+            let z = zl[i];
+            let r = if ok[i] && math::is_finite(z.x) && math::is_finite(z.y) {
+                Some(gaussian::invert_box_muller(z))
+            } else {
+                None
+            };
+            ok_out[i] = r.is_some();
+            if let Some(x) = r {
+                u.set(a + i, x);
+            }
+        }
+    }
+}
+
+impl<W: Weights + Copy> BatchSampler for AffineFlowSampler<W> {
+    type Lane = Option<AffineLane>;
+
+    fn prepare_batch(
+        &self,
+        phi: Features<'_>,
+        wi: Vec3s<'_>,
+        lanes: &mut [Option<AffineLane>],
+    ) -> Result<()> {
+        let n = check_prepare_args(&phi, &wi, lanes)?;
+        wavefront::simd::dispatch(|| {
+            wavefront::chunks::<CHUNK>(n, |a, b| {
+                self.prepare_chunk(phi.range(a, b), wi.range(a, b), &mut lanes[a..b]);
+            });
+        });
+        Ok(())
+    }
+
+    fn sample_batch(
+        &self,
+        lanes: &[Option<AffineLane>],
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+    ) -> Result<()> {
+        let n = check_sample_args(lanes, &u, &out)?;
+        wavefront::simd::dispatch(|| {
+            wavefront::chunks::<CHUNK>(n, |a, b| {
+                self.sample_chunk(&lanes[a..b], u.range(a, b), out.range(a, b));
+            });
+        });
+        Ok(())
+    }
+
+    fn pdf_batch(&self, lanes: &[Option<AffineLane>], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+        let n = check_pdf_args(lanes, &wo, pdf)?;
+        wavefront::simd::dispatch(|| {
+            wavefront::chunks::<CHUNK>(n, |a, b| {
+                self.pdf_chunk(&lanes[a..b], wo.range(a, b), &mut pdf[a..b]);
+            });
+        });
+        Ok(())
+    }
+
+    fn invert_batch(
+        &self,
+        lanes: &[Option<AffineLane>],
+        wo: Vec3s<'_>,
+        mut u: Vec2sMut<'_>,
+        ok: &mut [bool],
+    ) -> Result<()> {
+        let n = check_invert_args(lanes, &wo, &u, ok)?;
+        wavefront::simd::dispatch(|| {
+            wavefront::chunks::<CHUNK>(n, |a, b| {
+                self.invert_chunk(&lanes[a..b], wo.range(a, b), &mut u, a, &mut ok[a..b]);
+            });
+        });
+        Ok(())
+    }
+}

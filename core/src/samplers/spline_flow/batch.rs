@@ -1,0 +1,373 @@
+//! [`FlowSampler`] over wavefronts ([`BatchSampler`]). Lanes run in chunks of [`CHUNK`]: the
+//! networks as matrix products over the chunk's lanes ([`dense`]), the splines, Box–Muller and
+//! the densities per lane through the scalar path's own functions, so both paths give the
+//! same bits.
+
+use glam::Vec2;
+
+use super::{
+    FlowLane, FlowSampler, BASE_OUTPUTS, FLOW_BASE_L0, FLOW_BASE_L1, FLOW_COUPLING0,
+    FLOW_COUPLING1, SPLINE_BINS, SPLINE_NET_L0, SPLINE_NET_L1, SPLINE_NET_L2, SPLINE_RAW_LEN,
+    TAIL_BOUND,
+};
+use crate::distrib::spline::Knots;
+use crate::error::Result;
+use crate::math;
+use crate::nn::{Activation, CONDITION_DIM};
+use crate::samplers::coupling::{density_from_log, encode_other, COUPLING_INPUTS, HIDDEN, OTHER_DIM};
+use crate::samplers::Sample;
+use crate::warp::{self, inside_disk};
+use crate::wavefront::{self, dense};
+use crate::wavefront::simd::dispatch;
+use crate::wavefront::{
+    check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, BatchSampler,
+    Features, SamplesMut, Vec2s, Vec2sMut, Vec3s,
+};
+use crate::weights::Weights;
+
+/// Lanes per chunk: activations, splines and lane states of a chunk stay in L1.
+const CHUNK: usize = 32;
+
+/// Activations of a chunk: `[feature][lane]`.
+type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
+
+/// The chunks `[a, b)` of `0..n`.
+#[inline(always)]
+fn chunks(n: usize, f: impl FnMut(usize, usize)) {
+    wavefront::chunks::<CHUNK>(n, f);
+}
+
+impl<W: Weights + Copy> FlowSampler<W> {
+    /// The raw spline parameters of coupling network `net` (at `FLOW_COUPLING0/1`) for the
+    /// first `m` lanes, given each lane's condition share and other coordinate `v`:
+    /// `spline_knots`'s network, lane by lane in `raw[·][lane]`.
+    #[inline(always)]
+    fn coupling_raw(
+        &self,
+        net: usize,
+        share: &[[f32; HIDDEN]; CHUNK],
+        v: &[f32; CHUNK],
+        m: usize,
+        raw: &mut Soa<SPLINE_RAW_LEN>,
+    ) {
+        let w = &self.params;
+        let off = net as u32;
+        let mut h: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
+        let mut e: Soa<OTHER_DIM> = [[0.0; CHUNK]; OTHER_DIM];
+        for l in 0..m {
+            for j in 0..HIDDEN {
+                h[j][l] = share[l][j];
+            }
+            let enc = encode_other(v[l]);
+            for k in 0..OTHER_DIM {
+                e[k][l] = enc[k];
+            }
+        }
+        let l0 = off + SPLINE_NET_L0 as u32;
+        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(w, l0, CONDITION_DIM as u32, &e, &mut h, m);
+        dense::activate(Activation::LeakyRelu, &mut h, m);
+        let mut h2: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
+        let l1 = off + SPLINE_NET_L1 as u32;
+        dense::dense::<W, HIDDEN, HIDDEN, CHUNK>(w, l1, &h, Activation::LeakyRelu, &mut h2, m);
+        let l2 = off + SPLINE_NET_L2 as u32;
+        dense::dense::<W, HIDDEN, SPLINE_RAW_LEN, CHUNK>(w, l2, &h2, Activation::Identity, raw, m);
+    }
+
+    /// The splines of coupling network `net` for the lanes `idx[..m]` of a chunk, each at its
+    /// own other coordinate `v[lane]`; written to `knots[lane]`.
+    #[inline(always)]
+    fn knots_for(
+        &self,
+        net: usize,
+        lanes: &[Option<FlowLane>],
+        idx: &[usize; CHUNK],
+        m: usize,
+        v: &[f32; CHUNK],
+        knots: &mut [Knots<SPLINE_BINS>; CHUNK],
+    ) {
+        let which = if net == FLOW_COUPLING0 { 0 } else { 1 };
+        let mut share = [[0.0f32; HIDDEN]; CHUNK];
+        let mut vv = [0.0f32; CHUNK];
+        for k in 0..m {
+            if let Some(s) = &lanes[idx[k]] {
+                share[k] = s.share[which];
+            }
+            vv[k] = v[idx[k]];
+        }
+        let mut raw: Soa<SPLINE_RAW_LEN> = [[0.0; CHUNK]; SPLINE_RAW_LEN];
+        self.coupling_raw(net, &share, &vv, m, &mut raw);
+        for k in 0..m {
+            let mut r = [0.0f32; SPLINE_RAW_LEN];
+            for (j, x) in r.iter_mut().enumerate() {
+                *x = raw[j][k];
+            }
+            knots[idx[k]] = Knots::from_raw(&r, TAIL_BOUND);
+        }
+    }
+
+    #[inline(always)]
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<FlowLane>]) {
+        let m = out.len();
+        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+        let w = &self.params;
+        let mut h: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
+        dense::dense::<W, CONDITION_DIM, HIDDEN, CHUNK>(
+            w,
+            FLOW_BASE_L0 as u32,
+            &c,
+            Activation::Relu,
+            &mut h,
+            m,
+        );
+        let mut o: Soa<BASE_OUTPUTS> = [[0.0; CHUNK]; BASE_OUTPUTS];
+        dense::dense::<W, HIDDEN, BASE_OUTPUTS, CHUNK>(
+            w,
+            FLOW_BASE_L1 as u32,
+            &h,
+            Activation::Identity,
+            &mut o,
+            m,
+        );
+        let mut share: [Soa<HIDDEN>; 2] = [[[0.0; CHUNK]; HIDDEN]; 2];
+        for (s, net) in share.iter_mut().zip([FLOW_COUPLING0, FLOW_COUPLING1]) {
+            dense::bias::<W, COUPLING_INPUTS, HIDDEN, CHUNK>(w, net as u32, s);
+            dense::accumulate::<W, CONDITION_DIM, HIDDEN, CHUNK>(w, net as u32, 0, &c, s, m);
+        }
+        for l in 0..m {
+            out[l] = if valid[l] {
+                let oo = [o[0][l], o[1][l], o[2][l], o[3][l]];
+                let mut sh = [[0.0f32; HIDDEN]; 2];
+                for (dst, src) in sh.iter_mut().zip(share.iter()) {
+                    for j in 0..HIDDEN {
+                        dst[j] = src[j][l];
+                    }
+                }
+                FlowLane::new(&oo, sh)
+            } else {
+                None
+            };
+        }
+    }
+
+    #[inline(always)]
+    fn sample_chunk(&self, lanes: &[Option<FlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+        let m = lanes.len();
+        let all = wavefront::identity_index::<CHUNK>();
+        // Base points (refused lanes keep z = 0 and are dropped at the end).
+        let mut z = [Vec2::ZERO; CHUNK];
+        let mut ok = [false; CHUNK];
+        for l in 0..m {
+            if let (Some(s), Some(uu)) = (&lanes[l], math::sanitize_u2(u.at(l))) {
+                z[l] = s.base_point(uu);
+                ok[l] = true;
+            }
+        }
+        // Sampling direction: x = RQ⁻¹(z.x; coupling0(z.y)), y = RQ⁻¹(z.y; coupling1(x)).
+        let zero = Knots::from_raw(&[0.0; SPLINE_RAW_LEN], TAIL_BOUND);
+        let mut k0 = [zero; CHUNK];
+        let mut k1 = [zero; CHUNK];
+        let mut v = [0.0f32; CHUNK];
+        for l in 0..m {
+            v[l] = z[l].y;
+        }
+        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &v, &mut k0);
+        let mut p = [Vec2::ZERO; CHUNK];
+        for l in 0..m {
+            p[l].x = k0[l].inverse_point(z[l].x);
+            v[l] = p[l].x;
+        }
+        self.knots_for(FLOW_COUPLING1, lanes, &all, m, &v, &mut k1);
+        // Density direction at the sample (`Prepared::sample`): coupling 1's spline is the
+        // same; coupling 0's is rebuilt where its input y' = RQ(y) differs from z.y.
+        let mut yl = [0.0f32; CHUNK];
+        let mut ld1 = [0.0f32; CHUNK];
+        let mut again = [0usize; CHUNK];
+        let mut n_again = 0;
+        for l in 0..m {
+            p[l].y = k1[l].inverse_point(z[l].y);
+            ok[l] = ok[l] && inside_disk(p[l]);
+            if ok[l] {
+                let (y, d) = k1[l].forward(p[l].y);
+                yl[l] = y;
+                ld1[l] = d;
+                if y.to_bits() != z[l].y.to_bits() {
+                    again[n_again] = l;
+                    n_again += 1;
+                }
+            }
+        }
+        if n_again > 0 {
+            self.knots_for(FLOW_COUPLING0, lanes, &again, n_again, &yl, &mut k0);
+        }
+        for l in 0..m {
+            let s = match (&lanes[l], ok[l]) {
+                (Some(st), true) => {
+                    let (xl, ld0) = k0[l].forward(p[l].x);
+                    let log_p = st.log_density(Vec2::new(xl, yl[l]), ld0 + ld1[l]);
+                    Sample::from_disk(p[l], density_from_log(log_p))
+                }
+                _ => None,
+            };
+            out.set(l, s);
+        }
+    }
+
+    /// The latent points and log-dets of the disk points `p` (density direction,
+    /// `FlowPrepared::to_latent`) of the lanes with `ok`.
+    #[inline(always)]
+    fn latent_chunk(
+        &self,
+        lanes: &[Option<FlowLane>],
+        p: &[Vec2; CHUNK],
+        ok: &[bool; CHUNK],
+        zl: &mut [Vec2; CHUNK],
+        ld: &mut [f32; CHUNK],
+    ) {
+        let m = lanes.len();
+        let all = wavefront::identity_index::<CHUNK>();
+        let zero = Knots::from_raw(&[0.0; SPLINE_RAW_LEN], TAIL_BOUND);
+        let mut k = [zero; CHUNK];
+        let mut v = [0.0f32; CHUNK];
+        for l in 0..m {
+            v[l] = p[l].x;
+        }
+        self.knots_for(FLOW_COUPLING1, lanes, &all, m, &v, &mut k);
+        for l in 0..m {
+            if ok[l] {
+                let (y, d) = k[l].forward(p[l].y);
+                zl[l].y = y;
+                ld[l] = d;
+            }
+            v[l] = zl[l].y;
+        }
+        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &v, &mut k);
+        for l in 0..m {
+            if ok[l] {
+                let (x, d) = k[l].forward(p[l].x);
+                zl[l].x = x;
+                ld[l] += d;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn pdf_chunk(&self, lanes: &[Option<FlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+        let m = lanes.len();
+        let mut p = [Vec2::ZERO; CHUNK];
+        let mut cos = [0.0f32; CHUNK];
+        let mut ok = [false; CHUNK];
+        for l in 0..m {
+            if let (Some(_), Some(w)) = (&lanes[l], warp::upper_hemisphere(wo.at(l))) {
+                p[l] = warp::to_disk(w);
+                cos[l] = w.z;
+                ok[l] = inside_disk(p[l]);
+            }
+        }
+        let mut zl = [Vec2::ZERO; CHUNK];
+        let mut ld = [0.0f32; CHUNK];
+        self.latent_chunk(lanes, &p, &ok, &mut zl, &mut ld);
+        for l in 0..m {
+            pdf[l] = match (&lanes[l], ok[l]) {
+                (Some(st), true) => warp::disk_to_solid_angle(
+                    density_from_log(st.log_density(zl[l], ld[l])),
+                    cos[l],
+                ),
+                _ => 0.0,
+            };
+        }
+    }
+
+    #[inline(always)]
+    fn invert_chunk(
+        &self,
+        lanes: &[Option<FlowLane>],
+        wo: Vec3s<'_>,
+        u: &mut Vec2sMut<'_>,
+        a: usize,
+        ok_out: &mut [bool],
+    ) {
+        let m = lanes.len();
+        let mut p = [Vec2::ZERO; CHUNK];
+        let mut ok = [false; CHUNK];
+        for l in 0..m {
+            if let (Some(_), Some(w)) = (&lanes[l], warp::upper_hemisphere(wo.at(l))) {
+                p[l] = warp::to_disk(w);
+                ok[l] = inside_disk(p[l]);
+            }
+        }
+        let mut zl = [Vec2::ZERO; CHUNK];
+        let mut ld = [0.0f32; CHUNK];
+        self.latent_chunk(lanes, &p, &ok, &mut zl, &mut ld);
+        for l in 0..m {
+            let r = match (&lanes[l], ok[l]) {
+                (Some(st), true) => st.invert_base(zl[l]),
+                _ => None,
+            };
+            ok_out[l] = r.is_some();
+            if let Some(v) = r {
+                u.set(a + l, v);
+            }
+        }
+    }
+}
+
+
+impl<W: Weights + Copy> BatchSampler for FlowSampler<W> {
+    type Lane = Option<FlowLane>;
+
+    fn prepare_batch(
+        &self,
+        phi: Features<'_>,
+        wi: Vec3s<'_>,
+        lanes: &mut [Option<FlowLane>],
+    ) -> Result<()> {
+        let n = check_prepare_args(&phi, &wi, lanes)?;
+        dispatch(|| {
+            chunks(n, |a, b| {
+                self.prepare_chunk(phi.range(a, b), wi.range(a, b), &mut lanes[a..b]);
+            });
+        });
+        Ok(())
+    }
+
+    fn sample_batch(
+        &self,
+        lanes: &[Option<FlowLane>],
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+    ) -> Result<()> {
+        let n = check_sample_args(lanes, &u, &out)?;
+        dispatch(|| {
+            chunks(n, |a, b| {
+                self.sample_chunk(&lanes[a..b], u.range(a, b), out.range(a, b));
+            });
+        });
+        Ok(())
+    }
+
+    fn pdf_batch(&self, lanes: &[Option<FlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+        let n = check_pdf_args(lanes, &wo, pdf)?;
+        dispatch(|| {
+            chunks(n, |a, b| {
+                self.pdf_chunk(&lanes[a..b], wo.range(a, b), &mut pdf[a..b]);
+            });
+        });
+        Ok(())
+    }
+
+    fn invert_batch(
+        &self,
+        lanes: &[Option<FlowLane>],
+        wo: Vec3s<'_>,
+        mut u: Vec2sMut<'_>,
+        ok: &mut [bool],
+    ) -> Result<()> {
+        let n = check_invert_args(lanes, &wo, &u, ok)?;
+        dispatch(|| {
+            chunks(n, |a, b| {
+                self.invert_chunk(&lanes[a..b], wo.range(a, b), &mut u, a, &mut ok[a..b]);
+            });
+        });
+        Ok(())
+    }
+}

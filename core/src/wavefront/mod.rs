@@ -1,0 +1,702 @@
+//! The batched ("wavefront") API: prepare, sample, pdf and invert over N shading points at
+//! once, in structure-of-arrays form, as the paper ran its samplers and as Mitsuba's
+//! LLVM/CUDA variants, GPUs and production CPU renderers call a material.
+//!
+//! Every sampler implements [`BatchSampler`]. Its per-point prepared state is a plain value,
+//! the **lane** ([`BatchSampler::Lane`]): the scalar prepared state without its weights
+//! handle. A renderer that prepares once and then samples and evaluates pdfs (BSDF sampling
+//! with MIS) keeps a `Vec<Lane>` of its own; one that only needs "prepare and sample" or
+//! "prepare and pdf" per call (a Mitsuba plugin) uses the fused [`BatchSampler::sample_fused`]
+//! and [`BatchSampler::pdf_fused`], which prepare in chunks on the stack.
+//!
+//! # Contract
+//!
+//! - The caller provides every buffer; nothing allocates. Any N works (no multiple of a SIMD
+//!   width is required); every slice of one call must have the same length, otherwise the
+//!   call returns [`Error::BatchLength`] and writes nothing.
+//! - Per lane, the rules of the scalar API hold: a refused condition gives a refused lane
+//!   (`Lane::default()`), a refused sample gives `pdf = 0` and `wo = 0`, a direction outside
+//!   the hemisphere gives a zero pdf. A bad lane never disturbs another lane.
+//! - Results equal the scalar path's bit for bit: both run the same operations in the same
+//!   order per lane (dense layers as small matrix products over lanes, the rest per lane
+//!   through the same functions).
+//!
+//! Densities are with respect to **solid angle**, `p_ω = p_disk · cos θo`, as in the scalar
+//! [`Prepared::pdf`].
+
+use glam::{Vec2, Vec3};
+
+pub(crate) mod dense;
+mod lanes;
+pub(crate) mod simd;
+
+pub use simd::{current as current_isa, detected as detected_isa, prefer as prefer_isa, Isa};
+
+use crate::error::{Error, Result};
+use crate::nn::FEATURE_DIM;
+use crate::samplers::{Prepared, Sample};
+
+/// Lanes per chunk of the fused calls ([`BatchSampler::sample_fused`],
+/// [`BatchSampler::pdf_fused`]): their prepared states live on the stack.
+pub const FUSED_CHUNK: usize = 32;
+
+/// `N` two-dimensional values in structure-of-arrays form (e.g. the random numbers `u`).
+#[derive(Copy, Clone, Debug)]
+pub struct Vec2s<'a> {
+    /// First components.
+    pub x: &'a [f32],
+    /// Second components.
+    pub y: &'a [f32],
+}
+
+/// `N` directions in structure-of-arrays form (local shading frame).
+#[derive(Copy, Clone, Debug)]
+pub struct Vec3s<'a> {
+    /// x components.
+    pub x: &'a [f32],
+    /// y components.
+    pub y: &'a [f32],
+    /// z components (the normal's axis).
+    pub z: &'a [f32],
+}
+
+/// Writable [`Vec2s`].
+#[derive(Debug)]
+pub struct Vec2sMut<'a> {
+    /// First components.
+    pub x: &'a mut [f32],
+    /// Second components.
+    pub y: &'a mut [f32],
+}
+
+/// Writable [`Vec3s`].
+#[derive(Debug)]
+pub struct Vec3sMut<'a> {
+    /// x components.
+    pub x: &'a mut [f32],
+    /// y components.
+    pub y: &'a mut [f32],
+    /// z components.
+    pub z: &'a mut [f32],
+}
+
+/// The feature vectors φ of `N` shading points, one slice per channel (`channels[c][i]` is
+/// channel `c` of point `i`).
+#[derive(Copy, Clone, Debug)]
+pub struct Features<'a> {
+    /// The [`FEATURE_DIM`] channels.
+    pub channels: [&'a [f32]; FEATURE_DIM],
+}
+
+/// Writable [`Features`].
+#[derive(Debug)]
+pub struct FeaturesMut<'a> {
+    /// The [`FEATURE_DIM`] channels.
+    pub channels: [&'a mut [f32]; FEATURE_DIM],
+}
+
+/// Where [`BatchSampler::sample_batch`] writes: the sampled directions and their
+/// solid-angle densities (`pdf = 0` and `wo = 0` for a refused sample).
+#[derive(Debug)]
+pub struct SamplesMut<'a> {
+    /// Sampled directions (local shading frame, unit length).
+    pub wo: Vec3sMut<'a>,
+    /// Their densities with respect to solid angle ([`Sample::pdf`]).
+    pub pdf: &'a mut [f32],
+}
+
+impl<'a> Vec2s<'a> {
+    /// The `(2, n)` row-major array `rows` (x then y) as two slices; `None` unless
+    /// `rows.len() == 2n`.
+    #[must_use]
+    pub fn from_rows(rows: &'a [f32], n: usize) -> Option<Self> {
+        if rows.len() != 2 * n {
+            return None;
+        }
+        let (x, y) = rows.split_at(n);
+        Some(Vec2s { x, y })
+    }
+
+    /// Number of values (the length of `x`).
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// `true` when there are no values.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    #[inline(always)]
+    pub(crate) fn at(&self, i: usize) -> Vec2 {
+        Vec2::new(self.x[i], self.y[i])
+    }
+
+    pub(crate) fn check(&self, n: usize) -> Result<()> {
+        check_len("x", self.x.len(), n)?;
+        check_len("y", self.y.len(), n)
+    }
+
+    pub(crate) fn range(&self, a: usize, b: usize) -> Vec2s<'a> {
+        Vec2s {
+            x: &self.x[a..b],
+            y: &self.y[a..b],
+        }
+    }
+}
+
+impl<'a> Vec3s<'a> {
+    /// The `(3, n)` row-major array `rows` (x, y, z) as three slices; `None` unless
+    /// `rows.len() == 3n`.
+    #[must_use]
+    pub fn from_rows(rows: &'a [f32], n: usize) -> Option<Self> {
+        if rows.len() != 3 * n {
+            return None;
+        }
+        let (x, yz) = rows.split_at(n);
+        let (y, z) = yz.split_at(n);
+        Some(Vec3s { x, y, z })
+    }
+
+    /// Number of directions (the length of `x`).
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// `true` when there are no directions.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    #[inline(always)]
+    pub(crate) fn at(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
+    }
+
+    pub(crate) fn check(&self, n: usize) -> Result<()> {
+        check_len("x", self.x.len(), n)?;
+        check_len("y", self.y.len(), n)?;
+        check_len("z", self.z.len(), n)
+    }
+
+    pub(crate) fn range(&self, a: usize, b: usize) -> Vec3s<'a> {
+        Vec3s {
+            x: &self.x[a..b],
+            y: &self.y[a..b],
+            z: &self.z[a..b],
+        }
+    }
+}
+
+impl<'a> Vec2sMut<'a> {
+    /// The `(2, n)` row-major array `rows` as two slices; `None` unless `rows.len() == 2n`.
+    #[must_use]
+    pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
+        if rows.len() != 2 * n {
+            return None;
+        }
+        let (x, y) = rows.split_at_mut(n);
+        Some(Vec2sMut { x, y })
+    }
+
+    pub(crate) fn check(&self, n: usize) -> Result<()> {
+        check_len("x", self.x.len(), n)?;
+        check_len("y", self.y.len(), n)
+    }
+
+    #[inline(always)]
+    pub(crate) fn set(&mut self, i: usize, v: Vec2) {
+        self.x[i] = v.x;
+        self.y[i] = v.y;
+    }
+
+    pub(crate) fn range(&mut self, a: usize, b: usize) -> Vec2sMut<'_> {
+        Vec2sMut {
+            x: &mut self.x[a..b],
+            y: &mut self.y[a..b],
+        }
+    }
+}
+
+impl<'a> Vec3sMut<'a> {
+    /// The `(3, n)` row-major array `rows` as three slices; `None` unless `rows.len() == 3n`.
+    #[must_use]
+    pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
+        if rows.len() != 3 * n {
+            return None;
+        }
+        let (x, yz) = rows.split_at_mut(n);
+        let (y, z) = yz.split_at_mut(n);
+        Some(Vec3sMut { x, y, z })
+    }
+
+    pub(crate) fn check(&self, n: usize) -> Result<()> {
+        check_len("x", self.x.len(), n)?;
+        check_len("y", self.y.len(), n)?;
+        check_len("z", self.z.len(), n)
+    }
+
+    #[inline(always)]
+    pub(crate) fn set(&mut self, i: usize, v: Vec3) {
+        self.x[i] = v.x;
+        self.y[i] = v.y;
+        self.z[i] = v.z;
+    }
+
+    pub(crate) fn range(&mut self, a: usize, b: usize) -> Vec3sMut<'_> {
+        Vec3sMut {
+            x: &mut self.x[a..b],
+            y: &mut self.y[a..b],
+            z: &mut self.z[a..b],
+        }
+    }
+}
+
+impl<'a> Features<'a> {
+    /// The `(FEATURE_DIM, n)` row-major array `rows` (channel-major) as one slice per
+    /// channel; `None` unless `rows.len() == FEATURE_DIM · n`.
+    #[must_use]
+    pub fn from_rows(rows: &'a [f32], n: usize) -> Option<Self> {
+        if rows.len() != FEATURE_DIM * n {
+            return None;
+        }
+        let mut channels: [&'a [f32]; FEATURE_DIM] = [&[]; FEATURE_DIM];
+        let mut rest = rows;
+        for c in channels.iter_mut() {
+            let (head, tail) = rest.split_at(n);
+            *c = head;
+            rest = tail;
+        }
+        Some(Features { channels })
+    }
+
+    /// Number of points (the length of channel 0).
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.channels[0].len()
+    }
+
+    /// `true` when there are no points.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.channels[0].is_empty()
+    }
+
+    /// φ of point `i`.
+    #[inline(always)]
+    #[must_use]
+    pub fn at(&self, i: usize) -> [f32; FEATURE_DIM] {
+        let mut phi = [0.0f32; FEATURE_DIM];
+        for (p, c) in phi.iter_mut().zip(self.channels.iter()) {
+            *p = c[i];
+        }
+        phi
+    }
+
+    pub(crate) fn check(&self, n: usize) -> Result<()> {
+        for c in self.channels.iter() {
+            check_len("phi", c.len(), n)?;
+        }
+        Ok(())
+    }
+
+    pub(crate) fn range(&self, a: usize, b: usize) -> Features<'a> {
+        let mut channels: [&'a [f32]; FEATURE_DIM] = [&[]; FEATURE_DIM];
+        for (dst, src) in channels.iter_mut().zip(self.channels.iter()) {
+            *dst = &src[a..b];
+        }
+        Features { channels }
+    }
+}
+
+impl<'a> FeaturesMut<'a> {
+    /// The `(FEATURE_DIM, n)` row-major array `rows` as one slice per channel; `None` unless
+    /// `rows.len() == FEATURE_DIM · n`.
+    #[must_use]
+    pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
+        if rows.len() != FEATURE_DIM * n {
+            return None;
+        }
+        let mut it = rows.chunks_exact_mut(n.max(1));
+        let channels: [&'a mut [f32]; FEATURE_DIM] = core::array::from_fn(|_| match it.next() {
+            Some(c) if n > 0 => c,
+            _ => &mut [],
+        });
+        Some(FeaturesMut { channels })
+    }
+
+    /// Read-only view.
+    #[must_use]
+    pub fn as_features(&self) -> Features<'_> {
+        let mut channels: [&[f32]; FEATURE_DIM] = [&[]; FEATURE_DIM];
+        for (dst, src) in channels.iter_mut().zip(self.channels.iter()) {
+            *dst = src;
+        }
+        Features { channels }
+    }
+
+    pub(crate) fn check(&self, n: usize) -> Result<()> {
+        for c in self.channels.iter() {
+            check_len("phi", c.len(), n)?;
+        }
+        Ok(())
+    }
+
+    #[inline(always)]
+    pub(crate) fn set(&mut self, i: usize, phi: &[f32; FEATURE_DIM]) {
+        for (c, v) in self.channels.iter_mut().zip(phi.iter()) {
+            c[i] = *v;
+        }
+    }
+}
+
+impl<'a> SamplesMut<'a> {
+    /// Writes lane `i`: the sample, or a refusal (`wo = 0`, `pdf = 0`).
+    #[inline(always)]
+    pub(crate) fn set(&mut self, i: usize, s: Option<Sample>) {
+        match s {
+            Some(s) => {
+                self.wo.set(i, s.wo);
+                self.pdf[i] = s.pdf;
+            }
+            None => {
+                self.wo.set(i, Vec3::ZERO);
+                self.pdf[i] = 0.0;
+            }
+        }
+    }
+
+    pub(crate) fn check(&self, n: usize) -> Result<()> {
+        self.wo.check(n)?;
+        check_len("pdf", self.pdf.len(), n)
+    }
+
+    pub(crate) fn range(&mut self, a: usize, b: usize) -> SamplesMut<'_> {
+        SamplesMut {
+            wo: self.wo.range(a, b),
+            pdf: &mut self.pdf[a..b],
+        }
+    }
+}
+
+/// [`Error::BatchLength`] unless `found == expected`.
+#[inline]
+pub(crate) fn check_len(what: &'static str, found: usize, expected: usize) -> Result<()> {
+    if found == expected {
+        Ok(())
+    } else {
+        Err(Error::BatchLength {
+            what,
+            expected: clamp_u32(expected),
+            found: clamp_u32(found),
+        })
+    }
+}
+
+fn clamp_u32(x: usize) -> u32 {
+    u32::try_from(x).unwrap_or(u32::MAX)
+}
+
+/// A sampler evaluated over wavefronts (see the [module docs](self) for the contract).
+pub trait BatchSampler {
+    /// The prepared state of one shading point, without the sampler's weights handle
+    /// (`Option<…>`: `None`, the default, is a refused lane).
+    type Lane: Copy + Default;
+
+    /// Runs the networks for the `N = lanes.len()` conditions `(phi[i], wi[i])` and writes
+    /// each lane's state (refused conditions: `Lane::default()`).
+    fn prepare_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane])
+        -> Result<()>;
+
+    /// Draws one direction per lane from `u[i]` (as [`Prepared::sample`]).
+    fn sample_batch(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>)
+        -> Result<()>;
+
+    /// The solid-angle density of `wo[i]` at lane `i` (as [`Prepared::pdf`]).
+    fn pdf_batch(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()>;
+
+    /// The `u` that [`BatchSampler::sample_batch`] maps to `wo[i]`, where the method has a
+    /// unique inverse (as [`Prepared::invert`]); `ok[i]` says whether lane `i` has one (its
+    /// `u` is then written, else left as it was).
+    fn invert_batch(
+        &self,
+        lanes: &[Self::Lane],
+        wo: Vec3s<'_>,
+        u: Vec2sMut<'_>,
+        ok: &mut [bool],
+    ) -> Result<()>;
+
+    /// [`BatchSampler::prepare_batch`] then [`BatchSampler::sample_batch`], in chunks of
+    /// [`FUSED_CHUNK`] lanes whose states stay on the stack.
+    fn sample_fused(
+        &self,
+        phi: Features<'_>,
+        wi: Vec3s<'_>,
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+    ) -> Result<()> {
+        let n = wi.len();
+        phi.check(n)?;
+        wi.check(n)?;
+        u.check(n)?;
+        out.check(n)?;
+        let mut lanes = [Self::Lane::default(); FUSED_CHUNK];
+        let mut a = 0;
+        while a < n {
+            let b = if n - a > FUSED_CHUNK {
+                a + FUSED_CHUNK
+            } else {
+                n
+            };
+            let chunk = &mut lanes[..b - a];
+            self.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
+            self.sample_batch(chunk, u.range(a, b), out.range(a, b))?;
+            a = b;
+        }
+        Ok(())
+    }
+
+    /// [`BatchSampler::prepare_batch`] then [`BatchSampler::pdf_batch`], in chunks of
+    /// [`FUSED_CHUNK`] lanes whose states stay on the stack.
+    fn pdf_fused(
+        &self,
+        phi: Features<'_>,
+        wi: Vec3s<'_>,
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+    ) -> Result<()> {
+        let n = wi.len();
+        phi.check(n)?;
+        wi.check(n)?;
+        wo.check(n)?;
+        check_len("pdf", pdf.len(), n)?;
+        let mut lanes = [Self::Lane::default(); FUSED_CHUNK];
+        let mut a = 0;
+        while a < n {
+            let b = if n - a > FUSED_CHUNK {
+                a + FUSED_CHUNK
+            } else {
+                n
+            };
+            let chunk = &mut lanes[..b - a];
+            self.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
+            self.pdf_batch(chunk, wo.range(a, b), &mut pdf[a..b])?;
+            a = b;
+        }
+        Ok(())
+    }
+}
+
+/// Activations of a chunk of `B` lanes: `[feature][lane]`.
+pub(crate) type Soa<const N: usize, const B: usize> = [[f32; B]; N];
+
+/// Calls `f(a, b)` for the chunks `[a, b)` of `0..n`, `B` lanes each (the last one shorter).
+#[inline(always)]
+pub(crate) fn chunks<const B: usize>(n: usize, mut f: impl FnMut(usize, usize)) {
+    let mut a = 0;
+    while a < n {
+        let b = if n - a > B { a + B } else { n };
+        f(a, b);
+        a = b;
+    }
+}
+
+/// Lane `l` of a chunk's activations.
+#[inline(always)]
+pub(crate) fn column<const N: usize, const B: usize>(soa: &Soa<N, B>, l: usize) -> [f32; N] {
+    let mut c = [0.0f32; N];
+    for (k, v) in c.iter_mut().enumerate() {
+        *v = soa[k][l];
+    }
+    c
+}
+
+/// `[0, 1, 2, …]`: every lane of a chunk, as an index list.
+#[inline(always)]
+pub(crate) fn identity_index<const B: usize>() -> [usize; B] {
+    let mut idx = [0usize; B];
+    for (i, x) in idx.iter_mut().enumerate() {
+        *x = i;
+    }
+    idx
+}
+
+/// The encoded conditions ([`crate::nn::encode_condition`]) of a chunk's lanes and which
+/// lanes are usable ([`crate::nn::check_condition`]); refused lanes are zeros.
+#[inline(always)]
+pub(crate) fn encoded_conditions<const B: usize>(
+    phi: &Features<'_>,
+    wi: &Vec3s<'_>,
+) -> (Soa<{ crate::nn::CONDITION_DIM }, B>, [bool; B]) {
+    let mut c = [[0.0f32; B]; crate::nn::CONDITION_DIM];
+    let mut valid = [false; B];
+    for l in 0..wi.len() {
+        let p = phi.at(l);
+        if let Some(w) = crate::nn::check_condition(&p, wi.at(l)) {
+            let enc = crate::nn::encode_condition(&p, w);
+            for (k, v) in enc.iter().enumerate() {
+                c[k][l] = *v;
+            }
+            valid[l] = true;
+        }
+    }
+    (c, valid)
+}
+
+/// The raw conditions ([`crate::nn::raw_condition`]) of a chunk's lanes and which lanes are
+/// usable; refused lanes are zeros.
+#[inline(always)]
+pub(crate) fn raw_conditions<const B: usize>(
+    phi: &Features<'_>,
+    wi: &Vec3s<'_>,
+) -> (Soa<{ crate::nn::RAW_CONDITION_DIM }, B>, [bool; B]) {
+    let mut c = [[0.0f32; B]; crate::nn::RAW_CONDITION_DIM];
+    let mut valid = [false; B];
+    for l in 0..wi.len() {
+        let p = phi.at(l);
+        if let Some(w) = crate::nn::check_condition(&p, wi.at(l)) {
+            let enc = crate::nn::raw_condition(&p, w);
+            for (k, v) in enc.iter().enumerate() {
+                c[k][l] = *v;
+            }
+            valid[l] = true;
+        }
+    }
+    (c, valid)
+}
+
+/// The length checks every [`BatchSampler::sample_batch`] does.
+pub(crate) fn check_sample_args<L>(
+    lanes: &[L],
+    u: &Vec2s<'_>,
+    out: &SamplesMut<'_>,
+) -> Result<usize> {
+    let n = lanes.len();
+    u.check(n)?;
+    out.check(n)?;
+    Ok(n)
+}
+
+/// The length checks every [`BatchSampler::pdf_batch`] does.
+pub(crate) fn check_pdf_args<L>(lanes: &[L], wo: &Vec3s<'_>, pdf: &[f32]) -> Result<usize> {
+    let n = lanes.len();
+    wo.check(n)?;
+    check_len("pdf", pdf.len(), n)?;
+    Ok(n)
+}
+
+/// The length checks every [`BatchSampler::prepare_batch`] does.
+pub(crate) fn check_prepare_args<L>(
+    phi: &Features<'_>,
+    wi: &Vec3s<'_>,
+    lanes: &[L],
+) -> Result<usize> {
+    let n = lanes.len();
+    phi.check(n)?;
+    wi.check(n)?;
+    Ok(n)
+}
+
+/// The length checks every [`BatchSampler::invert_batch`] does.
+pub(crate) fn check_invert_args<L>(
+    lanes: &[L],
+    wo: &Vec3s<'_>,
+    u: &Vec2sMut<'_>,
+    ok: &[bool],
+) -> Result<usize> {
+    let n = lanes.len();
+    wo.check(n)?;
+    u.check(n)?;
+    check_len("ok", ok.len(), n)?;
+    Ok(n)
+}
+
+/// [`BatchSampler`]'s `sample_batch`, `pdf_batch` and `invert_batch` for lanes that are
+/// `Option<P>` of a scalar [`Prepared`] state `P` that needs no weights: the scalar code
+/// lane by lane ([`sample_each`], [`pdf_each`], [`invert_each`]), under [`simd::dispatch`].
+macro_rules! per_lane_methods {
+    ($p:ty) => {
+        fn sample_batch(
+            &self,
+            lanes: &[Option<$p>],
+            u: $crate::wavefront::Vec2s<'_>,
+            out: $crate::wavefront::SamplesMut<'_>,
+        ) -> $crate::Result<()> {
+            $crate::wavefront::simd::dispatch(|| $crate::wavefront::sample_each(lanes, u, out))
+        }
+
+        fn pdf_batch(
+            &self,
+            lanes: &[Option<$p>],
+            wo: $crate::wavefront::Vec3s<'_>,
+            pdf: &mut [f32],
+        ) -> $crate::Result<()> {
+            $crate::wavefront::simd::dispatch(|| $crate::wavefront::pdf_each(lanes, wo, pdf))
+        }
+
+        fn invert_batch(
+            &self,
+            lanes: &[Option<$p>],
+            wo: $crate::wavefront::Vec3s<'_>,
+            u: $crate::wavefront::Vec2sMut<'_>,
+            ok: &mut [bool],
+        ) -> $crate::Result<()> {
+            $crate::wavefront::simd::dispatch(|| $crate::wavefront::invert_each(lanes, wo, u, ok))
+        }
+    };
+}
+pub(crate) use per_lane_methods;
+
+/// Per-lane implementations of [`BatchSampler`]'s sample/pdf/invert for lanes that are
+/// optional [`Prepared`] states (`None`: refused): the scalar code, lane by lane.
+#[inline(always)]
+pub(crate) fn sample_each<P: Prepared>(
+    lanes: &[Option<P>],
+    u: Vec2s<'_>,
+    mut out: SamplesMut<'_>,
+) -> Result<()> {
+    let n = check_sample_args(lanes, &u, &out)?;
+    for i in 0..n {
+        out.set(i, lanes[i].as_ref().and_then(|p| p.sample(u.at(i))));
+    }
+    Ok(())
+}
+
+/// See [`sample_each`].
+#[inline(always)]
+pub(crate) fn pdf_each<P: Prepared>(
+    lanes: &[Option<P>],
+    wo: Vec3s<'_>,
+    pdf: &mut [f32],
+) -> Result<()> {
+    let n = check_pdf_args(lanes, &wo, pdf)?;
+    for i in 0..n {
+        pdf[i] = lanes[i].as_ref().map_or(0.0, |p| p.pdf(wo.at(i)));
+    }
+    Ok(())
+}
+
+/// See [`sample_each`].
+#[inline(always)]
+pub(crate) fn invert_each<P: Prepared>(
+    lanes: &[Option<P>],
+    wo: Vec3s<'_>,
+    mut u: Vec2sMut<'_>,
+    ok: &mut [bool],
+) -> Result<()> {
+    let n = check_invert_args(lanes, &wo, &u, ok)?;
+    for i in 0..n {
+        match lanes[i].as_ref().and_then(|p| p.invert(wo.at(i))) {
+            Some(v) => {
+                u.set(i, v);
+                ok[i] = true;
+            }
+            None => ok[i] = false,
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,86 @@
+//! Run-time choice of the instruction set the batched kernels are compiled for.
+//!
+//! The kernels are plain Rust over small fixed arrays ([`super::lanes::V8`]) that LLVM turns
+//! into SIMD instructions. [`dispatch`] runs a kernel inside a function compiled for the
+//! best instruction set the CPU reports (AVX2 + FMA on x86-64, through `pulp`'s safe
+//! run-time detection), or as compiled for the build's target (the portable path: SSE2 on
+//! x86-64, NEON on aarch64, simd128 where the build enables it, scalar elsewhere). The
+//! kernels never use fused multiply-adds, so every path gives the same numbers bit for bit
+//! (tested). This is the only module that names `pulp`.
+
+use core::sync::atomic::{AtomicU8, Ordering};
+
+/// An instruction set the batched kernels can run with.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum Isa {
+    /// As compiled for the build's target, without run-time dispatch.
+    Portable,
+    /// x86-64-v3: AVX2, FMA, BMI (chosen at run time).
+    X86V3,
+}
+
+impl Isa {
+    /// Its short name (`portable`, `x86-64-v3`).
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Isa::Portable => "portable",
+            Isa::X86V3 => "x86-64-v3",
+        }
+    }
+}
+
+/// No preference set: use the best detected instruction set.
+const AUTO: u8 = u8::MAX;
+
+/// The instruction set [`prefer`] asked for, as its discriminant; [`AUTO`] by default.
+static PREFERRED: AtomicU8 = AtomicU8::new(AUTO);
+
+/// The best instruction set this CPU supports.
+#[must_use]
+pub fn detected() -> Isa {
+    #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+    if pulp::x86::V3::is_available() {
+        return Isa::X86V3;
+    }
+    Isa::Portable
+}
+
+/// Makes the batched kernels of this process run with `isa` (for benchmarks and tests that
+/// compare instruction sets), or with the best detected one for `None`. An `isa` the CPU
+/// does not support is ignored (the best supported one below it is used). Returns the
+/// instruction set now in use.
+pub fn prefer(isa: Option<Isa>) -> Isa {
+    PREFERRED.store(
+        match isa {
+            None => AUTO,
+            Some(i) => i as u8,
+        },
+        Ordering::Relaxed,
+    );
+    current()
+}
+
+/// The instruction set the batched kernels run with now.
+#[must_use]
+pub fn current() -> Isa {
+    let best = detected();
+    match PREFERRED.load(Ordering::Relaxed) {
+        x if x == Isa::Portable as u8 => Isa::Portable,
+        _ => best,
+    }
+}
+
+/// Runs `f` compiled for [`current`]'s instruction set. `f` and what it calls must be
+/// `#[inline(always)]` for the instruction set to reach them.
+#[inline(always)]
+pub(crate) fn dispatch<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+    if current() == Isa::X86V3 {
+        if let Some(v3) = pulp::x86::V3::try_new() {
+            return v3.vectorize(f);
+        }
+    }
+    f()
+}
