@@ -22,8 +22,8 @@ pub enum SamplerKind {
     /// Histogram mixture (paper Eq. 5–6).
     HistogramMixture,
     /// Not a sampler: a NeuMIP-style neural material (feature texture + decoder,
-    /// [`crate::neural`]), the BRDF the samplers are trained for. Opened with
-    /// [`Blob::neural_material`]; [`Blob::sampler`] refuses it. Not in [`SamplerKind::ALL`].
+    /// [`crate::neural_material`]), the BRDF the samplers are trained for. Opened with
+    /// [`Blob::neural_material`](crate::Blob::neural_material); [`Blob::sampler`](crate::Blob::sampler) refuses it. Not in [`SamplerKind::ALL`].
     NeuralMaterial,
 }
 

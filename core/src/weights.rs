@@ -37,7 +37,7 @@ pub trait Weights {
 
     /// `acc[j] += Σ_i x[i] · self[offset + (row0 + i)·O + j]` for `i < I`, `j < O`: the
     /// product of `x` with rows `row0 .. row0 + I` of the row-major `· × O` matrix stored at
-    /// `offset`. This is the inner loop of every dense layer ([`crate::mlp`]); storages
+    /// `offset`. This is the inner loop of every dense layer ([`crate::nn`]); storages
     /// override it to read their elements without per-element dispatch.
     #[inline(always)]
     fn accumulate<const I: usize, const O: usize>(

@@ -7,7 +7,7 @@
 
 use anyhow::{bail, Context, Result};
 use glam::{Vec2, Vec3};
-use neusample::{Blob, BlobWriter, Interpolation, SamplerKind, TensorRole};
+use neusample::{Blob, BlobWriter, SamplerKind, TensorRole};
 use neusample::{DType, Prepared, Sampler};
 use rand::{RngExt, SeedableRng};
 
@@ -42,10 +42,7 @@ pub fn blob_bytes(trained: &Trained, dtype: DType, label: &str) -> Result<Vec<u8
         let baked = t.rebake(dtype)?;
         let n = baked.resolution;
         let levels = baked.t_levels;
-        let interp = match t.interpolation {
-            Interpolation::Nearest => Interpolation::Nearest,
-            Interpolation::Linear => Interpolation::Linear,
-        };
+        let interp = t.interpolation;
         w = w.histogram_dims(levels, n, interp);
         w.tensor(TensorRole::Mass, &baked.mass)
             .tensor(TensorRole::Table, &baked.table)

@@ -270,7 +270,7 @@ impl<'a> Blob<'a> {
         .ok_or(Error::HeaderInvalid)
     }
 
-    /// The neural material (feature texture + decoder, [`crate::neural`]), or
+    /// The neural material (feature texture + decoder, [`crate::neural_material`]), or
     /// [`Error::WrongKind`]. Its texture is `header().resolution` texels wide and
     /// `header().t_levels` high.
     pub fn neural_material(&self) -> Result<NeuralMaterial<Tensor<'a>>> {

@@ -96,7 +96,7 @@ pub struct ImprovedBaselinePrepared {
 impl ImprovedBaselinePrepared {
     /// The lobes from raw network outputs `[μx, μy, log σ, a_L, a_G]`: `(w_L, w_G) =
     /// softmax(a_L, a_G)`, `σ = exp(clamp(log σ, −7, 1))`. Non-finite outputs are clamped
-    /// ([`MEAN_BOUND`], [`LOGIT_BOUND`](crate::math::LOGIT_BOUND)) so the lobes are always finite.
+    /// ([`MEAN_BOUND`], ±10³⁰) so the lobes are always finite.
     #[inline]
     #[must_use]
     pub fn from_outputs(o: &[f32; BASELINE_OUTPUTS]) -> Self {
@@ -219,7 +219,7 @@ pub struct AnalyticMixturePrepared {
 impl AnalyticMixturePrepared {
     /// The lobes from raw network outputs (see [`ANALYTIC_OUTPUTS`]): `w = softmax(a)`,
     /// `σ = exp(clamp(log σ, −7, 1))` per axis. Non-finite outputs are clamped
-    /// ([`MEAN_BOUND`], [`LOGIT_BOUND`](crate::math::LOGIT_BOUND)) so the lobes are always finite.
+    /// ([`MEAN_BOUND`], ±10³⁰) so the lobes are always finite.
     #[inline]
     #[must_use]
     pub fn from_outputs(o: &[f32; ANALYTIC_OUTPUTS]) -> Self {

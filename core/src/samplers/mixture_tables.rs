@@ -193,7 +193,7 @@ pub fn validate_tables<W: Weights + ?Sized>(
 }
 
 /// Baked histogram-mixture tables (host side), laid out as `ARCHITECTURES.md` §6 and ready to
-/// pass to [`HistogramMixtureSampler::new`] (as `&[f32]`) or to a blob writer.
+/// pass to [`HistogramMixtureSampler::new`](crate::HistogramMixtureSampler::new) (as `&[f32]`) or to a blob writer.
 #[cfg(feature = "alloc")]
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakedTables {
