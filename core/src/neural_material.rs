@@ -298,7 +298,8 @@ mod batch {
 
     use super::*;
     use crate::error::Result;
-    use crate::wavefront::{self, check_len, dense, Features, FeaturesMut, Soa, Vec2s, Vec3s};
+    use crate::wavefront::simd::{dispatch, Kernel};
+    use crate::wavefront::{check_len, dense, Features, FeaturesMut, Soa, Vec2s, Vec3s};
 
     /// Lanes per chunk (two 64-wide activations of 32 lanes: 16 KiB).
     const CHUNK: usize = 32;
@@ -331,15 +332,11 @@ mod batch {
     impl<W: Weights> NeuralMaterial<W> {
         /// [`NeuralMaterial::features`] of every `uv[i]`, written to `phi` (structure of
         /// arrays). Lengths must agree ([`crate::Error::BatchLength`]).
-        pub fn features_batch(&self, uv: Vec2s<'_>, mut phi: FeaturesMut<'_>) -> Result<()> {
+        pub fn features_batch(&self, uv: Vec2s<'_>, phi: FeaturesMut<'_>) -> Result<()> {
             let n = uv.len();
             uv.check(n)?;
             phi.check(n)?;
-            wavefront::simd::dispatch(|| {
-                for i in 0..n {
-                    phi.set(i, &self.features(uv.at(i)));
-                }
-            });
+            dispatch(FeaturesJob { m: self, uv, phi });
             Ok(())
         }
 
@@ -360,45 +357,102 @@ mod batch {
             check_len("r", out.r.len(), n)?;
             check_len("g", out.g.len(), n)?;
             check_len("b", out.b.len(), n)?;
-            let w = &self.params;
-            wavefront::simd::dispatch(|| {
-                wavefront::chunks::<CHUNK>(n, |a, b| {
-                    let m = b - a;
-                    let mut x: Soa<DECODER_INPUTS, CHUNK> = [[0.0; CHUNK]; DECODER_INPUTS];
-                    let mut valid = [false; CHUNK];
-                    for l in 0..m {
-                        if let Some(v) = decoder_input(&phi.at(a + l), wi.at(a + l), wo.at(a + l)) {
-                            for (k, e) in v.iter().enumerate() {
-                                x[k][l] = *e;
-                            }
-                            valid[l] = true;
-                        }
-                    }
-                    let mut h: Soa<DECODER_HIDDEN, CHUNK> = [[0.0; CHUNK]; DECODER_HIDDEN];
-                    let mut g: Soa<DECODER_HIDDEN, CHUNK> = [[0.0; CHUNK]; DECODER_HIDDEN];
-                    let mut o: Soa<DECODER_OUTPUTS, CHUNK> = [[0.0; CHUNK]; DECODER_OUTPUTS];
-                    let relu = Activation::Relu;
-                    dense::dense(w, L0 as u32, &x, relu, &mut h, m);
-                    dense::dense(w, L1 as u32, &h, relu, &mut g, m);
-                    dense::dense(w, L2 as u32, &g, relu, &mut h, m);
-                    dense::dense(w, L3 as u32, &h, Activation::Identity, &mut o, m);
-                    for l in 0..m {
-                        let (r, gg, bb) = if valid[l] {
-                            (
-                                output_to_brdf(o[0][l]),
-                                output_to_brdf(o[1][l]),
-                                output_to_brdf(o[2][l]),
-                            )
-                        } else {
-                            (0.0, 0.0, 0.0)
-                        };
-                        out.r[a + l] = r;
-                        out.g[a + l] = gg;
-                        out.b[a + l] = bb;
-                    }
-                });
+            dispatch(EvalJob {
+                m: self,
+                phi,
+                wi,
+                wo,
+                out,
             });
             Ok(())
+        }
+
+        /// [`NeuralMaterial::eval`] of lanes `a .. b` (at most [`CHUNK`]).
+        #[inline(always)]
+        fn eval_chunk(&self, args: &EvalArgs<'_>, out: &mut RgbMut<'_>, a: usize, b: usize) {
+            let w = &self.params;
+            let m = b - a;
+            let mut x: Soa<DECODER_INPUTS, CHUNK> = [[0.0; CHUNK]; DECODER_INPUTS];
+            let mut valid = [false; CHUNK];
+            for l in 0..m {
+                let i = a + l;
+                if let Some(v) = decoder_input(&args.phi.at(i), args.wi.at(i), args.wo.at(i)) {
+                    for (k, e) in v.iter().enumerate() {
+                        x[k][l] = *e;
+                    }
+                    valid[l] = true;
+                }
+            }
+            let mut h: Soa<DECODER_HIDDEN, CHUNK> = [[0.0; CHUNK]; DECODER_HIDDEN];
+            let mut g: Soa<DECODER_HIDDEN, CHUNK> = [[0.0; CHUNK]; DECODER_HIDDEN];
+            let mut o: Soa<DECODER_OUTPUTS, CHUNK> = [[0.0; CHUNK]; DECODER_OUTPUTS];
+            let relu = Activation::Relu;
+            dense::dense(w, L0 as u32, &x, relu, &mut h, m);
+            dense::dense(w, L1 as u32, &h, relu, &mut g, m);
+            dense::dense(w, L2 as u32, &g, relu, &mut h, m);
+            dense::dense(w, L3 as u32, &h, Activation::Identity, &mut o, m);
+            for l in 0..m {
+                let f = |c: usize| {
+                    if valid[l] {
+                        output_to_brdf(o[c][l])
+                    } else {
+                        0.0
+                    }
+                };
+                out.r[a + l] = f(0);
+                out.g[a + l] = f(1);
+                out.b[a + l] = f(2);
+            }
+        }
+    }
+
+    /// The inputs of [`NeuralMaterial::eval_batch`].
+    struct EvalArgs<'a> {
+        phi: Features<'a>,
+        wi: Vec3s<'a>,
+        wo: Vec3s<'a>,
+    }
+
+    struct EvalJob<'a, 'm, W> {
+        m: &'m NeuralMaterial<W>,
+        phi: Features<'a>,
+        wi: Vec3s<'a>,
+        wo: Vec3s<'a>,
+        out: RgbMut<'a>,
+    }
+
+    impl<W: Weights> Kernel for EvalJob<'_, '_, W> {
+        type Output = ();
+        #[inline(always)]
+        fn run(mut self) {
+            let args = EvalArgs {
+                phi: self.phi,
+                wi: self.wi,
+                wo: self.wo,
+            };
+            let n = args.wi.len();
+            let mut a = 0;
+            while a < n {
+                let b = if n - a > CHUNK { a + CHUNK } else { n };
+                self.m.eval_chunk(&args, &mut self.out, a, b);
+                a = b;
+            }
+        }
+    }
+
+    struct FeaturesJob<'a, 'm, W> {
+        m: &'m NeuralMaterial<W>,
+        uv: Vec2s<'a>,
+        phi: FeaturesMut<'a>,
+    }
+
+    impl<W: Weights> Kernel for FeaturesJob<'_, '_, W> {
+        type Output = ();
+        #[inline(always)]
+        fn run(mut self) {
+            for i in 0..self.uv.len() {
+                self.phi.set(i, &self.m.features(self.uv.at(i)));
+            }
         }
     }
 }

@@ -69,14 +69,30 @@ pub fn chi2_test<P: Prepared>(
     samples: usize,
     min_expected: f64,
 ) -> Chi2Outcome {
+    let drawn: Vec<Option<Vec3>> = (0..samples)
+        .map(|_| p.sample(uniform2(rng)).map(|s| s.wo))
+        .collect();
+    chi2_test_samples(p, &drawn, res, sub, min_expected)
+}
+
+/// [`chi2_test`] of samples drawn elsewhere (e.g. by the batched API; `None`: refused)
+/// against `p.pdf_disk`.
+pub fn chi2_test_samples<P: Prepared>(
+    p: &P,
+    drawn: &[Option<Vec3>],
+    res: usize,
+    sub: usize,
+    min_expected: f64,
+) -> Chi2Outcome {
+    let samples = drawn.len();
     let cells = res * res;
     let mut observed = vec![0f64; cells + 1];
     let mut refused = 0usize;
-    for _ in 0..samples {
-        match p.sample(uniform2(rng)) {
-            Some(s) => {
-                let x = ((s.wo.x + 1.0) * 0.5 * res as f32).floor();
-                let y = ((s.wo.y + 1.0) * 0.5 * res as f32).floor();
+    for s in drawn {
+        match s {
+            Some(wo) => {
+                let x = ((wo.x + 1.0) * 0.5 * res as f32).floor();
+                let y = ((wo.y + 1.0) * 0.5 * res as f32).floor();
                 let c = (x.clamp(0.0, (res - 1) as f32)) as usize;
                 let r = (y.clamp(0.0, (res - 1) as f32)) as usize;
                 observed[r * res + c] += 1.0;

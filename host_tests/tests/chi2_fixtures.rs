@@ -5,14 +5,17 @@
 //! ∫disk pdf with the fraction of samples that land in the disk.
 //!
 //! CI runs 12 conditions per blob with 40 000 samples; `NEUSAMPLE_FULL_TESTS=1` runs 128
-//! conditions per blob with 200 000 samples.
+//! conditions per blob with 200 000 samples. The batched path (samples drawn by
+//! `BatchSampler::sample_batch` over a wavefront of lanes at the condition) runs the same
+//! test on 4 conditions per blob (32 with `NEUSAMPLE_FULL_TESTS=1`).
 
 use std::path::PathBuf;
 
-use neusample::Blob;
-use neusample::Sampler;
+use neusample::wavefront::{BatchSampler, Features, SamplesMut, Vec2s, Vec3s, Vec3sMut};
+use neusample::{Blob, Sampler, Vec3, FEATURE_DIM};
 use neusample_host_tests::{
-    bonferroni, chi2_test, fixture_blobs_dir, fixture_conditions, full_tests, rng,
+    bonferroni, chi2_test, chi2_test_samples, fixture_blobs_dir, fixture_conditions, full_tests,
+    rng, uniform2,
 };
 
 #[test]
@@ -108,6 +111,107 @@ fn every_fixture_blob_passes_chi2() {
     assert!(
         failures.is_empty(),
         "χ² failures at α = {alpha:e}:\n{}",
+        failures.join("\n")
+    );
+}
+
+/// The fixture blobs as `(path, conditions)`, `per_blob` conditions each.
+fn fixture_jobs(per_blob: usize) -> Vec<(PathBuf, Vec<([f32; FEATURE_DIM], Vec3)>)> {
+    let mut materials: Vec<PathBuf> = std::fs::read_dir(fixture_blobs_dir())
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.is_dir())
+        .collect();
+    materials.sort();
+    let mut jobs = Vec::new();
+    for dir in &materials {
+        let conds = fixture_conditions(dir);
+        let mut blobs: Vec<PathBuf> = std::fs::read_dir(dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|x| x == "nsb"))
+            .collect();
+        blobs.sort();
+        for b in blobs {
+            jobs.push((b, conds[..per_blob].to_vec()));
+        }
+    }
+    jobs
+}
+
+#[test]
+fn every_fixture_blob_passes_chi2_on_the_batched_path() {
+    let (per_blob, samples) = if full_tests() {
+        (32, 200_000)
+    } else {
+        (4, 40_000)
+    };
+    let jobs = fixture_jobs(per_blob);
+    assert!(jobs.len() >= 36, "expected 6 materials × 6 methods");
+    let alpha = bonferroni(0.01, jobs.len() * per_blob);
+    let mut failures = Vec::new();
+    for (path, conds) in &jobs {
+        let bytes = std::fs::read(path).unwrap();
+        let blob = Blob::open(&bytes).unwrap();
+        let sampler = blob.sampler().unwrap();
+        let mut r = rng(77);
+        for (phi, wi) in conds {
+            // A wavefront of `samples` lanes at this condition, each with its own u.
+            let phi_rows: Vec<Vec<f32>> = (0..FEATURE_DIM).map(|c| vec![phi[c]; samples]).collect();
+            let wi_rows = [wi.x, wi.y, wi.z].map(|v| vec![v; samples]);
+            let us: Vec<_> = (0..samples).map(|_| uniform2(&mut r)).collect();
+            let u_rows = [0, 1].map(|k| us.iter().map(|u| u[k]).collect::<Vec<f32>>());
+            let mut lanes = vec![Default::default(); samples];
+            sampler
+                .prepare_batch(
+                    Features {
+                        channels: std::array::from_fn(|c| phi_rows[c].as_slice()),
+                    },
+                    Vec3s {
+                        x: &wi_rows[0],
+                        y: &wi_rows[1],
+                        z: &wi_rows[2],
+                    },
+                    &mut lanes,
+                )
+                .unwrap();
+            let mut wo = [0, 1, 2].map(|_| vec![0.0f32; samples]);
+            let mut pdf = vec![0.0f32; samples];
+            let [x, y, z] = &mut wo;
+            sampler
+                .sample_batch(
+                    &lanes,
+                    Vec2s {
+                        x: &u_rows[0],
+                        y: &u_rows[1],
+                    },
+                    SamplesMut {
+                        wo: Vec3sMut { x, y, z },
+                        pdf: &mut pdf,
+                    },
+                )
+                .unwrap();
+            let drawn: Vec<Option<Vec3>> = (0..samples)
+                .map(|i| (pdf[i] > 0.0).then(|| Vec3::new(wo[0][i], wo[1][i], wo[2][i])))
+                .collect();
+            let p = sampler
+                .prepare(phi, *wi)
+                .expect("fixture condition refused");
+            let out = chi2_test_samples(&p, &drawn, 24, 12, 5.0);
+            if out.p_value < alpha {
+                failures.push(format!(
+                    "{} at φ={phi:?} wi={wi}: p = {:e}",
+                    path.display(),
+                    out.p_value
+                ));
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "batched χ² failures at α = {alpha:e}:\n{}",
         failures.join("\n")
     );
 }

@@ -12,8 +12,8 @@ use neusample::wavefront::{
     Vec3sMut,
 };
 use neusample::{
-    AnySampler, Blob, BlobWriter, DType, Error, Prepared, Sampler, SamplerKind, TensorRole,
-    Vec2, Vec3, FEATURE_DIM,
+    AnySampler, Blob, BlobWriter, DType, Error, Prepared, Sampler, SamplerKind, TensorRole, Vec2,
+    Vec3, FEATURE_DIM,
 };
 use neusample_host_tests::{fixture_blobs_dir, fixture_conditions, rng, TestRng};
 use rand::RngExt;
@@ -177,7 +177,12 @@ where
         };
         for (k, f) in [&out, &fused].into_iter().enumerate() {
             assert_eq!(
-                [bits(f.wo[0][i]), bits(f.wo[1][i]), bits(f.wo[2][i]), bits(f.pdf[i])],
+                [
+                    bits(f.wo[0][i]),
+                    bits(f.wo[1][i]),
+                    bits(f.wo[2][i]),
+                    bits(f.pdf[i])
+                ],
                 [bits(wo.x), bits(wo.y), bits(wo.z), bits(spdf)],
                 "sample{} {}",
                 if k == 1 { " (fused)" } else { "" },
@@ -191,9 +196,19 @@ where
         let inv = p.as_ref().and_then(|p| p.invert(l.wo));
         assert_eq!(ok[i], inv.is_some(), "invert {}", ctx());
         if let Some(v) = inv {
-            assert_eq!([bits(ux[i]), bits(uy[i])], [bits(v.x), bits(v.y)], "invert {}", ctx());
+            assert_eq!(
+                [bits(ux[i]), bits(uy[i])],
+                [bits(v.x), bits(v.y)],
+                "invert {}",
+                ctx()
+            );
         } else {
-            assert_eq!([ux[i], uy[i]], [-7.0, -7.0], "invert wrote a refused lane {}", ctx());
+            assert_eq!(
+                [ux[i], uy[i]],
+                [-7.0, -7.0],
+                "invert wrote a refused lane {}",
+                ctx()
+            );
         }
     }
 }
@@ -221,7 +236,11 @@ fn fixture_samplers() -> Vec<(PathBuf, Vec<u8>, Vec<([f32; FEATURE_DIM], Vec3)>)
             out.push((f, bytes, conds.clone()));
         }
     }
-    assert!(out.len() >= 36, "expected every fixture blob, found {}", out.len());
+    assert!(
+        out.len() >= 36,
+        "expected every fixture blob, found {}",
+        out.len()
+    );
     out
 }
 
@@ -351,10 +370,18 @@ fn neural_material_batched_equals_scalar() {
                 let phi = Features::from_rows(&phi_rows, n).unwrap();
                 for i in 0..n {
                     let want = m.features(Vec2::new(uv[0][i], uv[1][i]));
-                    assert_eq!(phi.at(i).map(bits), want.map(bits), "features {what} lane {i}");
+                    assert_eq!(
+                        phi.at(i).map(bits),
+                        want.map(bits),
+                        "features {what} lane {i}"
+                    );
                 }
                 let conds: Vec<_> = (0..n).map(|i| (phi.at(i), random_dir(&mut r))).collect();
-                let ls = if n == 0 { Vec::new() } else { lanes(&mut r, &conds, n) };
+                let ls = if n == 0 {
+                    Vec::new()
+                } else {
+                    lanes(&mut r, &conds, n)
+                };
                 let soa = Soa::new(&ls);
                 let mut rgb = vec![-7.0f32; 3 * n];
                 m.eval_batch(
@@ -398,7 +425,10 @@ fn length_mismatches_are_errors_that_write_nothing() {
     let mut out = Out::new(10);
     out.pdf.pop();
     let err = s.sample_batch(&states, soa.u(), out.view()).unwrap_err();
-    assert!(matches!(err, Error::BatchLength { what: "pdf", .. }), "{err}");
+    assert!(
+        matches!(err, Error::BatchLength { what: "pdf", .. }),
+        "{err}"
+    );
     assert!(out.wo[0].iter().all(|&v| v == -7.0));
     assert!(Vec3s::from_rows(&[0.0; 8], 3).is_none());
 }

@@ -205,7 +205,9 @@ mod batch {
         ($s:expr, $m:ident) => {
             match $s {
                 AnySampler::Cosine(s) => $m!(s, Cosine, CosinePrepared),
-                AnySampler::ImprovedBaseline(s) => $m!(s, ImprovedBaseline, ImprovedBaselinePrepared),
+                AnySampler::ImprovedBaseline(s) => {
+                    $m!(s, ImprovedBaseline, ImprovedBaselinePrepared)
+                }
                 AnySampler::AnalyticMixture(s) => $m!(s, AnalyticMixture, AnalyticMixturePrepared),
                 AnySampler::Flow(s) => $m!(s, Flow, FlowLane),
                 AnySampler::AffineFlow(s) => $m!(s, AffineFlow, AffineLane),

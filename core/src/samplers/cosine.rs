@@ -45,21 +45,21 @@ impl Prepared for CosinePrepared {
 }
 
 #[cfg(not(target_arch = "spirv"))]
-impl crate::wavefront::BatchSampler for CosineSampler {
+impl crate::wavefront::ChunkedSampler for CosineSampler {
     type Lane = Option<CosinePrepared>;
+    const CHUNK: usize = 64;
 
-    fn prepare_batch(
+    #[inline(always)]
+    fn prepare_chunk(
         &self,
         phi: crate::wavefront::Features<'_>,
         wi: crate::wavefront::Vec3s<'_>,
         lanes: &mut [Option<CosinePrepared>],
-    ) -> crate::Result<()> {
-        let n = crate::wavefront::check_prepare_args(&phi, &wi, lanes)?;
-        for (i, lane) in lanes.iter_mut().enumerate().take(n) {
+    ) {
+        for (i, lane) in lanes.iter_mut().enumerate() {
             *lane = self.prepare(&phi.at(i), wi.at(i));
         }
-        Ok(())
     }
 
-    crate::wavefront::per_lane_methods!(CosinePrepared);
+    crate::wavefront::per_lane_chunks!(CosinePrepared);
 }

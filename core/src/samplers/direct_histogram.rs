@@ -178,44 +178,33 @@ mod batch {
     //! lanes, the histogram per lane ([`DirectHistogramPrepared::from_logits`]).
 
     use super::*;
-    use crate::wavefront::{self, dense, per_lane_methods, BatchSampler, Features, Soa, Vec3s};
+    use crate::wavefront::{self, dense, per_lane_chunks, ChunkedSampler, Features, Soa, Vec3s};
 
     /// Lanes per chunk (the 256 logits of 16 lanes take 16 KiB).
     const CHUNK: usize = 16;
 
-    impl<W: Weights> BatchSampler for DirectHistogramSampler<W> {
+    impl<W: Weights> ChunkedSampler for DirectHistogramSampler<W> {
         type Lane = Option<DirectHistogramPrepared>;
+        const CHUNK: usize = CHUNK;
 
-        fn prepare_batch(
-            &self,
-            phi: Features<'_>,
-            wi: Vec3s<'_>,
-            lanes: &mut [Self::Lane],
-        ) -> crate::Result<()> {
-            let n = wavefront::check_prepare_args(&phi, &wi, lanes)?;
+        #[inline(always)]
+        fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
             let w = &self.params;
-            wavefront::simd::dispatch(|| {
-                wavefront::chunks::<CHUNK>(n, |a, b| {
-                    let m = b - a;
-                    let (c, valid) =
-                        wavefront::encoded_conditions::<CHUNK>(&phi.range(a, b), &wi.range(a, b));
-                    let mut h: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
-                    let mut g: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
-                    let mut o: Soa<DIRECT_CELLS, CHUNK> = [[0.0; CHUNK]; DIRECT_CELLS];
-                    let relu = Activation::Relu;
-                    dense::dense(w, DIRECT_L0 as u32, &c, relu, &mut h, m);
-                    dense::dense(w, DIRECT_L1 as u32, &h, relu, &mut g, m);
-                    dense::dense(w, DIRECT_L2 as u32, &g, Activation::Identity, &mut o, m);
-                    for l in 0..m {
-                        lanes[a + l] = valid[l].then(|| {
-                            DirectHistogramPrepared::from_logits(&wavefront::column(&o, l))
-                        });
-                    }
-                });
-            });
-            Ok(())
+            let m = lanes.len();
+            let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+            let mut h: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
+            let mut g: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
+            let mut o: Soa<DIRECT_CELLS, CHUNK> = [[0.0; CHUNK]; DIRECT_CELLS];
+            let relu = Activation::Relu;
+            dense::dense(w, DIRECT_L0 as u32, &c, relu, &mut h, m);
+            dense::dense(w, DIRECT_L1 as u32, &h, relu, &mut g, m);
+            dense::dense(w, DIRECT_L2 as u32, &g, Activation::Identity, &mut o, m);
+            for l in 0..m {
+                lanes[l] = valid[l]
+                    .then(|| DirectHistogramPrepared::from_logits(&wavefront::column(&o, l)));
+            }
         }
 
-        per_lane_methods!(DirectHistogramPrepared);
+        per_lane_chunks!(DirectHistogramPrepared);
     }
 }

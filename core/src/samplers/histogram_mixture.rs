@@ -596,103 +596,72 @@ mod batch {
 
     use super::*;
     use crate::wavefront::{
-        self, dense, BatchSampler, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s,
+        self, dense, ChunkedSampler, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s,
     };
 
     /// Lanes per chunk.
     const CHUNK: usize = 32;
 
-    impl<W: Weights + Copy> BatchSampler for HistogramMixtureSampler<W> {
+    impl<W: Weights + Copy> ChunkedSampler for HistogramMixtureSampler<W> {
         type Lane = Option<MixtureLane>;
+        const CHUNK: usize = CHUNK;
 
-        fn prepare_batch(
-            &self,
-            phi: Features<'_>,
-            wi: Vec3s<'_>,
-            lanes: &mut [Option<MixtureLane>],
-        ) -> crate::Result<()> {
-            let n = wavefront::check_prepare_args(&phi, &wi, lanes)?;
+        #[inline(always)]
+        fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
             let w = &self.params;
-            wavefront::simd::dispatch(|| {
-                wavefront::chunks::<CHUNK>(n, |a, b| {
-                    let m = b - a;
-                    let (c, valid) =
-                        wavefront::raw_conditions::<CHUNK>(&phi.range(a, b), &wi.range(a, b));
-                    let mut h: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
-                    let mut g: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
-                    let mut o: Soa<MIX_OUTPUTS, CHUNK> = [[0.0; CHUNK]; MIX_OUTPUTS];
-                    let relu = Activation::Relu;
-                    dense::dense(w, MIX_L0 as u32, &c, relu, &mut h, m);
-                    dense::dense(w, MIX_L1 as u32, &h, relu, &mut g, m);
-                    dense::dense(w, MIX_L2 as u32, &g, relu, &mut h, m);
-                    dense::dense(w, MIX_L3 as u32, &h, Activation::Identity, &mut o, m);
-                    for l in 0..m {
-                        lanes[a + l] = if valid[l] {
-                            self.lane_from_outputs(&wavefront::column(&o, l))
-                        } else {
-                            None
-                        };
+            let m = lanes.len();
+            let (c, valid) = wavefront::raw_conditions::<CHUNK>(&phi, &wi);
+            let mut h: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
+            let mut g: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
+            let mut o: Soa<MIX_OUTPUTS, CHUNK> = [[0.0; CHUNK]; MIX_OUTPUTS];
+            let relu = Activation::Relu;
+            dense::dense(w, MIX_L0 as u32, &c, relu, &mut h, m);
+            dense::dense(w, MIX_L1 as u32, &h, relu, &mut g, m);
+            dense::dense(w, MIX_L2 as u32, &g, relu, &mut h, m);
+            dense::dense(w, MIX_L3 as u32, &h, Activation::Identity, &mut o, m);
+            for l in 0..m {
+                lanes[l] = if valid[l] {
+                    self.lane_from_outputs(&wavefront::column(&o, l))
+                } else {
+                    None
+                };
+            }
+        }
+
+        #[inline(always)]
+        fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+            for (i, l) in lanes.iter().enumerate() {
+                out.set(i, l.as_ref().and_then(|l| self.lane_sample(l, u.at(i))));
+            }
+        }
+
+        #[inline(always)]
+        fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) {
+            for (i, l) in lanes.iter().enumerate() {
+                pdf[i] = match (l, warp::upper_hemisphere(wo.at(i))) {
+                    (Some(l), Some(w)) => {
+                        warp::disk_to_solid_angle(self.lane_pdf_disk(l, warp::to_disk(w)), w.z)
                     }
-                });
-            });
-            Ok(())
+                    _ => 0.0,
+                };
+            }
         }
 
-        fn sample_batch(
+        #[inline(always)]
+        fn invert_chunk(
             &self,
-            lanes: &[Option<MixtureLane>],
-            u: Vec2s<'_>,
-            mut out: SamplesMut<'_>,
-        ) -> crate::Result<()> {
-            let n = wavefront::check_sample_args(lanes, &u, &out)?;
-            wavefront::simd::dispatch(|| {
-                for i in 0..n {
-                    let s = lanes[i].as_ref().and_then(|l| self.lane_sample(l, u.at(i)));
-                    out.set(i, s);
-                }
-            });
-            Ok(())
-        }
-
-        fn pdf_batch(
-            &self,
-            lanes: &[Option<MixtureLane>],
-            wo: Vec3s<'_>,
-            pdf: &mut [f32],
-        ) -> crate::Result<()> {
-            let n = wavefront::check_pdf_args(lanes, &wo, pdf)?;
-            wavefront::simd::dispatch(|| {
-                for i in 0..n {
-                    pdf[i] = match (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
-                        (Some(l), Some(w)) => warp::disk_to_solid_angle(
-                            self.lane_pdf_disk(l, warp::to_disk(w)),
-                            w.z,
-                        ),
-                        _ => 0.0,
-                    };
-                }
-            });
-            Ok(())
-        }
-
-        fn invert_batch(
-            &self,
-            lanes: &[Option<MixtureLane>],
+            lanes: &[Self::Lane],
             wo: Vec3s<'_>,
             mut u: Vec2sMut<'_>,
             ok: &mut [bool],
-        ) -> crate::Result<()> {
-            let n = wavefront::check_invert_args(lanes, &wo, &u, ok)?;
-            wavefront::simd::dispatch(|| {
-                for i in 0..n {
-                    let r = lanes[i].as_ref().and_then(|l| self.lane_invert(l, wo.at(i)));
-                    ok[i] = r.is_some();
-                    if let Some(v) = r {
-                        u.set(i, v);
-                    }
+        ) {
+            for (i, l) in lanes.iter().enumerate() {
+                let r = l.as_ref().and_then(|l| self.lane_invert(l, wo.at(i)));
+                ok[i] = r.is_some();
+                if let Some(v) = r {
+                    u.set(i, v);
                 }
-            });
-            Ok(())
+            }
         }
     }
 }

@@ -316,78 +316,56 @@ mod batch {
     //! [`AnalyticMixturePrepared::from_outputs`]).
 
     use super::*;
-    use crate::wavefront::{self, dense, per_lane_methods, BatchSampler, Features, Soa, Vec3s};
+    use crate::wavefront::{self, dense, per_lane_chunks, ChunkedSampler, Features, Soa, Vec3s};
 
     /// Lanes per chunk.
     const CHUNK: usize = 32;
 
-    impl<W: Weights> BatchSampler for ImprovedBaselineSampler<W> {
+    impl<W: Weights> ChunkedSampler for ImprovedBaselineSampler<W> {
         type Lane = Option<ImprovedBaselinePrepared>;
+        const CHUNK: usize = CHUNK;
 
-        fn prepare_batch(
-            &self,
-            phi: Features<'_>,
-            wi: Vec3s<'_>,
-            lanes: &mut [Self::Lane],
-        ) -> crate::Result<()> {
-            let n = wavefront::check_prepare_args(&phi, &wi, lanes)?;
+        #[inline(always)]
+        fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
             let w = &self.params;
-            wavefront::simd::dispatch(|| {
-                wavefront::chunks::<CHUNK>(n, |a, b| {
-                    let m = b - a;
-                    let (c, valid) =
-                        wavefront::encoded_conditions::<CHUNK>(&phi.range(a, b), &wi.range(a, b));
-                    let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
-                    let mut g: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
-                    let mut o: Soa<BASELINE_OUTPUTS, CHUNK> = [[0.0; CHUNK]; BASELINE_OUTPUTS];
-                    let relu = Activation::Relu;
-                    dense::dense(w, BASELINE_L0 as u32, &c, relu, &mut h, m);
-                    dense::dense(w, BASELINE_L1 as u32, &h, relu, &mut g, m);
-                    dense::dense(w, BASELINE_L2 as u32, &g, relu, &mut h, m);
-                    dense::dense(w, BASELINE_L3 as u32, &h, Activation::Identity, &mut o, m);
-                    for l in 0..m {
-                        lanes[a + l] = valid[l].then(|| {
-                            ImprovedBaselinePrepared::from_outputs(&wavefront::column(&o, l))
-                        });
-                    }
-                });
-            });
-            Ok(())
+            let m = lanes.len();
+            let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+            let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
+            let mut g: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
+            let mut o: Soa<BASELINE_OUTPUTS, CHUNK> = [[0.0; CHUNK]; BASELINE_OUTPUTS];
+            let relu = Activation::Relu;
+            dense::dense(w, BASELINE_L0 as u32, &c, relu, &mut h, m);
+            dense::dense(w, BASELINE_L1 as u32, &h, relu, &mut g, m);
+            dense::dense(w, BASELINE_L2 as u32, &g, relu, &mut h, m);
+            dense::dense(w, BASELINE_L3 as u32, &h, Activation::Identity, &mut o, m);
+            for l in 0..m {
+                lanes[l] = valid[l]
+                    .then(|| ImprovedBaselinePrepared::from_outputs(&wavefront::column(&o, l)));
+            }
         }
 
-        per_lane_methods!(ImprovedBaselinePrepared);
+        per_lane_chunks!(ImprovedBaselinePrepared);
     }
 
-    impl<W: Weights> BatchSampler for AnalyticMixtureSampler<W> {
+    impl<W: Weights> ChunkedSampler for AnalyticMixtureSampler<W> {
         type Lane = Option<AnalyticMixturePrepared>;
+        const CHUNK: usize = CHUNK;
 
-        fn prepare_batch(
-            &self,
-            phi: Features<'_>,
-            wi: Vec3s<'_>,
-            lanes: &mut [Self::Lane],
-        ) -> crate::Result<()> {
-            let n = wavefront::check_prepare_args(&phi, &wi, lanes)?;
+        #[inline(always)]
+        fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
             let w = &self.params;
-            wavefront::simd::dispatch(|| {
-                wavefront::chunks::<CHUNK>(n, |a, b| {
-                    let m = b - a;
-                    let (c, valid) =
-                        wavefront::encoded_conditions::<CHUNK>(&phi.range(a, b), &wi.range(a, b));
-                    let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
-                    let mut o: Soa<ANALYTIC_OUTPUTS, CHUNK> = [[0.0; CHUNK]; ANALYTIC_OUTPUTS];
-                    dense::dense(w, ANALYTIC_L0 as u32, &c, Activation::Relu, &mut h, m);
-                    dense::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity, &mut o, m);
-                    for l in 0..m {
-                        lanes[a + l] = valid[l].then(|| {
-                            AnalyticMixturePrepared::from_outputs(&wavefront::column(&o, l))
-                        });
-                    }
-                });
-            });
-            Ok(())
+            let m = lanes.len();
+            let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+            let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
+            let mut o: Soa<ANALYTIC_OUTPUTS, CHUNK> = [[0.0; CHUNK]; ANALYTIC_OUTPUTS];
+            dense::dense(w, ANALYTIC_L0 as u32, &c, Activation::Relu, &mut h, m);
+            dense::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity, &mut o, m);
+            for l in 0..m {
+                lanes[l] = valid[l]
+                    .then(|| AnalyticMixturePrepared::from_outputs(&wavefront::column(&o, l)));
+            }
         }
 
-        per_lane_methods!(AnalyticMixturePrepared);
+        per_lane_chunks!(AnalyticMixturePrepared);
     }
 }

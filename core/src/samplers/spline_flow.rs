@@ -222,7 +222,6 @@ impl<W: Weights + Copy> Sampler for FlowSampler<W> {
     }
 }
 
-
 impl<W: Weights + Copy> FlowPrepared<'_, W> {
     /// Mean of the base Gaussian.
     #[must_use]
@@ -302,7 +301,12 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
             z.y,
         );
         let x = k0.inverse_point(z.x);
-        let k1 = spline_knots(&self.params.get(), FLOW_COUPLING1 as u32, &self.lane.share[1], x);
+        let k1 = spline_knots(
+            &self.params.get(),
+            FLOW_COUPLING1 as u32,
+            &self.lane.share[1],
+            x,
+        );
         let y = k1.inverse_point(z.y);
         (Vec2::new(x, y), k0, k1)
     }

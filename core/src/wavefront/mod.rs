@@ -30,11 +30,13 @@ pub(crate) mod dense;
 mod lanes;
 pub(crate) mod simd;
 
+pub use crate::neural_material::RgbMut;
+pub use crate::samplers::{AffineLane, AnyLane, FlowLane, MixtureLane};
 pub use simd::{current as current_isa, detected as detected_isa, prefer as prefer_isa, Isa};
 
 use crate::error::{Error, Result};
 use crate::nn::FEATURE_DIM;
-use crate::samplers::{Prepared, Sample};
+use crate::samplers::Sample;
 
 /// Lanes per chunk of the fused calls ([`BatchSampler::sample_fused`],
 /// [`BatchSampler::pdf_fused`]): their prepared states live on the stack.
@@ -409,12 +411,15 @@ pub trait BatchSampler {
 
     /// Runs the networks for the `N = lanes.len()` conditions `(phi[i], wi[i])` and writes
     /// each lane's state (refused conditions: `Lane::default()`).
-    fn prepare_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane])
-        -> Result<()>;
+    fn prepare_batch(
+        &self,
+        phi: Features<'_>,
+        wi: Vec3s<'_>,
+        lanes: &mut [Self::Lane],
+    ) -> Result<()>;
 
     /// Draws one direction per lane from `u[i]` (as [`Prepared::sample`]).
-    fn sample_batch(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>)
-        -> Result<()>;
+    fn sample_batch(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) -> Result<()>;
 
     /// The solid-angle density of `wo[i]` at lane `i` (as [`Prepared::pdf`]).
     fn pdf_batch(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()>;
@@ -491,19 +496,209 @@ pub trait BatchSampler {
     }
 }
 
-/// Activations of a chunk of `B` lanes: `[feature][lane]`.
-pub(crate) type Soa<const N: usize, const B: usize> = [[f32; B]; N];
+pub(crate) use chunked::ChunkedSampler;
 
-/// Calls `f(a, b)` for the chunks `[a, b)` of `0..n`, `B` lanes each (the last one shorter).
-#[inline(always)]
-pub(crate) fn chunks<const B: usize>(n: usize, mut f: impl FnMut(usize, usize)) {
-    let mut a = 0;
-    while a < n {
-        let b = if n - a > B { a + B } else { n };
-        f(a, b);
-        a = b;
+mod chunked {
+    //! [`ChunkedSampler`]: what a sampler writes to be batched; [`BatchSampler`] follows
+    //! (argument checks, chunking, instruction-set dispatch).
+
+    use super::simd::{dispatch, Kernel};
+    use super::{
+        check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, BatchSampler,
+        Features, SamplesMut, Vec2s, Vec2sMut, Vec3s,
+    };
+    use crate::error::Result;
+
+    /// How a sampler computes one chunk of at most `CHUNK` lanes (arguments already checked).
+    /// Every method must be `#[inline(always)]`, so that [`dispatch`] compiles it for the
+    /// chosen instruction set. Public only to name it in [`BatchSampler`]'s blanket impl; the
+    /// module is private.
+    pub trait ChunkedSampler {
+        /// See [`BatchSampler::Lane`].
+        type Lane: Copy + Default;
+        /// Lanes per chunk.
+        const CHUNK: usize;
+        /// [`BatchSampler::prepare_batch`] of one chunk.
+        fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]);
+        /// [`BatchSampler::sample_batch`] of one chunk.
+        fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>);
+        /// [`BatchSampler::pdf_batch`] of one chunk.
+        fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]);
+        /// [`BatchSampler::invert_batch`] of one chunk.
+        fn invert_chunk(
+            &self,
+            lanes: &[Self::Lane],
+            wo: Vec3s<'_>,
+            u: Vec2sMut<'_>,
+            ok: &mut [bool],
+        );
+    }
+
+    /// The chunks `[a, b)` of `0..n`, `c` lanes each.
+    #[inline(always)]
+    fn next_chunk(a: usize, n: usize, c: usize) -> usize {
+        if n - a > c {
+            a + c
+        } else {
+            n
+        }
+    }
+
+    struct Prepare<'a, 's, S: ChunkedSampler> {
+        s: &'s S,
+        phi: Features<'a>,
+        wi: Vec3s<'a>,
+        lanes: &'a mut [S::Lane],
+    }
+
+    impl<S: ChunkedSampler> Kernel for Prepare<'_, '_, S> {
+        type Output = ();
+        #[inline(always)]
+        fn run(self) {
+            let n = self.lanes.len();
+            let mut a = 0;
+            while a < n {
+                let b = next_chunk(a, n, S::CHUNK);
+                let (phi, wi) = (self.phi.range(a, b), self.wi.range(a, b));
+                self.s.prepare_chunk(phi, wi, &mut self.lanes[a..b]);
+                a = b;
+            }
+        }
+    }
+
+    struct Sample<'a, 's, S: ChunkedSampler> {
+        s: &'s S,
+        lanes: &'a [S::Lane],
+        u: Vec2s<'a>,
+        out: SamplesMut<'a>,
+    }
+
+    impl<S: ChunkedSampler> Kernel for Sample<'_, '_, S> {
+        type Output = ();
+        #[inline(always)]
+        fn run(mut self) {
+            let n = self.lanes.len();
+            let mut a = 0;
+            while a < n {
+                let b = next_chunk(a, n, S::CHUNK);
+                let u = self.u.range(a, b);
+                self.s
+                    .sample_chunk(&self.lanes[a..b], u, self.out.range(a, b));
+                a = b;
+            }
+        }
+    }
+
+    struct Pdf<'a, 's, S: ChunkedSampler> {
+        s: &'s S,
+        lanes: &'a [S::Lane],
+        wo: Vec3s<'a>,
+        pdf: &'a mut [f32],
+    }
+
+    impl<S: ChunkedSampler> Kernel for Pdf<'_, '_, S> {
+        type Output = ();
+        #[inline(always)]
+        fn run(self) {
+            let n = self.lanes.len();
+            let mut a = 0;
+            while a < n {
+                let b = next_chunk(a, n, S::CHUNK);
+                let wo = self.wo.range(a, b);
+                self.s.pdf_chunk(&self.lanes[a..b], wo, &mut self.pdf[a..b]);
+                a = b;
+            }
+        }
+    }
+
+    struct Invert<'a, 's, S: ChunkedSampler> {
+        s: &'s S,
+        lanes: &'a [S::Lane],
+        wo: Vec3s<'a>,
+        u: Vec2sMut<'a>,
+        ok: &'a mut [bool],
+    }
+
+    impl<S: ChunkedSampler> Kernel for Invert<'_, '_, S> {
+        type Output = ();
+        #[inline(always)]
+        fn run(mut self) {
+            let n = self.lanes.len();
+            let mut a = 0;
+            while a < n {
+                let b = next_chunk(a, n, S::CHUNK);
+                let wo = self.wo.range(a, b);
+                let lanes = &self.lanes[a..b];
+                self.s
+                    .invert_chunk(lanes, wo, self.u.range(a, b), &mut self.ok[a..b]);
+                a = b;
+            }
+        }
+    }
+
+    impl<S: ChunkedSampler> BatchSampler for S {
+        type Lane = S::Lane;
+
+        fn prepare_batch(
+            &self,
+            phi: Features<'_>,
+            wi: Vec3s<'_>,
+            lanes: &mut [S::Lane],
+        ) -> Result<()> {
+            check_prepare_args(&phi, &wi, lanes)?;
+            dispatch(Prepare {
+                s: self,
+                phi,
+                wi,
+                lanes,
+            });
+            Ok(())
+        }
+
+        fn sample_batch(&self, lanes: &[S::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) -> Result<()> {
+            check_sample_args(lanes, &u, &out)?;
+            dispatch(Sample {
+                s: self,
+                lanes,
+                u,
+                out,
+            });
+            Ok(())
+        }
+
+        fn pdf_batch(&self, lanes: &[S::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+            check_pdf_args(lanes, &wo, pdf)?;
+            dispatch(Pdf {
+                s: self,
+                lanes,
+                wo,
+                pdf,
+            });
+            Ok(())
+        }
+
+        fn invert_batch(
+            &self,
+            lanes: &[S::Lane],
+            wo: Vec3s<'_>,
+            u: Vec2sMut<'_>,
+            ok: &mut [bool],
+        ) -> Result<()> {
+            check_invert_args(lanes, &wo, &u, ok)?;
+            dispatch(Invert {
+                s: self,
+                lanes,
+                wo,
+                u,
+                ok,
+            });
+            Ok(())
+        }
     }
 }
+
+/// Activations of a chunk of `B` lanes: `[feature][lane]`.
+pub(crate) type Soa<const N: usize, const B: usize> = [[f32; B]; N];
 
 /// Lane `l` of a chunk's activations.
 #[inline(always)]
@@ -615,88 +810,53 @@ pub(crate) fn check_invert_args<L>(
     Ok(n)
 }
 
-/// [`BatchSampler`]'s `sample_batch`, `pdf_batch` and `invert_batch` for lanes that are
+/// [`ChunkedSampler`]'s `sample_chunk`, `pdf_chunk` and `invert_chunk` for lanes that are
 /// `Option<P>` of a scalar [`Prepared`] state `P` that needs no weights: the scalar code
-/// lane by lane ([`sample_each`], [`pdf_each`], [`invert_each`]), under [`simd::dispatch`].
-macro_rules! per_lane_methods {
+/// lane by lane.
+macro_rules! per_lane_chunks {
     ($p:ty) => {
-        fn sample_batch(
+        #[inline(always)]
+        fn sample_chunk(
             &self,
             lanes: &[Option<$p>],
             u: $crate::wavefront::Vec2s<'_>,
-            out: $crate::wavefront::SamplesMut<'_>,
-        ) -> $crate::Result<()> {
-            $crate::wavefront::simd::dispatch(|| $crate::wavefront::sample_each(lanes, u, out))
+            mut out: $crate::wavefront::SamplesMut<'_>,
+        ) {
+            for (i, l) in lanes.iter().enumerate() {
+                out.set(i, l.as_ref().and_then(|p| p.sample(u.at(i))));
+            }
         }
 
-        fn pdf_batch(
+        #[inline(always)]
+        fn pdf_chunk(
             &self,
             lanes: &[Option<$p>],
             wo: $crate::wavefront::Vec3s<'_>,
             pdf: &mut [f32],
-        ) -> $crate::Result<()> {
-            $crate::wavefront::simd::dispatch(|| $crate::wavefront::pdf_each(lanes, wo, pdf))
+        ) {
+            for (i, l) in lanes.iter().enumerate() {
+                pdf[i] = l.as_ref().map_or(0.0, |p| p.pdf(wo.at(i)));
+            }
         }
 
-        fn invert_batch(
+        #[inline(always)]
+        fn invert_chunk(
             &self,
             lanes: &[Option<$p>],
             wo: $crate::wavefront::Vec3s<'_>,
-            u: $crate::wavefront::Vec2sMut<'_>,
+            mut u: $crate::wavefront::Vec2sMut<'_>,
             ok: &mut [bool],
-        ) -> $crate::Result<()> {
-            $crate::wavefront::simd::dispatch(|| $crate::wavefront::invert_each(lanes, wo, u, ok))
+        ) {
+            for (i, l) in lanes.iter().enumerate() {
+                match l.as_ref().and_then(|p| p.invert(wo.at(i))) {
+                    Some(v) => {
+                        u.set(i, v);
+                        ok[i] = true;
+                    }
+                    None => ok[i] = false,
+                }
+            }
         }
     };
 }
-pub(crate) use per_lane_methods;
-
-/// Per-lane implementations of [`BatchSampler`]'s sample/pdf/invert for lanes that are
-/// optional [`Prepared`] states (`None`: refused): the scalar code, lane by lane.
-#[inline(always)]
-pub(crate) fn sample_each<P: Prepared>(
-    lanes: &[Option<P>],
-    u: Vec2s<'_>,
-    mut out: SamplesMut<'_>,
-) -> Result<()> {
-    let n = check_sample_args(lanes, &u, &out)?;
-    for i in 0..n {
-        out.set(i, lanes[i].as_ref().and_then(|p| p.sample(u.at(i))));
-    }
-    Ok(())
-}
-
-/// See [`sample_each`].
-#[inline(always)]
-pub(crate) fn pdf_each<P: Prepared>(
-    lanes: &[Option<P>],
-    wo: Vec3s<'_>,
-    pdf: &mut [f32],
-) -> Result<()> {
-    let n = check_pdf_args(lanes, &wo, pdf)?;
-    for i in 0..n {
-        pdf[i] = lanes[i].as_ref().map_or(0.0, |p| p.pdf(wo.at(i)));
-    }
-    Ok(())
-}
-
-/// See [`sample_each`].
-#[inline(always)]
-pub(crate) fn invert_each<P: Prepared>(
-    lanes: &[Option<P>],
-    wo: Vec3s<'_>,
-    mut u: Vec2sMut<'_>,
-    ok: &mut [bool],
-) -> Result<()> {
-    let n = check_invert_args(lanes, &wo, &u, ok)?;
-    for i in 0..n {
-        match lanes[i].as_ref().and_then(|p| p.invert(wo.at(i))) {
-            Some(v) => {
-                u.set(i, v);
-                ok[i] = true;
-            }
-            None => ok[i] = false,
-        }
-    }
-    Ok(())
-}
+pub(crate) use per_lane_chunks;

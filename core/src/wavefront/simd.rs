@@ -72,15 +72,35 @@ pub fn current() -> Isa {
     }
 }
 
-/// Runs `f` compiled for [`current`]'s instruction set. `f` and what it calls must be
-/// `#[inline(always)]` for the instruction set to reach them.
+/// A batched computation that [`dispatch`] runs. Its `run` (and everything `run` calls that
+/// should use the chosen instruction set) must be `#[inline(always)]`: an instruction set
+/// reaches code only by inlining into the function compiled for it.
+pub(crate) trait Kernel {
+    /// What the computation returns.
+    type Output;
+    /// The computation.
+    fn run(self) -> Self::Output;
+}
+
+/// A [`Kernel`] as `pulp` takes it.
+struct Job<K>(K);
+
+impl<K: Kernel> pulp::NullaryFnOnce for Job<K> {
+    type Output = K::Output;
+    #[inline(always)]
+    fn call(self) -> K::Output {
+        self.0.run()
+    }
+}
+
+/// Runs `k` compiled for [`current`]'s instruction set.
 #[inline(always)]
-pub(crate) fn dispatch<R>(f: impl FnOnce() -> R) -> R {
+pub(crate) fn dispatch<K: Kernel>(k: K) -> K::Output {
     #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
     if current() == Isa::X86V3 {
         if let Some(v3) = pulp::x86::V3::try_new() {
-            return v3.vectorize(f);
+            return v3.vectorize(Job(k));
         }
     }
-    f()
+    k.run()
 }

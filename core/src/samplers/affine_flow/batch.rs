@@ -4,20 +4,18 @@
 use glam::Vec2;
 
 use super::{
-    scale_shift, AffineFlowPrepared, AffineFlowSampler, AffineLane, AFFINE_LAYERS,
-    AFFINE_NET_L0, AFFINE_NET_L1, AFFINE_NET_L2, AFFINE_NET_LEN, AFFINE_OUTPUTS,
+    scale_shift, AffineFlowPrepared, AffineFlowSampler, AffineLane, AFFINE_LAYERS, AFFINE_NET_L0,
+    AFFINE_NET_L1, AFFINE_NET_L2, AFFINE_NET_LEN, AFFINE_OUTPUTS,
 };
 use crate::distrib::gaussian;
-use crate::error::Result;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
-use crate::samplers::coupling::{density_from_log, encode_other, COUPLING_INPUTS, HIDDEN, OTHER_DIM};
+use crate::samplers::coupling::{
+    density_from_log, encode_other, COUPLING_INPUTS, HIDDEN, OTHER_DIM,
+};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::{
-    self, check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, dense,
-    BatchSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s,
-};
+use crate::wavefront::{self, dense, ChunkedSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk.
@@ -54,19 +52,40 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
             }
         }
         let l0 = off + AFFINE_NET_L0 as u32;
-        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(w, l0, CONDITION_DIM as u32, &e, &mut h, m);
+        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(
+            w,
+            l0,
+            CONDITION_DIM as u32,
+            &e,
+            &mut h,
+            m,
+        );
         dense::activate(Activation::Relu, &mut h, m);
         let mut g: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
-        dense::dense(w, off + AFFINE_NET_L1 as u32, &h, Activation::Relu, &mut g, m);
+        dense::dense(
+            w,
+            off + AFFINE_NET_L1 as u32,
+            &h,
+            Activation::Relu,
+            &mut g,
+            m,
+        );
         let mut o: Soa<AFFINE_OUTPUTS> = [[0.0; CHUNK]; AFFINE_OUTPUTS];
-        dense::dense(w, off + AFFINE_NET_L2 as u32, &g, Activation::Identity, &mut o, m);
+        dense::dense(
+            w,
+            off + AFFINE_NET_L2 as u32,
+            &g,
+            Activation::Identity,
+            &mut o,
+            m,
+        );
         for k in 0..m {
             st[idx[k]] = scale_shift(&[o[0][k], o[1][k]]);
         }
     }
 
     #[inline(always)]
-    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<AffineLane>]) {
+    fn chunk_prepare(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<AffineLane>]) {
         let m = out.len();
         let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
@@ -140,7 +159,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Option<AffineLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn chunk_sample(&self, lanes: &[Option<AffineLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
         let all = wavefront::identity_index::<CHUNK>();
         let mut ok = [false; CHUNK];
@@ -224,7 +243,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Option<AffineLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn chunk_pdf(&self, lanes: &[Option<AffineLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
         let mut ok = [false; CHUNK];
         let mut cos = [0.0f32; CHUNK];
         let mut zl = [Vec2::ZERO; CHUNK];
@@ -241,12 +260,11 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn invert_chunk(
+    fn chunk_invert(
         &self,
         lanes: &[Option<AffineLane>],
         wo: Vec3s<'_>,
-        u: &mut Vec2sMut<'_>,
-        a: usize,
+        mut u: Vec2sMut<'_>,
         ok_out: &mut [bool],
     ) {
         let mut ok = [false; CHUNK];
@@ -263,68 +281,33 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
             };
             ok_out[i] = r.is_some();
             if let Some(x) = r {
-                u.set(a + i, x);
+                u.set(i, x);
             }
         }
     }
 }
 
-impl<W: Weights + Copy> BatchSampler for AffineFlowSampler<W> {
+impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
     type Lane = Option<AffineLane>;
+    const CHUNK: usize = CHUNK;
 
-    fn prepare_batch(
-        &self,
-        phi: Features<'_>,
-        wi: Vec3s<'_>,
-        lanes: &mut [Option<AffineLane>],
-    ) -> Result<()> {
-        let n = check_prepare_args(&phi, &wi, lanes)?;
-        wavefront::simd::dispatch(|| {
-            wavefront::chunks::<CHUNK>(n, |a, b| {
-                self.prepare_chunk(phi.range(a, b), wi.range(a, b), &mut lanes[a..b]);
-            });
-        });
-        Ok(())
+    #[inline(always)]
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
+        self.chunk_prepare(phi, wi, lanes);
     }
 
-    fn sample_batch(
-        &self,
-        lanes: &[Option<AffineLane>],
-        u: Vec2s<'_>,
-        mut out: SamplesMut<'_>,
-    ) -> Result<()> {
-        let n = check_sample_args(lanes, &u, &out)?;
-        wavefront::simd::dispatch(|| {
-            wavefront::chunks::<CHUNK>(n, |a, b| {
-                self.sample_chunk(&lanes[a..b], u.range(a, b), out.range(a, b));
-            });
-        });
-        Ok(())
+    #[inline(always)]
+    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) {
+        self.chunk_sample(lanes, u, out);
     }
 
-    fn pdf_batch(&self, lanes: &[Option<AffineLane>], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
-        let n = check_pdf_args(lanes, &wo, pdf)?;
-        wavefront::simd::dispatch(|| {
-            wavefront::chunks::<CHUNK>(n, |a, b| {
-                self.pdf_chunk(&lanes[a..b], wo.range(a, b), &mut pdf[a..b]);
-            });
-        });
-        Ok(())
+    #[inline(always)]
+    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) {
+        self.chunk_pdf(lanes, wo, pdf);
     }
 
-    fn invert_batch(
-        &self,
-        lanes: &[Option<AffineLane>],
-        wo: Vec3s<'_>,
-        mut u: Vec2sMut<'_>,
-        ok: &mut [bool],
-    ) -> Result<()> {
-        let n = check_invert_args(lanes, &wo, &u, ok)?;
-        wavefront::simd::dispatch(|| {
-            wavefront::chunks::<CHUNK>(n, |a, b| {
-                self.invert_chunk(&lanes[a..b], wo.range(a, b), &mut u, a, &mut ok[a..b]);
-            });
-        });
-        Ok(())
+    #[inline(always)]
+    fn invert_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, u: Vec2sMut<'_>, ok: &mut [bool]) {
+        self.chunk_invert(lanes, wo, u, ok);
     }
 }

@@ -11,18 +11,14 @@ use super::{
     TAIL_BOUND,
 };
 use crate::distrib::spline::Knots;
-use crate::error::Result;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
-use crate::samplers::coupling::{density_from_log, encode_other, COUPLING_INPUTS, HIDDEN, OTHER_DIM};
+use crate::samplers::coupling::{
+    density_from_log, encode_other, COUPLING_INPUTS, HIDDEN, OTHER_DIM,
+};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::{self, dense};
-use crate::wavefront::simd::dispatch;
-use crate::wavefront::{
-    check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, BatchSampler,
-    Features, SamplesMut, Vec2s, Vec2sMut, Vec3s,
-};
+use crate::wavefront::{self, dense, ChunkedSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk: activations, splines and lane states of a chunk stay in L1.
@@ -30,12 +26,6 @@ const CHUNK: usize = 32;
 
 /// Activations of a chunk: `[feature][lane]`.
 type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
-
-/// The chunks `[a, b)` of `0..n`.
-#[inline(always)]
-fn chunks(n: usize, f: impl FnMut(usize, usize)) {
-    wavefront::chunks::<CHUNK>(n, f);
-}
 
 impl<W: Weights + Copy> FlowSampler<W> {
     /// The raw spline parameters of coupling network `net` (at `FLOW_COUPLING0/1`) for the
@@ -64,7 +54,14 @@ impl<W: Weights + Copy> FlowSampler<W> {
             }
         }
         let l0 = off + SPLINE_NET_L0 as u32;
-        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(w, l0, CONDITION_DIM as u32, &e, &mut h, m);
+        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(
+            w,
+            l0,
+            CONDITION_DIM as u32,
+            &e,
+            &mut h,
+            m,
+        );
         dense::activate(Activation::LeakyRelu, &mut h, m);
         let mut h2: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
         let l1 = off + SPLINE_NET_L1 as u32;
@@ -106,7 +103,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 
     #[inline(always)]
-    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<FlowLane>]) {
+    fn chunk_prepare(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<FlowLane>]) {
         let m = out.len();
         let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
@@ -150,7 +147,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 
     #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Option<FlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn chunk_sample(&self, lanes: &[Option<FlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
         let all = wavefront::identity_index::<CHUNK>();
         // Base points (refused lanes keep z = 0 and are dropped at the end).
@@ -251,7 +248,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 
     #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Option<FlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn chunk_pdf(&self, lanes: &[Option<FlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
         let m = lanes.len();
         let mut p = [Vec2::ZERO; CHUNK];
         let mut cos = [0.0f32; CHUNK];
@@ -278,12 +275,11 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 
     #[inline(always)]
-    fn invert_chunk(
+    fn chunk_invert(
         &self,
         lanes: &[Option<FlowLane>],
         wo: Vec3s<'_>,
-        u: &mut Vec2sMut<'_>,
-        a: usize,
+        mut u: Vec2sMut<'_>,
         ok_out: &mut [bool],
     ) {
         let m = lanes.len();
@@ -305,69 +301,33 @@ impl<W: Weights + Copy> FlowSampler<W> {
             };
             ok_out[l] = r.is_some();
             if let Some(v) = r {
-                u.set(a + l, v);
+                u.set(l, v);
             }
         }
     }
 }
 
-
-impl<W: Weights + Copy> BatchSampler for FlowSampler<W> {
+impl<W: Weights + Copy> ChunkedSampler for FlowSampler<W> {
     type Lane = Option<FlowLane>;
+    const CHUNK: usize = CHUNK;
 
-    fn prepare_batch(
-        &self,
-        phi: Features<'_>,
-        wi: Vec3s<'_>,
-        lanes: &mut [Option<FlowLane>],
-    ) -> Result<()> {
-        let n = check_prepare_args(&phi, &wi, lanes)?;
-        dispatch(|| {
-            chunks(n, |a, b| {
-                self.prepare_chunk(phi.range(a, b), wi.range(a, b), &mut lanes[a..b]);
-            });
-        });
-        Ok(())
+    #[inline(always)]
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
+        self.chunk_prepare(phi, wi, lanes);
     }
 
-    fn sample_batch(
-        &self,
-        lanes: &[Option<FlowLane>],
-        u: Vec2s<'_>,
-        mut out: SamplesMut<'_>,
-    ) -> Result<()> {
-        let n = check_sample_args(lanes, &u, &out)?;
-        dispatch(|| {
-            chunks(n, |a, b| {
-                self.sample_chunk(&lanes[a..b], u.range(a, b), out.range(a, b));
-            });
-        });
-        Ok(())
+    #[inline(always)]
+    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) {
+        self.chunk_sample(lanes, u, out);
     }
 
-    fn pdf_batch(&self, lanes: &[Option<FlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
-        let n = check_pdf_args(lanes, &wo, pdf)?;
-        dispatch(|| {
-            chunks(n, |a, b| {
-                self.pdf_chunk(&lanes[a..b], wo.range(a, b), &mut pdf[a..b]);
-            });
-        });
-        Ok(())
+    #[inline(always)]
+    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) {
+        self.chunk_pdf(lanes, wo, pdf);
     }
 
-    fn invert_batch(
-        &self,
-        lanes: &[Option<FlowLane>],
-        wo: Vec3s<'_>,
-        mut u: Vec2sMut<'_>,
-        ok: &mut [bool],
-    ) -> Result<()> {
-        let n = check_invert_args(lanes, &wo, &u, ok)?;
-        dispatch(|| {
-            chunks(n, |a, b| {
-                self.invert_chunk(&lanes[a..b], wo.range(a, b), &mut u, a, &mut ok[a..b]);
-            });
-        });
-        Ok(())
+    #[inline(always)]
+    fn invert_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, u: Vec2sMut<'_>, ok: &mut [bool]) {
+        self.chunk_invert(lanes, wo, u, ok);
     }
 }
