@@ -6,6 +6,7 @@
 //! blob through the runtime's public API; [`demo`] runs the whole chain and reports.
 
 pub mod bake;
+pub mod bench;
 pub mod demo;
 pub mod eval;
 pub mod figures;

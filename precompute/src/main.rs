@@ -64,8 +64,45 @@ enum Command {
     TrainMaterial(neusample_precompute::neural::cli::TrainMaterialArgs),
     /// Import a neural material from safetensors (NEURAL.md).
     ImportMaterial(neusample_precompute::neural::cli::ImportMaterialArgs),
+    /// The runtime's cost per shading point: every sampler and the neural material, scalar
+    /// and batched, with the dense layers' throughput against the CPU's peak.
+    Bench(BenchArgs),
     /// Single-thread cost of a material's eval and features (Table 1 ratio).
     MaterialCost(neusample_precompute::neural::cli::MaterialCostArgs),
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// A folder of sampler blobs (`<method>.nsb`) with its `conditions.txt`; default: the
+    /// committed goat-leather fixtures.
+    #[arg(long)]
+    blobs: Option<PathBuf>,
+    /// The neural material (`.nsb`); default: the committed goat leather.
+    #[arg(long)]
+    material: Option<PathBuf>,
+    /// Fewer lanes and passes (a smoke run; noisier figures).
+    #[arg(long)]
+    quick: bool,
+    /// Machine-readable output (the `BenchReport` schema in `precompute/src/bench.rs`).
+    #[arg(long)]
+    json: bool,
+}
+
+impl From<&BenchArgs> for neusample_precompute::bench::BenchConfig {
+    fn from(a: &BenchArgs) -> Self {
+        let mut c = Self::fixtures();
+        if let Some(b) = &a.blobs {
+            c.blobs = b.clone();
+        }
+        if let Some(m) = &a.material {
+            c.material = m.clone();
+        }
+        if a.quick {
+            c.lanes_per_pass = 1 << 11;
+            c.passes = 3;
+        }
+        c
+    }
 }
 
 #[derive(Args)]
@@ -144,6 +181,15 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::MaterialCost(a) => {
             neusample_precompute::neural::cli::material_cost(&a).map(|_| ())
+        }
+        Command::Bench(a) => {
+            let report = neusample_precompute::bench::run(&(&a).into())?;
+            if a.json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                print!("{}", neusample_precompute::bench::text(&report));
+            }
+            Ok(())
         }
     }
 }
