@@ -560,7 +560,11 @@ pub fn text(r: &BenchReport) -> String {
         let b = |n: usize| r_total(m, n);
         let b64 = m.batched.iter().find(|b| b.n == 64);
         let (p, sm, pd) = b64.map_or((0.0, 0.0, 0.0), |b| {
-            (b.dispatched.prepare_ns, b.dispatched.sample_ns, b.dispatched.pdf_ns)
+            (
+                b.dispatched.prepare_ns,
+                b.dispatched.sample_ns,
+                b.dispatched.pdf_ns,
+            )
         });
         let _ = writeln!(
             s,

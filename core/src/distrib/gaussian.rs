@@ -3,7 +3,7 @@
 
 use glam::Vec2;
 
-use crate::math;
+use crate::math::{self, Lane};
 
 /// Lower clamp of every predicted `log σ` (σ ≥ e⁻⁷ ≈ 9·10⁻⁴).
 pub const LOG_SIGMA_MIN: f32 = -7.0;
@@ -85,23 +85,65 @@ pub fn softmax<const N: usize>(x: &mut [f32; N]) {
 }
 
 /// Two [`softmax`]es, each bit for bit a call of [`softmax`], with their sequential sums
-/// interleaved so that the two dependency chains overlap (the spline's widths and heights).
-#[inline]
-pub(crate) fn softmax_pair<const N: usize>(a: &mut [f32; N], b: &mut [f32; N]) {
-    let ma = clamp_and_max(a);
-    let mb = clamp_and_max(b);
-    exp_shifted(a, ma);
-    exp_shifted(b, mb);
-    let mut sa = 0.0;
-    let mut sb = 0.0;
+/// interleaved so that the two dependency chains overlap (the spline's widths and heights);
+/// for one point (`L = f32`) or several lanes at once.
+#[inline(always)]
+pub(crate) fn softmax_pair_lanes<L: Lane, const N: usize>(a: &mut [L; N], b: &mut [L; N]) {
+    let ma = clamp_and_max_lanes(a);
+    let mb = clamp_and_max_lanes(b);
+    let floor_a = ma - L::splat(80.0);
+    let floor_b = mb - L::splat(80.0);
+    let zero = L::splat(0.0);
     let mut i = 0;
     while i < N {
-        sa += a[i];
-        sb += b[i];
+        // `exp_shifted`, per lane.
+        a[i] = L::select(a[i].ge(floor_a), (a[i] - ma).exp_nonpositive(), zero);
+        b[i] = L::select(b[i].ge(floor_b), (b[i] - mb).exp_nonpositive(), zero);
         i += 1;
     }
-    normalize(a, sa);
-    normalize(b, sb);
+    let mut sa = zero;
+    let mut sb = zero;
+    i = 0;
+    while i < N {
+        sa = sa + a[i];
+        sb = sb + b[i];
+        i += 1;
+    }
+    // `normalize`, per lane.
+    let uniform = L::splat(1.0 / N as f32);
+    let (pos_a, pos_b) = (sa.gt(zero), sb.gt(zero));
+    i = 0;
+    while i < N {
+        a[i] = L::select(pos_a, a[i] / sa, uniform);
+        b[i] = L::select(pos_b, b[i] / sb, uniform);
+        i += 1;
+    }
+}
+
+/// [`clamp_and_max`] for one point or several lanes.
+#[inline(always)]
+fn clamp_and_max_lanes<L: Lane, const N: usize>(x: &mut [L; N]) -> L {
+    let mut lanes = [L::splat(f32::NEG_INFINITY); 4];
+    let mut i = 0;
+    while i + 4 <= N {
+        let mut l = 0;
+        while l < 4 {
+            let v = x[i + l].clamp(-SOFTMAX_INPUT_BOUND, SOFTMAX_INPUT_BOUND);
+            x[i + l] = v;
+            lanes[l] = L::select(v.gt(lanes[l]), v, lanes[l]);
+            l += 1;
+        }
+        i += 4;
+    }
+    while i < N {
+        let v = x[i].clamp(-SOFTMAX_INPUT_BOUND, SOFTMAX_INPUT_BOUND);
+        x[i] = v;
+        lanes[0] = L::select(v.gt(lanes[0]), v, lanes[0]);
+        i += 1;
+    }
+    let m01 = L::select(lanes[1].gt(lanes[0]), lanes[1], lanes[0]);
+    let m23 = L::select(lanes[3].gt(lanes[2]), lanes[3], lanes[2]);
+    L::select(m23.gt(m01), m23, m01)
 }
 
 /// [`softmax`]'s first step: clamps every input to ±[`SOFTMAX_INPUT_BOUND`] (NaN → −bound)

@@ -45,7 +45,7 @@
 //! index provably in `0..K`), which rust-gpu compiles as a plain loop.
 
 use crate::distrib::gaussian;
-use crate::math;
+use crate::math::{self, Lane};
 
 /// Minimum bin width as a fraction of the interval `2B` (nflows' `DEFAULT_MIN_BIN_WIDTH`).
 pub const MIN_BIN_WIDTH: f32 = 1e-3;
@@ -71,23 +71,26 @@ pub const MAX_TAIL_BOUND: f32 = 1e6;
 /// inside. Derivatives are constrained lazily because a forward or inverse evaluation
 /// needs only the two of its bin: 2 softplus instead of `K − 1` (the softmaxes need every
 /// raw value anyway), which cuts the cost of building a 20-bin spline by about a third.
+///
+/// `L` is `f32`; inside the crate the batched path instantiates the same code for several
+/// splines at once (one per lane), so both paths share one definition of the spline.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct Knots<const K: usize> {
+pub struct Knots<const K: usize, L = f32> {
     /// Left x-knot of every bin (`x[0] = −bound`), strictly increasing.
-    pub x: [f32; K],
+    pub x: [L; K],
     /// Left y-knot of every bin (`y[0] = −bound`), strictly increasing.
-    pub y: [f32; K],
+    pub y: [L; K],
     /// Unnormalised derivative at knot `k` for `1 ≤ k < K`, clamped to `±RAW_LIMIT`
     /// (`raw_d[0]` is unused: the boundary derivatives are 1).
-    pub raw_d: [f32; K],
+    pub raw_d: [L; K],
     /// Tail bound `B`: the spline maps `[−B, B]` onto itself, identity outside.
     pub bound: f32,
 }
 
 /// `v` clamped to `±RAW_LIMIT`, NaN → `−RAW_LIMIT`.
 #[inline(always)]
-fn sanitize_raw(v: f32) -> f32 {
-    math::clamp(v, -RAW_LIMIT, RAW_LIMIT)
+fn sanitize_raw<L: Lane>(v: L) -> L {
+    v.clamp(-RAW_LIMIT, RAW_LIMIT)
 }
 
 /// Left x- and y-knots of `K` bins on `[−B, B]` from raw widths `raw[0 .. K]` and heights
@@ -95,34 +98,36 @@ fn sanitize_raw(v: f32) -> f32 {
 /// `[−B, B]`, left end exactly `−B` (the right end `+B` is implicit in [`Knots`]). Widths and
 /// heights are independent; their softmaxes and running sums are interleaved so that the two
 /// sequential chains overlap (each computed exactly as on its own).
-#[inline]
-fn cumulative_knots<const K: usize, const N: usize>(
-    raw: &[f32; N],
+#[inline(always)]
+fn cumulative_knots<L: Lane, const K: usize, const N: usize>(
+    raw: &[L; N],
     bound: f32,
-) -> ([f32; K], [f32; K]) {
-    let mut w = [0.0f32; K];
-    let mut h = [0.0f32; K];
+) -> ([L; K], [L; K]) {
+    let mut w = [L::splat(0.0); K];
+    let mut h = [L::splat(0.0); K];
     let mut k = 0;
     while k < K {
         w[k] = sanitize_raw(raw[k]);
         h[k] = sanitize_raw(raw[K + k]);
         k += 1;
     }
-    gaussian::softmax_pair::<K>(&mut w, &mut h);
-    let scale_w = 1.0 - MIN_BIN_WIDTH * K as f32;
-    let scale_h = 1.0 - MIN_BIN_HEIGHT * K as f32;
-    let mut x = [0.0f32; K];
-    let mut y = [0.0f32; K];
-    x[0] = -bound;
-    y[0] = -bound;
-    let mut cum_w = 0.0f32;
-    let mut cum_h = 0.0f32;
+    gaussian::softmax_pair_lanes::<L, K>(&mut w, &mut h);
+    let scale_w = L::splat(1.0 - MIN_BIN_WIDTH * K as f32);
+    let scale_h = L::splat(1.0 - MIN_BIN_HEIGHT * K as f32);
+    let (min_w, min_h) = (L::splat(MIN_BIN_WIDTH), L::splat(MIN_BIN_HEIGHT));
+    let (b2, b) = (L::splat(2.0 * bound), L::splat(bound));
+    let mut x = [L::splat(0.0); K];
+    let mut y = [L::splat(0.0); K];
+    x[0] = -b;
+    y[0] = -b;
+    let mut cum_w = L::splat(0.0);
+    let mut cum_h = L::splat(0.0);
     k = 1;
     while k < K {
-        cum_w += MIN_BIN_WIDTH + scale_w * w[k - 1];
-        x[k] = 2.0 * bound * cum_w - bound;
-        cum_h += MIN_BIN_HEIGHT + scale_h * h[k - 1];
-        y[k] = 2.0 * bound * cum_h - bound;
+        cum_w = cum_w + (min_w + scale_w * w[k - 1]);
+        x[k] = b2 * cum_w - b;
+        cum_h = cum_h + (min_h + scale_h * h[k - 1]);
+        y[k] = b2 * cum_h - b;
         k += 1;
     }
     (x, y)
@@ -144,21 +149,7 @@ impl<const K: usize> Knots<K> {
     #[inline]
     #[must_use]
     pub fn from_raw<const N: usize>(raw: &[f32; N], bound: f32) -> Self {
-        const {
-            assert!(
-                K >= 1 && N == 3 * K - 1,
-                "raw spline parameters must be 3K − 1 values"
-            );
-        }
-        let bound = math::clamp(bound, MIN_TAIL_BOUND, MAX_TAIL_BOUND);
-        let (x, y) = cumulative_knots::<K, N>(raw, bound);
-        let mut raw_d = [0.0f32; K];
-        let mut k = 1;
-        while k < K {
-            raw_d[k] = sanitize_raw(raw[2 * K + k - 1]);
-            k += 1;
-        }
-        Knots { x, y, raw_d, bound }
+        Self::from_raw_lanes(raw, bound)
     }
 
     /// The derivative at knot `k ∈ 0..=K`: 1 at the boundary knots `0` and `K` (and for
@@ -166,56 +157,7 @@ impl<const K: usize> Knots<K> {
     #[inline(always)]
     #[must_use]
     pub fn derivative(&self, k: usize) -> f32 {
-        if k == 0 || k >= K {
-            1.0
-        } else {
-            // math::softplus with the exponential inlined (exp_in_range is libm's expf on
-            // [−87, 20]; below, both give MIN_DERIVATIVE + a value far below its ulp).
-            let x = self.raw_d[k];
-            MIN_DERIVATIVE
-                + if x > 20.0 {
-                    x
-                } else {
-                    math::ln_1p(math::exp_in_range(x))
-                }
-        }
-    }
-
-    /// The bin whose left knot in `knots` is the last one `≤ v` (0 when `v` is below every
-    /// interior knot). Fixed-count scan: the result is always in `0..K`.
-    #[inline(always)]
-    fn bin(knots: &[f32; K], v: f32) -> usize {
-        let mut bin = 0;
-        let mut k = 1;
-        while k < K {
-            if v >= knots[k] {
-                bin = k;
-            }
-            k += 1;
-        }
-        bin
-    }
-
-    /// `(x_k, x_{k+1}, y_k, y_{k+1}, d_k, d_{k+1})` of bin `k < K`.
-    #[inline(always)]
-    fn bin_params(&self, k: usize) -> (f32, f32, f32, f32, f32, f32) {
-        let (x1, y1) = if k + 1 < K {
-            (self.x[k + 1], self.y[k + 1])
-        } else {
-            (self.bound, self.bound)
-        };
-        let (d0, d1) = (self.derivative(k), self.derivative(k + 1));
-        (self.x[k], x1, self.y[k], y1, d0, d1)
-    }
-
-    /// `ln(dy/dx)` inside a bin at `ξ`, with `s = h/w` and the bin's end derivatives.
-    #[inline(always)]
-    fn log_derivative(xi: f32, s: f32, d0: f32, d1: f32) -> f32 {
-        let t = xi * (1.0 - xi);
-        let om = 1.0 - xi;
-        let den = s + (d1 + d0 - 2.0 * s) * t;
-        let num = s * s * (d1 * xi * xi + 2.0 * s * t + d0 * om * om);
-        math::ln(num / (den * den))
+        self.derivative_lanes(k, 0)
     }
 
     /// The spline `y = RQ(x)` (paper Eq. 4) and `ln |dy/dx|`.
@@ -225,27 +167,7 @@ impl<const K: usize> Knots<K> {
     #[inline]
     #[must_use]
     pub fn forward(&self, x: f32) -> (f32, f32) {
-        let x = math::clamp(x, -f32::MAX, f32::MAX);
-        if !(x >= -self.bound && x <= self.bound) {
-            return (x, 0.0);
-        }
-        let k = Self::bin(&self.x, x);
-        let (x0, x1, y0, y1, d0, d1) = self.bin_params(k);
-        let (w, h) = (x1 - x0, y1 - y0);
-        let s = h / w;
-        let xi = math::clamp((x - x0) / w, 0.0, 1.0);
-        let t = xi * (1.0 - xi);
-        let den = s + (d1 + d0 - 2.0 * s) * t;
-        // Eq. 4 measured from the nearer knot, so that both knots are hit exactly:
-        //   y − y_k     = h (s ξ² + d_k ξ(1−ξ)) / den,
-        //   y_{k+1} − y = h (s (1−ξ)² + d_{k+1} ξ(1−ξ)) / den.
-        let y = if xi <= 0.5 {
-            y0 + h * (s * xi * xi + d0 * t) / den
-        } else {
-            let om = 1.0 - xi;
-            y1 - h * (s * om * om + d1 * t) / den
-        };
-        (math::clamp(y, y0, y1), Self::log_derivative(xi, s, d0, d1))
+        self.forward_lanes(x)
     }
 
     /// The inverse spline `x = RQ⁻¹(y)` and `ln |dx/dy|` (= −`ln |dy/dx|` at `x`).
@@ -263,47 +185,167 @@ impl<const K: usize> Knots<K> {
     pub(crate) fn inverse_point(&self, y: f32) -> f32 {
         self.inverse_with::<false>(y).0
     }
+}
 
-    /// [`Knots::inverse`]; the log-derivative only when `LOG_DET` (0 otherwise).
+// The generic methods are crate-internal (users only see `L = f32`).
+#[allow(private_bounds)]
+impl<const K: usize, L: Lane> Knots<K, L> {
+    /// Placeholder knots (all zero) for buffers that are filled before use.
     #[inline(always)]
-    fn inverse_with<const LOG_DET: bool>(&self, y: f32) -> (f32, f32) {
-        let y = math::clamp(y, -f32::MAX, f32::MAX);
-        if !(y >= -self.bound && y <= self.bound) {
-            return (y, 0.0);
+    pub(crate) fn zeroed() -> Self {
+        let z = [L::splat(0.0); K];
+        Knots {
+            x: z,
+            y: z,
+            raw_d: z,
+            bound: 1.0,
         }
+    }
+
+    /// [`Knots::from_raw`] for every lane.
+    #[inline(always)]
+    pub(crate) fn from_raw_lanes<const N: usize>(raw: &[L; N], bound: f32) -> Self {
+        const {
+            assert!(
+                K >= 1 && N == 3 * K - 1,
+                "raw spline parameters must be 3K − 1 values"
+            );
+        }
+        let bound = math::clamp(bound, MIN_TAIL_BOUND, MAX_TAIL_BOUND);
+        let (x, y) = cumulative_knots::<L, K, N>(raw, bound);
+        let mut raw_d = [L::splat(0.0); K];
+        let mut k = 1;
+        while k < K {
+            raw_d[k] = sanitize_raw(raw[2 * K + k - 1]);
+            k += 1;
+        }
+        Knots { x, y, raw_d, bound }
+    }
+
+    /// The derivative at knot `k + plus` of every lane (its bin `k`): 1 at the boundary
+    /// knots, `MIN_DERIVATIVE + softplus(raw_d)` inside. `math::softplus` is `ln_1p(exp)`
+    /// for arguments ≤ 20; below −87 it differs from `ln_1p(exp_in_range)` by far less than
+    /// an ulp of `MIN_DERIVATIVE`, so the sum is the same.
+    #[inline(always)]
+    fn derivative_lanes(&self, k: L::Index, plus: usize) -> L {
+        let d = L::splat(MIN_DERIVATIVE) + L::gather(&self.raw_d, k, plus, 0.0).softplus();
+        L::select(L::interior::<K>(k, plus), d, L::splat(1.0))
+    }
+
+    /// The bin whose left knot in `knots` is the last one `≤ v` (0 when `v` is below every
+    /// interior knot). Fixed-count scan: the result is always in `0..K`.
+    #[inline(always)]
+    fn bin(knots: &[L; K], v: L) -> L::Index {
+        let mut bin = L::index(0);
+        let mut k = 1;
+        while k < K {
+            bin = L::select_index(v.ge(knots[k]), k, bin);
+            k += 1;
+        }
+        bin
+    }
+
+    /// `(x_k, x_{k+1}, y_k, y_{k+1}, d_k, d_{k+1})` of bin `k < K`.
+    #[inline(always)]
+    fn bin_params(&self, k: L::Index) -> (L, L, L, L, L, L) {
+        let b = self.bound;
+        let x0 = L::gather(&self.x, k, 0, b);
+        let x1 = L::gather(&self.x, k, 1, b);
+        let y0 = L::gather(&self.y, k, 0, b);
+        let y1 = L::gather(&self.y, k, 1, b);
+        (
+            x0,
+            x1,
+            y0,
+            y1,
+            self.derivative_lanes(k, 0),
+            self.derivative_lanes(k, 1),
+        )
+    }
+
+    /// `ln(dy/dx)` inside a bin at `ξ`, with `s = h/w` and the bin's end derivatives.
+    #[inline(always)]
+    fn log_derivative(xi: L, s: L, d0: L, d1: L) -> L {
+        let one = L::splat(1.0);
+        let two = L::splat(2.0);
+        let t = xi * (one - xi);
+        let om = one - xi;
+        let den = s + (d1 + d0 - two * s) * t;
+        let num = s * s * (d1 * xi * xi + two * s * t + d0 * om * om);
+        (num / (den * den)).ln()
+    }
+
+    /// `x` clamped to `[−f32::MAX, f32::MAX]` (NaN → `−f32::MAX`) and whether it lies in
+    /// `[−B, B]` (outside, the spline is the identity with log-det 0).
+    #[inline(always)]
+    fn in_bounds(&self, x: L) -> (L, L::Mask) {
+        let x = x.clamp(-f32::MAX, f32::MAX);
+        let b = L::splat(self.bound);
+        (x, L::and(x.ge(-b), x.le(b)))
+    }
+
+    /// [`Knots::forward`] for every lane.
+    #[inline(always)]
+    pub(crate) fn forward_lanes(&self, x: L) -> (L, L) {
+        let (x, inside) = self.in_bounds(x);
+        let (one, two, half) = (L::splat(1.0), L::splat(2.0), L::splat(0.5));
+        let k = Self::bin(&self.x, x);
+        let (x0, x1, y0, y1, d0, d1) = self.bin_params(k);
+        let (w, h) = (x1 - x0, y1 - y0);
+        let s = h / w;
+        let xi = ((x - x0) / w).clamp(0.0, 1.0);
+        let t = xi * (one - xi);
+        let den = s + (d1 + d0 - two * s) * t;
+        // Eq. 4 measured from the nearer knot, so that both knots are hit exactly:
+        //   y − y_k     = h (s ξ² + d_k ξ(1−ξ)) / den,
+        //   y_{k+1} − y = h (s (1−ξ)² + d_{k+1} ξ(1−ξ)) / den.
+        let om = one - xi;
+        let from_left = y0 + h * (s * xi * xi + d0 * t) / den;
+        let from_right = y1 - h * (s * om * om + d1 * t) / den;
+        let y = L::select(xi.le(half), from_left, from_right).clamp_to(y0, y1);
+        let ld = Self::log_derivative(xi, s, d0, d1);
+        (
+            L::select(inside, y, x),
+            L::select(inside, ld, L::splat(0.0)),
+        )
+    }
+
+    /// [`Knots::inverse`] for every lane; the log-derivative only when `LOG_DET` (0
+    /// otherwise).
+    #[inline(always)]
+    pub(crate) fn inverse_with<const LOG_DET: bool>(&self, y: L) -> (L, L) {
+        let (y, inside) = self.in_bounds(y);
+        let (zero, one, two, four) = (L::splat(0.0), L::splat(1.0), L::splat(2.0), L::splat(4.0));
         let k = Self::bin(&self.y, y);
         let (x0, x1, y0, y1, d0, d1) = self.bin_params(k);
         let (w, h) = (x1 - x0, y1 - y0);
         let s = h / w;
-        let e = d1 + d0 - 2.0 * s;
+        let e = d1 + d0 - two * s;
         // Solve from the nearer knot (the mirrored spline swaps d_k and d_{k+1}): the
         // knots are hit exactly and the root keeps its relative precision.
-        let lower = y - y0 <= y1 - y;
-        let (dy, da) = if lower { (y - y0, d0) } else { (y1 - y, d1) };
+        let lower = (y - y0).le(y1 - y);
+        let dy = L::select(lower, y - y0, y1 - y);
+        let da = L::select(lower, d0, d1);
         let a = h * (s - da) + dy * e;
         let b = h * da - dy * e;
         let c = -s * dy;
-        let root = math::safe_sqrt(b * b - 4.0 * a * c);
+        let root = (b * b - four * a * c).safe_sqrt();
         // The root 2c / (−b − √(b² − 4ac)) of a ξ² + b ξ + c = 0 (nflows). It cancels
         // catastrophically when b < 0 (steep bins); there the same root is written
         // (−b + √(b² − 4ac)) / 2a, a sum of positive terms. A zero denominator or rounding
         // outside [0, 1] is clamped (NaN → 0).
-        let eta = if b >= 0.0 {
-            2.0 * c / (-b - root)
-        } else {
-            (root - b) / (2.0 * a)
-        };
-        let eta = math::clamp(eta, 0.0, 1.0);
-        let (x, xi) = if lower {
-            (x0 + eta * w, eta)
-        } else {
-            (x1 - eta * w, 1.0 - eta)
-        };
+        let eta = L::select(b.ge(zero), two * c / (-b - root), (root - b) / (two * a));
+        let eta = eta.clamp(0.0, 1.0);
+        let x = L::select(lower, x0 + eta * w, x1 - eta * w);
+        let xi = L::select(lower, eta, one - eta);
         let log_det = if LOG_DET {
             -Self::log_derivative(xi, s, d0, d1)
         } else {
-            0.0
+            zero
         };
-        (math::clamp(x, x0, x1), log_det)
+        (
+            L::select(inside, x.clamp_to(x0, x1), y),
+            L::select(inside, log_det, zero),
+        )
     }
 }

@@ -12,6 +12,9 @@
 //! libm: the same numbers in less code.
 
 mod branch_free;
+mod lane;
+
+pub(crate) use lane::Lane;
 
 pub use branch_free::SIN_COS_FAST_MAX;
 

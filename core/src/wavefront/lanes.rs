@@ -5,6 +5,8 @@
 
 use core::ops::{Add, Mul};
 
+use crate::math::{self, Lane};
+
 /// Eight `f32` lanes.
 #[derive(Copy, Clone, Debug, PartialEq)]
 #[repr(C, align(32))]
@@ -67,5 +69,113 @@ impl Mul for V8 {
             r[l] = self.0[l] * b.0[l];
         }
         V8(r)
+    }
+}
+
+impl core::ops::Sub for V8 {
+    type Output = V8;
+    #[inline(always)]
+    fn sub(self, b: V8) -> V8 {
+        V8(core::array::from_fn(|l| self.0[l] - b.0[l]))
+    }
+}
+
+impl core::ops::Div for V8 {
+    type Output = V8;
+    #[inline(always)]
+    fn div(self, b: V8) -> V8 {
+        V8(core::array::from_fn(|l| self.0[l] / b.0[l]))
+    }
+}
+
+impl core::ops::Neg for V8 {
+    type Output = V8;
+    #[inline(always)]
+    fn neg(self) -> V8 {
+        V8(core::array::from_fn(|l| -self.0[l]))
+    }
+}
+
+impl V8 {
+    /// `f` of every lane.
+    #[inline(always)]
+    pub(crate) fn map(self, f: impl Fn(f32) -> f32) -> V8 {
+        V8(core::array::from_fn(|l| f(self.0[l])))
+    }
+}
+
+impl Lane for V8 {
+    type Mask = [bool; 8];
+    type Index = [u32; 8];
+
+    #[inline(always)]
+    fn splat(x: f32) -> V8 {
+        V8([x; 8])
+    }
+    #[inline(always)]
+    fn ge(self, b: V8) -> [bool; 8] {
+        core::array::from_fn(|l| self.0[l] >= b.0[l])
+    }
+    #[inline(always)]
+    fn le(self, b: V8) -> [bool; 8] {
+        core::array::from_fn(|l| self.0[l] <= b.0[l])
+    }
+    #[inline(always)]
+    fn gt(self, b: V8) -> [bool; 8] {
+        core::array::from_fn(|l| self.0[l] > b.0[l])
+    }
+    #[inline(always)]
+    fn and(a: [bool; 8], b: [bool; 8]) -> [bool; 8] {
+        core::array::from_fn(|l| a[l] & b[l])
+    }
+    #[inline(always)]
+    fn select(m: [bool; 8], a: V8, b: V8) -> V8 {
+        V8(core::array::from_fn(|l| if m[l] { a.0[l] } else { b.0[l] }))
+    }
+    #[inline(always)]
+    fn clamp_to(self, lo: V8, hi: V8) -> V8 {
+        V8(core::array::from_fn(|l| {
+            math::clamp(self.0[l], lo.0[l], hi.0[l])
+        }))
+    }
+    #[inline(always)]
+    fn exp_nonpositive(self) -> V8 {
+        self.map(math::exp_nonpositive)
+    }
+    #[inline(always)]
+    fn ln(self) -> V8 {
+        self.map(math::ln)
+    }
+    #[inline(always)]
+    fn softplus(self) -> V8 {
+        self.map(math::softplus)
+    }
+    #[inline(always)]
+    fn safe_sqrt(self) -> V8 {
+        self.map(math::safe_sqrt)
+    }
+    #[inline(always)]
+    fn index(k: usize) -> [u32; 8] {
+        [k as u32; 8]
+    }
+    #[inline(always)]
+    fn select_index(m: [bool; 8], k: usize, i: [u32; 8]) -> [u32; 8] {
+        core::array::from_fn(|l| if m[l] { k as u32 } else { i[l] })
+    }
+    #[inline(always)]
+    fn gather<const K: usize>(a: &[V8; K], i: [u32; 8], plus: usize, fallback: f32) -> V8 {
+        V8(core::array::from_fn(|l| {
+            match a.get(i[l] as usize + plus) {
+                Some(v) => v.0[l],
+                None => fallback,
+            }
+        }))
+    }
+    #[inline(always)]
+    fn interior<const K: usize>(i: [u32; 8], plus: usize) -> [bool; 8] {
+        core::array::from_fn(|l| {
+            let j = i[l] as usize + plus;
+            j > 0 && j < K
+        })
     }
 }

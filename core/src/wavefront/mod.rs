@@ -27,7 +27,7 @@
 use glam::{Vec2, Vec3};
 
 pub(crate) mod dense;
-mod lanes;
+pub(crate) mod lanes;
 pub(crate) mod simd;
 
 pub use crate::neural_material::RgbMut;

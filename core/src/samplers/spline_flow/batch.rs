@@ -18,11 +18,14 @@ use crate::samplers::coupling::{
 };
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
+use crate::wavefront::lanes::V8;
 use crate::wavefront::{self, dense, ChunkedSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk: activations, splines and lane states of a chunk stay in L1.
 const CHUNK: usize = 32;
+/// Groups of eight lanes per chunk (the splines are evaluated eight lanes at a time).
+const GROUPS: usize = CHUNK / 8;
 
 /// Activations of a chunk: `[feature][lane]`.
 type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
@@ -71,7 +74,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 
     /// The splines of coupling network `net` for the lanes `idx[..m]` of a chunk, each at its
-    /// own other coordinate `v[lane]`; written to `knots[lane]`.
+    /// own other coordinate `v[lane]`: group `g` holds the splines of `idx[8g .. 8g + 8]`.
     #[inline(always)]
     fn knots_for(
         &self,
@@ -80,7 +83,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
         idx: &[usize; CHUNK],
         m: usize,
         v: &[f32; CHUNK],
-        knots: &mut [Knots<SPLINE_BINS>; CHUNK],
+        knots: &mut [Knots<SPLINE_BINS, V8>; GROUPS],
     ) {
         let which = if net == FLOW_COUPLING0 { 0 } else { 1 };
         let mut share = [[0.0f32; HIDDEN]; CHUNK];
@@ -93,12 +96,9 @@ impl<W: Weights + Copy> FlowSampler<W> {
         }
         let mut raw: Soa<SPLINE_RAW_LEN> = [[0.0; CHUNK]; SPLINE_RAW_LEN];
         self.coupling_raw(net, &share, &vv, m, &mut raw);
-        for k in 0..m {
-            let mut r = [0.0f32; SPLINE_RAW_LEN];
-            for (j, x) in r.iter_mut().enumerate() {
-                *x = raw[j][k];
-            }
-            knots[idx[k]] = Knots::from_raw(&r, TAIL_BOUND);
+        for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
+            let r: [V8; SPLINE_RAW_LEN] = core::array::from_fn(|j| V8::load(&raw[j][8 * g..]));
+            *kn = Knots::from_raw_lanes(&r, TAIL_BOUND);
         }
     }
 
@@ -149,59 +149,80 @@ impl<W: Weights + Copy> FlowSampler<W> {
     #[inline(always)]
     fn chunk_sample(&self, lanes: &[Option<FlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
+        let groups = m.div_ceil(8);
         let all = wavefront::identity_index::<CHUNK>();
         // Base points (refused lanes keep z = 0 and are dropped at the end).
-        let mut z = [Vec2::ZERO; CHUNK];
+        let mut zx = [0.0f32; CHUNK];
+        let mut zy = [0.0f32; CHUNK];
         let mut ok = [false; CHUNK];
         for l in 0..m {
             if let (Some(s), Some(uu)) = (&lanes[l], math::sanitize_u2(u.at(l))) {
-                z[l] = s.base_point(uu);
+                let z = s.base_point(uu);
+                (zx[l], zy[l]) = (z.x, z.y);
                 ok[l] = true;
             }
         }
         // Sampling direction: x = RQ⁻¹(z.x; coupling0(z.y)), y = RQ⁻¹(z.y; coupling1(x)).
-        let zero = Knots::from_raw(&[0.0; SPLINE_RAW_LEN], TAIL_BOUND);
-        let mut k0 = [zero; CHUNK];
-        let mut k1 = [zero; CHUNK];
-        let mut v = [0.0f32; CHUNK];
-        for l in 0..m {
-            v[l] = z[l].y;
+        let mut k0 = [Knots::<SPLINE_BINS, V8>::zeroed(); GROUPS];
+        let mut k1 = k0;
+        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &zy, &mut k0);
+        let mut px = [0.0f32; CHUNK];
+        let mut py = [0.0f32; CHUNK];
+        for g in 0..groups {
+            k0[g]
+                .inverse_with::<false>(V8::load(&zx[8 * g..]))
+                .0
+                .store(&mut px[8 * g..]);
         }
-        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &v, &mut k0);
-        let mut p = [Vec2::ZERO; CHUNK];
-        for l in 0..m {
-            p[l].x = k0[l].inverse_point(z[l].x);
-            v[l] = p[l].x;
-        }
-        self.knots_for(FLOW_COUPLING1, lanes, &all, m, &v, &mut k1);
+        self.knots_for(FLOW_COUPLING1, lanes, &all, m, &px, &mut k1);
         // Density direction at the sample (`Prepared::sample`): coupling 1's spline is the
         // same; coupling 0's is rebuilt where its input y' = RQ(y) differs from z.y.
         let mut yl = [0.0f32; CHUNK];
         let mut ld1 = [0.0f32; CHUNK];
+        for g in 0..groups {
+            let y = k1[g].inverse_with::<false>(V8::load(&zy[8 * g..])).0;
+            y.store(&mut py[8 * g..]);
+            let (a, d) = k1[g].forward_lanes(y);
+            a.store(&mut yl[8 * g..]);
+            d.store(&mut ld1[8 * g..]);
+        }
+        let mut xl = [0.0f32; CHUNK];
+        let mut ld0 = [0.0f32; CHUNK];
+        for g in 0..groups {
+            let (a, d) = k0[g].forward_lanes(V8::load(&px[8 * g..]));
+            a.store(&mut xl[8 * g..]);
+            d.store(&mut ld0[8 * g..]);
+        }
         let mut again = [0usize; CHUNK];
         let mut n_again = 0;
         for l in 0..m {
-            p[l].y = k1[l].inverse_point(z[l].y);
-            ok[l] = ok[l] && inside_disk(p[l]);
-            if ok[l] {
-                let (y, d) = k1[l].forward(p[l].y);
-                yl[l] = y;
-                ld1[l] = d;
-                if y.to_bits() != z[l].y.to_bits() {
-                    again[n_again] = l;
-                    n_again += 1;
-                }
+            ok[l] = ok[l] && inside_disk(Vec2::new(px[l], py[l]));
+            if ok[l] && yl[l].to_bits() != zy[l].to_bits() {
+                again[n_again] = l;
+                n_again += 1;
             }
         }
         if n_again > 0 {
             self.knots_for(FLOW_COUPLING0, lanes, &again, n_again, &yl, &mut k0);
+            let mut x = [0.0f32; CHUNK];
+            for k in 0..n_again {
+                x[k] = px[again[k]];
+            }
+            for g in 0..n_again.div_ceil(8) {
+                let (a, d) = k0[g].forward_lanes(V8::load(&x[8 * g..]));
+                for i in 0..8 {
+                    if let Some(&l) = again[..n_again].get(8 * g + i) {
+                        xl[l] = a.0[i];
+                        ld0[l] = d.0[i];
+                    }
+                }
+            }
         }
         for l in 0..m {
             let s = match (&lanes[l], ok[l]) {
                 (Some(st), true) => {
-                    let (xl, ld0) = k0[l].forward(p[l].x);
-                    let log_p = st.log_density(Vec2::new(xl, yl[l]), ld0 + ld1[l]);
-                    Sample::from_disk(p[l], density_from_log(log_p))
+                    let log_p = st.log_density(Vec2::new(xl[l], yl[l]), ld0[l] + ld1[l]);
+                    Sample::from_disk(Vec2::new(px[l], py[l]), density_from_log(log_p))
                 }
                 _ => None,
             };
@@ -210,39 +231,37 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 
     /// The latent points and log-dets of the disk points `p` (density direction,
-    /// `FlowPrepared::to_latent`) of the lanes with `ok`.
+    /// `FlowPrepared::to_latent`) of a chunk's lanes.
     #[inline(always)]
     fn latent_chunk(
         &self,
         lanes: &[Option<FlowLane>],
-        p: &[Vec2; CHUNK],
-        ok: &[bool; CHUNK],
+        px: &[f32; CHUNK],
+        py: &[f32; CHUNK],
         zl: &mut [Vec2; CHUNK],
         ld: &mut [f32; CHUNK],
     ) {
         let m = lanes.len();
+        let groups = m.div_ceil(8);
         let all = wavefront::identity_index::<CHUNK>();
-        let zero = Knots::from_raw(&[0.0; SPLINE_RAW_LEN], TAIL_BOUND);
-        let mut k = [zero; CHUNK];
-        let mut v = [0.0f32; CHUNK];
-        for l in 0..m {
-            v[l] = p[l].x;
+        let mut k = [Knots::<SPLINE_BINS, V8>::zeroed(); GROUPS];
+        self.knots_for(FLOW_COUPLING1, lanes, &all, m, px, &mut k);
+        let mut yl = [0.0f32; CHUNK];
+        let mut ld1 = [0.0f32; CHUNK];
+        for g in 0..groups {
+            let (a, d) = k[g].forward_lanes(V8::load(&py[8 * g..]));
+            a.store(&mut yl[8 * g..]);
+            d.store(&mut ld1[8 * g..]);
         }
-        self.knots_for(FLOW_COUPLING1, lanes, &all, m, &v, &mut k);
-        for l in 0..m {
-            if ok[l] {
-                let (y, d) = k[l].forward(p[l].y);
-                zl[l].y = y;
-                ld[l] = d;
-            }
-            v[l] = zl[l].y;
-        }
-        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &v, &mut k);
-        for l in 0..m {
-            if ok[l] {
-                let (x, d) = k[l].forward(p[l].x);
-                zl[l].x = x;
-                ld[l] += d;
+        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &yl, &mut k);
+        for g in 0..groups {
+            let (a, d) = k[g].forward_lanes(V8::load(&px[8 * g..]));
+            for i in 0..8 {
+                let l = 8 * g + i;
+                if l < m {
+                    zl[l] = Vec2::new(a.0[i], yl[l]);
+                    ld[l] = d.0[i] + ld1[l];
+                }
             }
         }
     }
@@ -250,19 +269,19 @@ impl<W: Weights + Copy> FlowSampler<W> {
     #[inline(always)]
     fn chunk_pdf(&self, lanes: &[Option<FlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
         let m = lanes.len();
-        let mut p = [Vec2::ZERO; CHUNK];
+        let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         let mut cos = [0.0f32; CHUNK];
         let mut ok = [false; CHUNK];
         for l in 0..m {
             if let (Some(_), Some(w)) = (&lanes[l], warp::upper_hemisphere(wo.at(l))) {
-                p[l] = warp::to_disk(w);
+                (px[l], py[l]) = (w.x, w.y);
                 cos[l] = w.z;
-                ok[l] = inside_disk(p[l]);
+                ok[l] = inside_disk(warp::to_disk(w));
             }
         }
         let mut zl = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
-        self.latent_chunk(lanes, &p, &ok, &mut zl, &mut ld);
+        self.latent_chunk(lanes, &px, &py, &mut zl, &mut ld);
         for l in 0..m {
             pdf[l] = match (&lanes[l], ok[l]) {
                 (Some(st), true) => warp::disk_to_solid_angle(
@@ -283,17 +302,17 @@ impl<W: Weights + Copy> FlowSampler<W> {
         ok_out: &mut [bool],
     ) {
         let m = lanes.len();
-        let mut p = [Vec2::ZERO; CHUNK];
+        let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         let mut ok = [false; CHUNK];
         for l in 0..m {
             if let (Some(_), Some(w)) = (&lanes[l], warp::upper_hemisphere(wo.at(l))) {
-                p[l] = warp::to_disk(w);
-                ok[l] = inside_disk(p[l]);
+                (px[l], py[l]) = (w.x, w.y);
+                ok[l] = inside_disk(warp::to_disk(w));
             }
         }
         let mut zl = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
-        self.latent_chunk(lanes, &p, &ok, &mut zl, &mut ld);
+        self.latent_chunk(lanes, &px, &py, &mut zl, &mut ld);
         for l in 0..m {
             let r = match (&lanes[l], ok[l]) {
                 (Some(st), true) => st.invert_base(zl[l]),
