@@ -85,6 +85,9 @@ pub enum DType {
     F32,
     /// IEEE-754 binary16, little-endian, widened to f32 on read.
     F16,
+    /// Unsigned 16-bit integers, little-endian, read as the f32 of the same value (exact):
+    /// the quantised conditional CDFs of compact histogram-mixture tables.
+    U16,
 }
 
 impl DType {
@@ -94,7 +97,7 @@ impl DType {
     pub const fn size(self) -> usize {
         match self {
             DType::F32 => 4,
-            DType::F16 => 2,
+            DType::F16 | DType::U16 => 2,
         }
     }
 }

@@ -429,6 +429,8 @@ pub enum Tensor<'a> {
     F32Bytes(&'a [u8]),
     /// f16 little-endian bytes (length a multiple of 2).
     F16Bytes(&'a [u8]),
+    /// u16 little-endian bytes (length a multiple of 2), read as exact f32 values.
+    U16Bytes(&'a [u8]),
 }
 
 impl<'a> Tensor<'a> {
@@ -455,6 +457,7 @@ impl<'a> Tensor<'a> {
                 Tensor::F32Bytes(bytes)
             }
             DType::F16 => Tensor::F16Bytes(bytes),
+            DType::U16 => Tensor::U16Bytes(bytes),
         }
     }
 
@@ -464,6 +467,7 @@ impl<'a> Tensor<'a> {
         match self {
             Tensor::F32(_) | Tensor::F32Bytes(_) => DType::F32,
             Tensor::F16Bytes(_) => DType::F16,
+            Tensor::U16Bytes(_) => DType::U16,
         }
     }
 }
@@ -474,7 +478,7 @@ impl Weights for Tensor<'_> {
         match self {
             Tensor::F32(f) => <[f32]>::len(f) as u32,
             Tensor::F32Bytes(b) => (b.len() / 4) as u32,
-            Tensor::F16Bytes(b) => (b.len() / 2) as u32,
+            Tensor::F16Bytes(b) | Tensor::U16Bytes(b) => (b.len() / 2) as u32,
         }
     }
 
@@ -496,6 +500,7 @@ impl Weights for Tensor<'_> {
             },
             Tensor::F32Bytes(b) => LeF32(b).at(i as u32),
             Tensor::F16Bytes(b) => LeF16(b).at(i as u32),
+            Tensor::U16Bytes(b) => LeU16(b).at(i as u32),
         }
     }
 
@@ -512,6 +517,7 @@ impl Weights for Tensor<'_> {
             Tensor::F32(f) => f.accumulate(offset, row0, x, acc),
             Tensor::F32Bytes(b) => accumulate_generic(&LeF32(b), offset, row0, x, acc),
             Tensor::F16Bytes(b) => accumulate_generic(&LeF16(b), offset, row0, x, acc),
+            Tensor::U16Bytes(b) => accumulate_generic(&LeU16(b), offset, row0, x, acc),
         }
     }
 
@@ -521,6 +527,7 @@ impl Weights for Tensor<'_> {
             Tensor::F32(f) => f.read(offset),
             Tensor::F32Bytes(b) => read_generic(&LeF32(b), offset),
             Tensor::F16Bytes(b) => read_generic(&LeF16(b), offset),
+            Tensor::U16Bytes(b) => read_generic(&LeU16(b), offset),
         }
     }
 }
@@ -556,6 +563,24 @@ impl Weights for LeF16<'_> {
         let i = i as usize;
         match self.0.get(2 * i..2 * i + 2) {
             Some(s) => f16::from_le_bytes([s[0], s[1]]).to_f32(),
+            None => 0.0,
+        }
+    }
+}
+
+/// Little-endian u16 bytes, read as exact f32 values.
+struct LeU16<'a>(&'a [u8]);
+
+impl Weights for LeU16<'_> {
+    #[inline(always)]
+    fn len(&self) -> u32 {
+        (self.0.len() / 2) as u32
+    }
+    #[inline(always)]
+    fn at(&self, i: u32) -> f32 {
+        let i = i as usize;
+        match self.0.get(2 * i..2 * i + 2) {
+            Some(s) => u16::from_le_bytes([s[0], s[1]]) as f32,
             None => 0.0,
         }
     }

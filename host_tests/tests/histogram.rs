@@ -7,7 +7,8 @@ use neusample::distrib::gaussian::select_component;
 use neusample::distrib::table2d::{cell_area, cell_outside_disk, running_sums};
 use neusample::samplers::direct_histogram::DIRECT_N;
 use neusample::samplers::histogram_mixture::{
-    bake_slices, try_bake_slices, validate_tables, BakedTables, BASES, MAX_N, MAX_T,
+    bake_slices, try_bake_compact, try_bake_slices, validate_compact_tables, validate_tables,
+    BakedTables, CompactTables, BASES, MAX_N, MAX_T,
 };
 use neusample::{DType, Error, Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
 use neusample::{
@@ -1143,4 +1144,257 @@ fn stratified_u_including_one_is_never_refused() {
         "{refused} of {} stratified u refused",
         steps * steps
     );
+}
+
+// ---------------------------------------------------------------------------------------
+// The compact layout: no values, u16 CDFs
+// ---------------------------------------------------------------------------------------
+
+fn compact_view<'a>(
+    c: &'a CompactTables,
+    cond: &'a [f32],
+    s0: u32,
+    s1: u32,
+    a: f32,
+) -> Table2D<&'a [f32]> {
+    Table2D::lerp_compact(&c.marginal[..], cond, c.resolution, s0, s1, a).expect("valid view")
+}
+
+#[test]
+fn compact_bake_quantises_exactly_and_keeps_every_cell() {
+    let mut r = rng(0xc0a1);
+    for (t, n) in [(3usize, 8usize), (2, 32), (4, 5)] {
+        let raw = random_raw(&mut r, BASES * t, n);
+        let c = try_bake_compact(&raw, BASES, t, n).unwrap();
+        let full = bake_slices(&raw, BASES, t, n, DType::F32);
+        c.validate().unwrap();
+        assert_eq!(c.mass, full.mass);
+        let cond = c.conditional_f32();
+        for s in 0..BASES * t {
+            let v = compact_view(&c, &cond, s as u32, s as u32, 0.0);
+            let w = view(&full, s as u32, s as u32, 0.0);
+            assert!(
+                (v.integral() - 1.0).abs() < 1e-4,
+                "slice {s}: ∫ {}",
+                v.integral()
+            );
+            for row in 0..n as u32 {
+                for col in 0..n as u32 {
+                    let (a, b) = (v.value(row, col), w.value(row, col));
+                    // Every cell with mass keeps some (unless its whole row is below the f32
+                    // resolution of the running sum); quantisation moves a cell by at most
+                    // one unit, except the row's largest, which lends units to tiny cells.
+                    let rt_stored = c.marginal[s * n + row as usize]
+                        - if row > 0 {
+                            c.marginal[s * n + row as usize - 1]
+                        } else {
+                            0.0
+                        };
+                    if rt_stored < 1e-30 {
+                        continue; // stored empty, or below where the shares are comparable
+                    }
+                    assert_eq!(a > 0.0, b > 0.0, "slice {s} cell ({row}, {col})");
+                    let row_total: f32 = (0..n as u32).map(|c| w.value(row, c)).sum();
+                    let rt = c.marginal[s * n + row as usize]
+                        - if row > 0 {
+                            c.marginal[s * n + row as usize - 1]
+                        } else {
+                            0.0
+                        };
+                    // The stored row total is a difference of f32 running sums: compare the
+                    // cell's share of its row.
+                    let b = b * (rt_stored / row_total);
+                    let largest = (0..n as u32)
+                        .max_by(|&x, &y| w.value(row, x).total_cmp(&w.value(row, y)))
+                        .unwrap();
+                    let units = if col == largest { n as f32 } else { 1.01 };
+                    assert!(
+                        (a - b).abs() <= units * rt_stored / 65535.0,
+                        "slice {s} cell ({row}, {col}): {a} vs {b}; row total {row_total} stored {rt}; cdf {:?}",
+                        &cond[(s * n + row as usize) * n..(s * n + row as usize + 1) * n]
+                    );
+                }
+            }
+        }
+        // Sampling: exact cell frequencies for a few slices and blends.
+        for (s0, s1, a) in [(0u32, 0u32, 0.0f32), (1, 2, 0.3), (2, 1, 0.75)] {
+            let v = compact_view(&c, &cond, s0, s1, a);
+            if v.integral() > 0.0 {
+                let p = table_cell_chi2(&v, &mut r, 100_000);
+                assert!(p > 1e-4, "compact table ({s0}, {s1}, {a}): χ² p {p}");
+            }
+        }
+    }
+}
+
+#[test]
+fn compact_validation_rejects_broken_tables() {
+    let mut r = rng(0xc0a2);
+    let (t, n) = (2usize, 8usize);
+    let c = try_bake_compact(&random_raw(&mut r, BASES * t, n), BASES, t, n).unwrap();
+    let check = |m: &[f32], mg: &[f32], cd: &[f32]| {
+        validate_compact_tables(m, mg, cd, BASES as u32, t as u32, n as u32)
+    };
+    let cond = c.conditional_f32();
+    check(&c.mass, &c.marginal, &cond).unwrap();
+    // A row of slice 0 that has mass: its end, a decrease, a fraction, a step off the disk.
+    let row = (0..n)
+        .find(|&r| c.marginal[r] > if r > 0 { c.marginal[r - 1] } else { 0.0 })
+        .unwrap();
+    let end = row * n + n - 1;
+    let mut bad = cond.clone();
+    bad[end] = 65534.0;
+    assert!(matches!(
+        check(&c.mass, &c.marginal, &bad),
+        Err(Error::TableNotNormalized {
+            role: "conditional",
+            ..
+        })
+    ));
+    let mut bad = cond.clone();
+    bad[end - 1] = 65535.0;
+    bad[end] = 65000.0;
+    assert!(check(&c.mass, &c.marginal, &bad).is_err());
+    let mut bad = cond.clone();
+    bad[end] = 65534.5;
+    assert!(check(&c.mass, &c.marginal, &bad).is_err());
+    let mut bad = cond.clone();
+    // Cell (0, 0) lies outside the disk: give it the row's first step.
+    let first = (0..n).find(|&rr| cond[rr * n + n - 1] > 0.0).unwrap();
+    assert!(cell_outside_disk(first as u32, 0, n as u32));
+    bad[first * n] = 1.0;
+    assert!(check(&c.mass, &c.marginal, &bad).is_err());
+    let mut bad_m = c.marginal.clone();
+    bad_m[n - 1] *= 1.01;
+    assert!(matches!(
+        check(&c.mass, &bad_m, &cond),
+        Err(Error::TableNotNormalized {
+            role: "marginal",
+            ..
+        })
+    ));
+    let mut bad_m = c.marginal.clone();
+    bad_m[1] = -1.0;
+    assert!(check(&c.mass, &bad_m, &cond).is_err());
+    let mut bad_mass = c.mass.clone();
+    bad_mass[0] = -0.5;
+    assert!(check(&bad_mass, &c.marginal, &cond).is_err());
+    assert!(matches!(
+        check(&c.mass, &c.marginal, &cond[1..]),
+        Err(Error::TensorShape { .. })
+    ));
+}
+
+#[test]
+fn compact_mixture_samples_its_pdf() {
+    let mut r = rng(0xc0a3);
+    let samples = if full_tests() { 1_000_000 } else { 200_000 };
+    let mut min_p = 1.0f64;
+    for (i, interp) in [
+        Interpolation::Nearest,
+        Interpolation::Linear,
+        Interpolation::Linear,
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let (t, n) = [(3usize, 8usize), (4, 16), (2, 32)][i];
+        let c = try_bake_compact(&random_raw(&mut r, BASES * t, n), BASES, t, n).unwrap();
+        let cond = c.conditional_f32();
+        let params = mixture_params(&mut r);
+        let s = HistogramMixtureSampler::new_compact(
+            &params[..],
+            &c.mass[..],
+            &c.marginal[..],
+            &cond[..],
+            t as u32,
+            n as u32,
+            interp,
+        )
+        .unwrap();
+        assert_eq!(
+            s.layout(),
+            neusample::distrib::table2d::TableLayout::Compact
+        );
+        let (phi, wi) = random_condition(&mut r);
+        let p = s.prepare(&phi, wi).unwrap();
+        let (_, worst) = check_samples(&p, &mut r, 5000);
+        assert!(worst < 1e-5, "compact mixture: pdf vs sample.pdf {worst}");
+        min_p = min_p.min(chi2_run(&format!("compact #{i}"), &p, &mut r, samples));
+    }
+    assert!(min_p > bonferroni(0.01, 3), "compact mixture χ² p {min_p}");
+}
+
+#[test]
+fn compact_blob_round_trips_and_is_smaller() {
+    use neusample::{BlobWriter, SamplerKind, TensorRole};
+    let mut r = rng(0xc0a4);
+    let (t, n) = (4usize, 16usize);
+    let raw = random_raw(&mut r, BASES * t, n);
+    let c = try_bake_compact(&raw, BASES, t, n).unwrap();
+    let full = bake_slices(&raw, BASES, t, n, DType::F32);
+    let params = mixture_params(&mut r);
+    let mut w = BlobWriter::new(SamplerKind::HistogramMixture, DType::F32, "compact")
+        .histogram_dims(t as u32, n as u32, Interpolation::Linear);
+    w.tensor(TensorRole::Params, &params)
+        .tensor(TensorRole::Mass, &c.mass)
+        .tensor(TensorRole::Marginal, &c.marginal)
+        .tensor_u16(TensorRole::Conditional, &c.conditional);
+    let bytes = w.to_bytes();
+    let mut wf = BlobWriter::new(SamplerKind::HistogramMixture, DType::F32, "values")
+        .histogram_dims(t as u32, n as u32, Interpolation::Linear);
+    wf.tensor(TensorRole::Params, &params)
+        .tensor(TensorRole::Mass, &full.mass)
+        .tensor(TensorRole::Table, &full.table)
+        .tensor(TensorRole::Marginal, &full.marginal)
+        .tensor(TensorRole::Conditional, &full.conditional);
+    let full_bytes = wf.to_bytes();
+    assert!(
+        4 * bytes.len() < full_bytes.len() + 4 * 16 * 1024,
+        "{} vs {}",
+        bytes.len(),
+        full_bytes.len()
+    );
+    let blob = neusample::Blob::open(&bytes).unwrap();
+    assert!(blob.is_compact());
+    let from_blob = blob.histogram_mixture().unwrap();
+    let cond = c.conditional_f32();
+    let host = HistogramMixtureSampler::new_compact(
+        &params[..],
+        &c.mass[..],
+        &c.marginal[..],
+        &cond[..],
+        t as u32,
+        n as u32,
+        Interpolation::Linear,
+    )
+    .unwrap();
+    for _ in 0..200 {
+        let (phi, wi) = random_condition(&mut r);
+        let (a, b) = (
+            from_blob.prepare(&phi, wi).unwrap(),
+            host.prepare(&phi, wi).unwrap(),
+        );
+        let u = uniform2(&mut r);
+        assert_eq!(a.sample(u), b.sample(u));
+        let wo = Vec3::new(uniform(&mut r, -0.7, 0.7), uniform(&mut r, -0.7, 0.7), 0.5);
+        assert_eq!(a.pdf(wo).to_bits(), b.pdf(wo).to_bits());
+    }
+    // Corruption of a u16 CDF is caught when the blob opens.
+    let mut w2 = w.clone();
+    let mut bad = c.conditional.clone();
+    let end = (0..n).find(|&rr| bad[rr * n + n - 1] > 0).unwrap() * n + n - 1;
+    bad[end] = 1234;
+    w2.tensor_u16(TensorRole::Conditional, &bad);
+    assert!(matches!(
+        neusample::Blob::open(&w2.to_bytes()),
+        Err(Error::TableNotNormalized { .. })
+    ));
+    // A values-layout conditional (f32) in a four-tensor blob is refused.
+    let mut w3 = w.clone();
+    w3.tensor(TensorRole::Conditional, &cond);
+    assert!(matches!(
+        neusample::Blob::open(&w3.to_bytes()),
+        Err(Error::TensorDType { .. })
+    ));
 }

@@ -148,7 +148,16 @@ impl<'a> Blob<'a> {
             }
         }
         let blob = Blob { header, tensors };
-        if header.kind == SamplerKind::HistogramMixture {
+        if header.kind == SamplerKind::HistogramMixture && blob.is_compact() {
+            histogram_mixture::validate_compact_tables(
+                &blob.tensor_or_empty(TensorRole::Mass),
+                &blob.tensor_or_empty(TensorRole::Marginal),
+                &blob.tensor_or_empty(TensorRole::Conditional),
+                header.basis,
+                header.t_levels,
+                header.resolution,
+            )?;
+        } else if header.kind == SamplerKind::HistogramMixture {
             histogram_mixture::validate_tables(
                 &blob.tensor_or_empty(TensorRole::Mass),
                 &blob.tensor_or_empty(TensorRole::Table),
@@ -209,6 +218,14 @@ impl<'a> Blob<'a> {
         Ok(())
     }
 
+    /// Whether a histogram mixture's tables are in the compact layout (no values tensor,
+    /// u16 CDFs: [`TableLayout::Compact`](crate::distrib::table2d::TableLayout::Compact)).
+    #[must_use]
+    pub fn is_compact(&self) -> bool {
+        self.header.kind == SamplerKind::HistogramMixture
+            && self.tensors[TensorRole::Table.index()].is_none()
+    }
+
     fn expect(&self, kind: SamplerKind) -> Result<()> {
         if self.header.kind == kind {
             Ok(())
@@ -257,6 +274,18 @@ impl<'a> Blob<'a> {
     /// The histogram mixture sampler, or [`Error::WrongKind`].
     pub fn histogram_mixture(&self) -> Result<HistogramMixtureSampler<Tensor<'a>>> {
         self.expect(SamplerKind::HistogramMixture)?;
+        if self.is_compact() {
+            return HistogramMixtureSampler::new_compact(
+                self.params(),
+                self.tensor_or_empty(TensorRole::Mass),
+                self.tensor_or_empty(TensorRole::Marginal),
+                self.tensor_or_empty(TensorRole::Conditional),
+                self.header.t_levels,
+                self.header.resolution,
+                self.header.interpolation,
+            )
+            .ok_or(Error::HeaderInvalid);
+        }
         HistogramMixtureSampler::new(
             self.params(),
             self.tensor_or_empty(TensorRole::Mass),

@@ -22,6 +22,14 @@ pub(crate) fn required(h: &Header<'_>) -> ([Requirement; ROLES], usize) {
     let (k, t, n) = (h.basis as u64, h.t_levels as u64, h.resolution as u64);
     let count = match h.kind {
         SamplerKind::Cosine => 0,
+        // Four tensors: the compact layout (no values, u16 CDFs); five: values + f32 CDFs.
+        SamplerKind::HistogramMixture if h.tensor_count == 4 => {
+            r[0] = Some((TensorRole::Params, p, None));
+            r[1] = Some((TensorRole::Mass, k * t, Some(DType::F32)));
+            r[3] = Some((TensorRole::Marginal, k * t * n, Some(DType::F32)));
+            r[4] = Some((TensorRole::Conditional, k * t * n * n, Some(DType::U16)));
+            4
+        }
         SamplerKind::HistogramMixture => {
             r[0] = Some((TensorRole::Params, p, None));
             r[1] = Some((TensorRole::Mass, k * t, Some(DType::F32)));
@@ -73,6 +81,13 @@ fn check_range(what: &'static str, found: u32, lo: u32, hi: u32) -> Result<()> {
 
 /// The header's dimensions against this build's architectures.
 pub(crate) fn check_dims(h: &Header<'_>) -> Result<()> {
+    if h.dtype == DType::U16 {
+        // Parameters, values and features are floats.
+        return Err(Error::TensorDType {
+            role: "params",
+            found: h.dtype,
+        });
+    }
     check_dim("feature_dim", h.feature_dim, FEATURE_DIM as u32)?;
     check_dim("param_count", h.param_count, h.kind.param_count() as u32)?;
     match h.kind {

@@ -97,10 +97,24 @@ impl<'l> BlobWriter<'l> {
             match dtype {
                 DType::F32 => bytes.extend_from_slice(&v.to_le_bytes()),
                 DType::F16 => bytes.extend_from_slice(&half::f16::from_f32(v).to_le_bytes()),
+                // Saturating (NaN → 0); `dtype_of` never answers U16 for f32 input.
+                DType::U16 => bytes.extend_from_slice(&(v as u16).to_le_bytes()),
             }
         }
         self.tensors.retain(|(r, _, _)| *r != role);
         self.tensors.push((role, dtype, bytes));
+        self
+    }
+
+    /// Adds (or replaces) a tensor of u16 values (the compact histogram-mixture layout's
+    /// `conditional`, [`TableLayout::Compact`](crate::distrib::table2d::TableLayout::Compact)).
+    pub fn tensor_u16(&mut self, role: TensorRole, values: &[u16]) -> &mut Self {
+        let mut bytes = alloc::vec::Vec::with_capacity(values.len() * 2);
+        for &v in values {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        self.tensors.retain(|(r, _, _)| *r != role);
+        self.tensors.push((role, DType::U16, bytes));
         self
     }
 

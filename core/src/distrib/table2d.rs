@@ -39,6 +39,26 @@ use crate::weights::Weights;
 /// Largest grid resolution N a [`Table2D`] may have.
 pub const MAX_N: usize = 128;
 
+/// The units of a [`TableLayout::Compact`] conditional CDF: every non-empty row ends at
+/// exactly this value (the largest `u16`).
+pub const CDF_UNITS: f32 = 65535.0;
+
+/// How a [`Table2D`] stores its slices.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default)]
+#[repr(u32)] // rust-gpu: a u8 discriminant needs the Int8 capability
+pub enum TableLayout {
+    /// Density values (f32 or f16) with f32 running sums of them within each row
+    /// (`conditional`) and over row totals (`marginal`).
+    #[default]
+    Values,
+    /// No values: `conditional` holds each row's CDF quantised to integers in
+    /// `0 ..= CDF_UNITS` (stored as u16, ending at [`CDF_UNITS`] in non-empty rows) and
+    /// `marginal` the running sums of row totals; a cell's density is its row's total times
+    /// its step of the row's CDF. Sampling and density read the same integers, so they agree
+    /// exactly, and the table takes a quarter of the memory of values plus f32 CDFs.
+    Compact,
+}
+
 /// Iterations of the fixed-length binary searches: enough for any `N ≤ MAX_N`.
 const SEARCH_STEPS: u32 = 7;
 const _: () = assert!(1usize << SEARCH_STEPS >= MAX_N);
@@ -188,6 +208,7 @@ fn search<F: Fn(u32) -> f32>(n: u32, target: f32, f: F) -> u32 {
 /// reads 0 ([`Weights`]), so no input can make it panic.
 #[derive(Debug)]
 pub struct Table2D<T, M = T, C = T> {
+    /// Density values (unused, a copy of `marginal`'s storage, in the compact layout).
     values: T,
     marginal: M,
     conditional: C,
@@ -200,6 +221,7 @@ pub struct Table2D<T, M = T, C = T> {
     total: f32,
     /// `1 / (total · h²)`, or 0 when the total is not positive.
     inv_integral: f32,
+    layout: TableLayout,
 }
 
 impl<T: Copy, M: Copy, C: Copy> Clone for Table2D<T, M, C> {
@@ -208,6 +230,40 @@ impl<T: Copy, M: Copy, C: Copy> Clone for Table2D<T, M, C> {
     }
 }
 impl<T: Copy, M: Copy, C: Copy> Copy for Table2D<T, M, C> {}
+
+impl<M: Weights + Copy, C: Weights> Table2D<M, M, C> {
+    /// A view of the blend `(1 − a)·slice0 + a·slice1` of slices in the
+    /// [`TableLayout::Compact`] layout (`N` marginal and `N²` conditional entries per slice).
+    /// `None` under the conditions of [`Table2D::lerp`].
+    #[inline]
+    #[must_use]
+    pub fn lerp_compact(
+        marginal: M,
+        conditional: C,
+        n: u32,
+        slice0: u32,
+        slice1: u32,
+        a: f32,
+    ) -> Option<Self> {
+        if n == 0 || n as usize > MAX_N || !(0.0..=1.0).contains(&a) {
+            return None;
+        }
+        let last = if slice0 > slice1 { slice0 } else { slice1 };
+        if last >= conditional.len() / (n * n) || last >= marginal.len() / n {
+            return None;
+        }
+        Some(Self::from_parts(
+            marginal,
+            marginal,
+            conditional,
+            n,
+            slice0,
+            slice1,
+            a,
+            TableLayout::Compact,
+        ))
+    }
+}
 
 impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
     /// A view of slice `slice` (the `slice`-th block of `N²` values, `N²` conditional and `N`
@@ -251,6 +307,7 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
             slice0,
             slice1,
             a,
+            TableLayout::Values,
         ))
     }
 
@@ -265,6 +322,7 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
         slice0: u32,
         slice1: u32,
         a: f32,
+        layout: TableLayout,
     ) -> Self {
         let mut t = Table2D {
             values,
@@ -276,6 +334,7 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
             a,
             total: 0.0,
             inv_integral: 0.0,
+            layout,
         };
         let total = t.marginal_at(n - 1);
         let integral = total * cell_area(n);
@@ -297,6 +356,7 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
         slices: (u32, u32, f32),
         total: f32,
         inv_integral: f32,
+        layout: TableLayout,
     ) -> Self {
         Table2D {
             values,
@@ -308,6 +368,7 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
             a: slices.2,
             total,
             inv_integral,
+            layout,
         }
     }
 
@@ -350,10 +411,61 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
         self.blend(&self.marginal, self.n, r)
     }
 
-    /// Blended `conditional[r][c]`.
+    /// Slice `s`'s total of row `r`: `marginal[r] − marginal[r − 1]`.
+    #[inline(always)]
+    fn row_total(&self, s: u32, r: u32) -> f32 {
+        let m1 = self.marginal.at(s * self.n + r);
+        let m0 = if r > 0 {
+            self.marginal.at(s * self.n + r - 1)
+        } else {
+            0.0
+        };
+        m1 - m0
+    }
+
+    /// Slice `s`'s running sum of row `r` up to column `c`, in density units.
+    #[inline(always)]
+    fn slice_conditional(&self, s: u32, r: u32, c: u32) -> f32 {
+        let i = s * self.n * self.n + r * self.n + c;
+        match self.layout {
+            TableLayout::Values => self.conditional.at(i),
+            TableLayout::Compact => self.row_total(s, r) * (self.conditional.at(i) / CDF_UNITS),
+        }
+    }
+
+    /// Slice `s`'s density value of cell `(r, c)`.
+    #[inline(always)]
+    fn slice_value(&self, s: u32, r: u32, c: u32) -> f32 {
+        let i = s * self.n * self.n + r * self.n + c;
+        match self.layout {
+            TableLayout::Values => self.values.at(i),
+            TableLayout::Compact => {
+                let c1 = self.conditional.at(i);
+                let c0 = if c > 0 {
+                    self.conditional.at(i - 1)
+                } else {
+                    0.0
+                };
+                self.row_total(s, r) * ((c1 - c0) / CDF_UNITS)
+            }
+        }
+    }
+
+    /// `f` of `slice0` and `slice1` blended with weights `(1 − a, a)`.
+    #[inline(always)]
+    fn blend_slices(&self, f: impl Fn(u32) -> f32) -> f32 {
+        let v0 = f(self.slice0);
+        if self.a > 0.0 {
+            (1.0 - self.a) * v0 + self.a * f(self.slice1)
+        } else {
+            v0
+        }
+    }
+
+    /// Blended `conditional[r][c]` (density units).
     #[inline(always)]
     fn conditional_at(&self, r: u32, c: u32) -> f32 {
-        self.blend(&self.conditional, self.n * self.n, r * self.n + c)
+        self.blend_slices(|s| self.slice_conditional(s, r, c))
     }
 
     /// Blended stored value of cell `(r, c)` (indices clamped into the grid).
@@ -362,7 +474,7 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
     pub fn value(&self, row: u32, col: u32) -> f32 {
         let r = if row < self.n { row } else { self.n - 1 };
         let c = if col < self.n { col } else { self.n - 1 };
-        self.blend(&self.values, self.n * self.n, r * self.n + c)
+        self.blend_slices(|s| self.slice_value(s, r, c))
     }
 
     /// Draws a point of `[−1, 1]²` from `u ∈ [0, 1)²`: `u.x` picks the row, `u.y` the column
@@ -436,7 +548,8 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
     /// the stored integral, never NaN or negative.
     #[inline(always)]
     pub(crate) fn density_at_cell(&self, cell: u32) -> f32 {
-        finite_density(self.blend(&self.values, self.n * self.n, cell) * self.inv_integral)
+        let (r, c) = (cell / self.n, cell % self.n);
+        finite_density(self.blend_slices(|s| self.slice_value(s, r, c)) * self.inv_integral)
     }
 
     /// The `u` that [`Table2D::sample`] maps to `p` (up to rounding). `None` for points

@@ -5,7 +5,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
-use crate::distrib::table2d::{cell_area, half_cell_gap, Table2D};
+use crate::distrib::table2d::{cell_area, half_cell_gap, Table2D, TableLayout};
 use crate::math::clamp_logit;
 use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
 use crate::warp;
@@ -128,6 +128,7 @@ impl DirectHistogramPrepared {
             0,
             0,
             0.0,
+            TableLayout::Values,
         )
     }
 }

@@ -6,7 +6,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
-use crate::distrib::table2d::{cell_of, in_square, Table2D};
+use crate::distrib::table2d::{cell_of, in_square, Table2D, TableLayout};
 use crate::kind::Interpolation;
 use crate::math::{self, clamp_logit};
 use crate::nn::{self, check_condition, raw_condition, Activation, FEATURE_DIM, RAW_CONDITION_DIM};
@@ -16,10 +16,14 @@ use crate::weights::Weights;
 use super::traits::Held;
 use super::{Prepared, Sample, Sampler};
 
-use super::mixture_tables::table_shapes;
 #[cfg(feature = "alloc")]
-pub use super::mixture_tables::{bake_slices, try_bake_slices, BakedTables};
-pub use super::mixture_tables::{validate_tables, BASES, CDF_TOLERANCE, INTEGRAL_TOLERANCE, MAX_T};
+pub use super::mixture_tables::{
+    bake_slices, try_bake_compact, try_bake_slices, BakedTables, CompactTables,
+};
+use super::mixture_tables::{compact_table_shapes, table_shapes};
+pub use super::mixture_tables::{
+    validate_compact_tables, validate_tables, BASES, CDF_TOLERANCE, INTEGRAL_TOLERANCE, MAX_T,
+};
 pub use crate::distrib::table2d::MAX_N;
 
 const MIX_HIDDEN: usize = 32;
@@ -57,6 +61,8 @@ pub struct HistogramMixtureSampler<W> {
     t_levels: u32,
     resolution: u32,
     interpolation: Interpolation,
+    /// How the tables are stored (`table` is a copy of `marginal` in the compact layout).
+    layout: TableLayout,
 }
 
 impl<W: Weights> HistogramMixtureSampler<W> {
@@ -129,7 +135,82 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             t_levels: t_levels.clamp(1, MAX_T as u32),
             resolution: resolution.clamp(1, MAX_N as u32),
             interpolation,
+            layout: TableLayout::Values,
         }
+    }
+
+    /// A sampler over `params` and compact tables ([`TableLayout::Compact`]: `mass` K × T,
+    /// `marginal` K × T × N, `conditional` K × T × N × N quantised CDFs, no values). `None`
+    /// under the conditions of [`Self::new`].
+    #[must_use]
+    pub fn new_compact(
+        params: W,
+        mass: W,
+        marginal: W,
+        conditional: W,
+        t_levels: u32,
+        resolution: u32,
+        interpolation: Interpolation,
+    ) -> Option<Self>
+    where
+        W: Copy,
+    {
+        if params.len() as usize != Self::PARAM_COUNT {
+            return None;
+        }
+        compact_table_shapes(
+            &mass,
+            &marginal,
+            &conditional,
+            BASES as u32,
+            t_levels,
+            resolution,
+        )
+        .ok()?;
+        Some(Self::new_compact_unchecked(
+            params,
+            mass,
+            marginal,
+            conditional,
+            t_levels,
+            resolution,
+            interpolation,
+        ))
+    }
+
+    /// [`Self::new_compact`] without the size checks, as [`Self::new_unchecked`].
+    #[inline]
+    #[must_use]
+    pub fn new_compact_unchecked(
+        params: W,
+        mass: W,
+        marginal: W,
+        conditional: W,
+        t_levels: u32,
+        resolution: u32,
+        interpolation: Interpolation,
+    ) -> Self
+    where
+        W: Copy,
+    {
+        let mut s = Self::new_unchecked(
+            params,
+            mass,
+            marginal,
+            marginal,
+            conditional,
+            t_levels,
+            resolution,
+            interpolation,
+        );
+        s.layout = TableLayout::Compact;
+        s
+    }
+
+    /// How the tables are stored.
+    #[must_use]
+    pub fn layout(&self) -> TableLayout {
+        self.layout
     }
 
     /// The parameter array.
@@ -177,6 +258,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             slices.0,
             slices.1,
             slices.2,
+            self.layout,
         )
     }
 
@@ -408,6 +490,7 @@ impl<W: Weights + Copy> HistogramMixtureSampler<W> {
             (lane.slice0[k], lane.slice1[k], lane.lerp[k]),
             lane.total[k],
             lane.inv_integral[k],
+            self.layout,
         )
     }
 

@@ -4,7 +4,7 @@
 
 #[cfg(feature = "alloc")]
 use crate::distrib::table2d::running_sums;
-use crate::distrib::table2d::{cell_area, cell_outside_disk, MAX_N};
+use crate::distrib::table2d::{cell_area, cell_outside_disk, CDF_UNITS, MAX_N};
 use crate::error::Error;
 #[cfg(feature = "alloc")]
 use crate::kind::DType;
@@ -68,6 +68,96 @@ pub(crate) fn table_shapes<W: Weights + ?Sized>(
     shape("table", table.len(), slices * n * n)?;
     shape("marginal", marginal.len(), slices * n)?;
     shape("conditional", conditional.len(), slices * n * n)?;
+    Ok(())
+}
+
+/// Dimension limits and tensor lengths of a set of compact tables
+/// ([`TableLayout::Compact`](crate::distrib::table2d::TableLayout::Compact)).
+pub(crate) fn compact_table_shapes<W: Weights + ?Sized>(
+    mass: &W,
+    marginal: &W,
+    conditional: &W,
+    bases: u32,
+    t_levels: u32,
+    resolution: u32,
+) -> Result<(), Error> {
+    dim("basis", bases, 1, BASES as u32)?;
+    dim("t_levels", t_levels, 1, MAX_T as u32)?;
+    dim("resolution", resolution, 1, MAX_N as u32)?;
+    let slices = u64::from(bases) * u64::from(t_levels);
+    let n = u64::from(resolution);
+    shape("mass", mass.len(), slices)?;
+    shape("marginal", marginal.len(), slices * n)?;
+    shape("conditional", conditional.len(), slices * n * n)?;
+    Ok(())
+}
+
+/// Checks compact histogram-mixture tables
+/// ([`TableLayout::Compact`](crate::distrib::table2d::TableLayout::Compact)) before use; the
+/// blob loader calls this for every compact histogram-mixture blob.
+///
+/// Dimensions and lengths as [`validate_tables`] (no values tensor); every value finite;
+/// `mass ≥ 0`; `marginal` non-negative, non-decreasing within each slice and each slice's
+/// `marginal[N − 1] · h²` within [`INTEGRAL_TOLERANCE`] of 1; every `conditional` entry an
+/// integer in `0 ..= CDF_UNITS`, non-decreasing within each row, a row whose total is
+/// positive ending at exactly `CDF_UNITS` and an empty row all zero, and no step on a cell
+/// entirely outside the disk ([`Error::TableNotNormalized`] with the flat index of the first
+/// bad element, or the slice index for an integral).
+pub fn validate_compact_tables<W: Weights + ?Sized>(
+    mass: &W,
+    marginal: &W,
+    conditional: &W,
+    bases: u32,
+    t_levels: u32,
+    resolution: u32,
+) -> Result<(), Error> {
+    compact_table_shapes(mass, marginal, conditional, bases, t_levels, resolution)?;
+    all_finite("mass", mass)?;
+    all_finite("marginal", marginal)?;
+    all_finite("conditional", conditional)?;
+    let bad = |role: &'static str, index: u32| Err(Error::TableNotNormalized { role, index });
+    let n = resolution;
+    let area = f64::from(cell_area(n));
+    let slices = bases * t_levels;
+    let mut s = 0;
+    while s < slices {
+        if !(mass.at(s) >= 0.0) {
+            return bad("mass", s);
+        }
+        let mut prev_m = 0.0f32;
+        let mut r = 0;
+        while r < n {
+            let i = s * n + r;
+            let m = marginal.at(i);
+            if !(m >= prev_m) {
+                return bad("marginal", i);
+            }
+            let row_total = m - prev_m;
+            let mut prev_c = 0.0f32;
+            let mut c = 0;
+            while c < n {
+                let j = s * n * n + r * n + c;
+                let v = conditional.at(j);
+                let integer = v >= 0.0 && v <= CDF_UNITS && v == libm::floorf(v);
+                let step = v - prev_c;
+                if !integer || step < 0.0 || (step > 0.0 && cell_outside_disk(r, c, n)) {
+                    return bad("conditional", j);
+                }
+                prev_c = v;
+                c += 1;
+            }
+            let end = if row_total > 0.0 { CDF_UNITS } else { 0.0 };
+            if prev_c != end {
+                return bad("conditional", s * n * n + r * n + n - 1);
+            }
+            prev_m = m;
+            r += 1;
+        }
+        if !(libm::fabs(f64::from(prev_m) * area - 1.0) <= INTEGRAL_TOLERANCE) {
+            return bad("marginal", s);
+        }
+        s += 1;
+    }
     Ok(())
 }
 
@@ -289,12 +379,19 @@ pub fn try_bake_slices(
             found: to_u32(raw.len()),
         });
     }
+    if storage == DType::U16 {
+        // Values are densities; quantised CDFs are the compact layout (`try_bake_compact`).
+        return Err(Error::TensorDType {
+            role: "table",
+            found: storage,
+        });
+    }
     let area = f64::from(cell_area(resolution));
     let round = |v: f64| -> f32 {
         let v = v as f32;
         match storage {
-            DType::F32 => v,
             DType::F16 => half::f16::from_f32(v).to_f32(),
+            DType::F32 | DType::U16 => v,
         }
     };
     let mut out = BakedTables {
@@ -352,5 +449,119 @@ pub fn try_bake_slices(
         &mut out.marginal,
         &mut out.conditional,
     );
+    Ok(out)
+}
+
+/// Compact histogram-mixture tables (host side,
+/// [`TableLayout::Compact`](crate::distrib::table2d::TableLayout::Compact)), ready to pass to
+/// [`HistogramMixtureSampler::new_compact`](crate::HistogramMixtureSampler::new_compact) or to
+/// a blob writer.
+#[cfg(feature = "alloc")]
+#[derive(Clone, Debug, PartialEq)]
+pub struct CompactTables {
+    /// K × T: the integral of each raw slice over the cells not entirely outside the disk.
+    pub mass: alloc::vec::Vec<f32>,
+    /// K × T × N: running sums of the row totals of each normalised slice (f32, in index
+    /// order).
+    pub marginal: alloc::vec::Vec<f32>,
+    /// K × T × N × N: each row's CDF in units of `CDF_UNITS`.
+    pub conditional: alloc::vec::Vec<u16>,
+    /// K.
+    pub bases: u32,
+    /// T.
+    pub t_levels: u32,
+    /// N.
+    pub resolution: u32,
+}
+
+#[cfg(feature = "alloc")]
+impl CompactTables {
+    /// The conditional CDFs as f32 values (exact), as a sampler over host arrays reads them.
+    #[must_use]
+    pub fn conditional_f32(&self) -> alloc::vec::Vec<f32> {
+        self.conditional.iter().map(|&v| f32::from(v)).collect()
+    }
+
+    /// [`validate_compact_tables`] on these tables.
+    pub fn validate(&self) -> Result<(), Error> {
+        validate_compact_tables(
+            self.mass.as_slice(),
+            self.marginal.as_slice(),
+            self.conditional_f32().as_slice(),
+            self.bases,
+            self.t_levels,
+            self.resolution,
+        )
+    }
+}
+
+/// [`try_bake_slices`] into the compact layout: per slice the same masking, mass and
+/// normalisation; each row's total `R` goes into the f32 running sums `marginal`, and its CDF
+/// is quantised to integers ending at exactly `CDF_UNITS`: each cell gets its share of the
+/// units rounded by largest remainders (ties to the lower column), then every cell with a
+/// positive value that got none takes one unit from the row's largest cell, so no cell with
+/// mass is dropped and every other cell is within one unit of its share. A row whose total
+/// does not move the f32 running sum (absorbed by rounding) is stored empty: its stored mass
+/// is zero. Errors as [`try_bake_slices`].
+#[cfg(feature = "alloc")]
+pub fn try_bake_compact(
+    raw: &[f32],
+    bases: usize,
+    t_levels: usize,
+    resolution: usize,
+) -> Result<CompactTables, Error> {
+    use alloc::vec;
+    let baked = try_bake_slices(raw, bases, t_levels, resolution, DType::F32)?;
+    let (bases, t_levels, resolution) = (baked.bases, baked.t_levels, baked.resolution);
+    let n = resolution as usize;
+    let slices = (bases * t_levels) as usize;
+    let mut out = CompactTables {
+        mass: baked.mass.clone(),
+        marginal: vec![0.0; slices * n],
+        conditional: vec![0; slices * n * n],
+        bases,
+        t_levels,
+        resolution,
+    };
+    let units = CDF_UNITS as u32;
+    let mut counts: vec::Vec<u32> = vec![0; n];
+    let mut rem: vec::Vec<(f64, usize)> = vec::Vec::with_capacity(n);
+    for s in 0..slices {
+        let mut run = 0.0f32;
+        for r in 0..n {
+            let row = &baked.table[(s * n + r) * n..(s * n + r + 1) * n];
+            let total: f64 = row.iter().map(|&v| f64::from(v)).sum();
+            let next = run + total as f32;
+            let dst = &mut out.conditional[(s * n + r) * n..(s * n + r + 1) * n];
+            if total > 0.0 && next > run {
+                rem.clear();
+                let mut given = 0u32;
+                for (c, &v) in row.iter().enumerate() {
+                    let share = f64::from(units) * f64::from(v) / total;
+                    counts[c] = share.floor() as u32;
+                    given += counts[c];
+                    rem.push((share - share.floor(), c));
+                }
+                rem.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+                for &(_, c) in rem.iter().take((units - given) as usize) {
+                    counts[c] += 1;
+                }
+                for c in 0..n {
+                    if row[c] > 0.0 && counts[c] == 0 {
+                        let big = (0..n).max_by_key(|&i| (counts[i], n - i)).unwrap_or(c);
+                        counts[big] -= 1;
+                        counts[c] = 1;
+                    }
+                }
+                let mut acc = 0u32;
+                for (d, k) in dst.iter_mut().zip(&counts) {
+                    acc += k;
+                    *d = acc as u16;
+                }
+                run = next;
+            }
+            out.marginal[s * n + r] = run;
+        }
+    }
     Ok(out)
 }

@@ -83,8 +83,10 @@ pub(crate) trait Kernel {
 }
 
 /// A [`Kernel`] as `pulp` takes it.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
 struct Job<K>(K);
 
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
 impl<K: Kernel> pulp::NullaryFnOnce for Job<K> {
     type Output = K::Output;
     #[inline(always)]
