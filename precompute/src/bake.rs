@@ -6,7 +6,7 @@
 //! agree to [`F32_TOLERANCE`] relative; f16 blobs are reported, with a looser bound.
 
 use anyhow::{bail, Context, Result};
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 use neusample::blob::{Blob, BlobWriter, SamplerKind, TableInterpolation, TensorRole};
 use neusample::histogram::Interpolation;
 use neusample::{DType, Prepared, Sampler};
@@ -14,7 +14,7 @@ use rand::{RngExt, SeedableRng};
 
 use crate::groundtruth;
 use crate::materials::Material;
-use crate::train::{model_pdf_disk, Method, Trained};
+use crate::train::{model_pdf_disk, Trained};
 
 /// Largest relative difference allowed between an f32 blob and the trained model.
 pub const F32_TOLERANCE: f64 = 1e-3;
@@ -22,27 +22,14 @@ pub const F32_TOLERANCE: f64 = 1e-3;
 /// weights carry 11 significant bits; errors compound through the layers).
 pub const F16_TOLERANCE: f64 = 0.25;
 
-/// The runtime kind of a training method.
-#[must_use]
-pub fn kind_of(method: Method) -> SamplerKind {
-    match method {
-        Method::Baseline => SamplerKind::ImprovedBaseline,
-        Method::Analytic => SamplerKind::AnalyticMixture,
-        Method::Flow => SamplerKind::Flow,
-        Method::AffineFlow => SamplerKind::AffineFlow,
-        Method::DirectHistogram => SamplerKind::DirectHistogram,
-        Method::HistogramMixture => SamplerKind::HistogramMixture,
-    }
-}
-
 /// Serialises a trained model as a blob with the given storage type.
 pub fn blob_bytes(trained: &Trained, dtype: DType, label: &str) -> Result<Vec<u8>> {
-    let kind = kind_of(trained.method);
-    let mut w = BlobWriter::new(kind, dtype, label);
+    let mut w = BlobWriter::new(trained.method, dtype, label);
     if let Some(t) = &trained.tables {
         let baked = t.rebake(dtype)?;
         let n = baked.resolution;
         let levels = baked.t_levels;
+        // The blob header's name for the runtime's interpolation (the one mapping).
         let interp = match t.interpolation {
             Interpolation::Nearest => TableInterpolation::Nearest,
             Interpolation::Linear => TableInterpolation::Linear,
@@ -52,7 +39,7 @@ pub fn blob_bytes(trained: &Trained, dtype: DType, label: &str) -> Result<Vec<u8
             .tensor(TensorRole::Table, &baked.table)
             .tensor(TensorRole::Marginal, &baked.marginal)
             .tensor(TensorRole::Conditional, &baked.conditional);
-    } else if trained.method == Method::HistogramMixture {
+    } else if trained.method == SamplerKind::HistogramMixture {
         bail!("the histogram mixture has no baked tables");
     }
     w.tensor(TensorRole::Params, &trained.params);
@@ -60,7 +47,7 @@ pub fn blob_bytes(trained: &Trained, dtype: DType, label: &str) -> Result<Vec<u8
 }
 
 /// Outcome of [`verify`].
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Verification {
     /// Points compared.
     pub points: usize,
@@ -141,14 +128,4 @@ pub fn verify(
         );
     }
     Ok(v)
-}
-
-/// A unit direction from spherical angles (helper for reports and tests).
-#[must_use]
-pub fn direction(theta: f32, phi: f32) -> Vec3 {
-    Vec3::new(
-        theta.sin() * phi.cos(),
-        theta.sin() * phi.sin(),
-        theta.cos(),
-    )
 }

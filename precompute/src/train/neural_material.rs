@@ -4,8 +4,8 @@
 //! `(uv, wi, wo)` of the source, with the target `f_src(φ_src(uv), wi, wo)`:
 //!
 //! * `uv` from a jittered grid of [`NeuralTrainConfig::uv_pool`] points whose source features
-//!   are computed once (procedural textures cost microseconds per lookup); `wi` from [`groundtruth::random_wi`] (the samplers'
-//!   condition distribution); `wo` half uniform on the projected disk (the rendering
+//!   are computed once (procedural textures are slow to look up); `wi` from
+//!   [`groundtruth::random_wi`] (the samplers' condition distribution); `wo` half uniform on the projected disk (the rendering
 //!   measure `cos θo dωo`) and half around the mirror direction (a half vector with a
 //!   Gaussian slope of log-uniform width `α ∈ [0.02, 0.6]`), so that sharp highlights, which
 //!   cover a tiny part of the disk but carry most of p*, are seen often.
@@ -20,40 +20,30 @@
 //!   weighted by the bilinear weights, which are computed on the host by the runtime's own
 //!   [`wrap_bilinear`] (so texel indices and weights are bit-identical to core's).
 //!
-//! After training, [`fit_report`] measures the fit through the runtime (relative RGB error,
-//! `KL(p*_source ‖ p*_neural)`, albedo error) and [`verify_blob`] checks that core's
-//! features and eval equal the burn forward pass.
+//! [`verify_blob`] checks that core's features and eval equal the burn forward pass;
+//! `crate::eval::neural_fit` measures the fit to the source through the runtime.
 
 use std::time::Instant;
 
 use anyhow::{bail, Result};
 use burn::module::{Module, Param};
-use burn::optim::{AdamWConfig, GradientsParams};
 use burn::tensor::{Device, Int, Tensor, TensorData};
 use glam::{Vec2, Vec3};
-use indicatif::{ProgressBar, ProgressStyle};
 use neusample::neural::{
-    decoder_input, output_to_brdf, wrap_bilinear, DECODER_HIDDEN, DECODER_INPUTS, DECODER_OUTPUTS,
+    decoder_input, output_to_brdf, wrap_bilinear, DECODER_INPUTS, DECODER_OUTPUTS,
 };
 use rand::RngExt;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
-use super::NeuralParts;
-use crate::groundtruth::{self, TargetPdf};
+use crate::groundtruth;
+use crate::materials::neural::{NeuralParts, DECODER_SIZES};
 use crate::materials::{Material, FEATURE_DIM};
-use crate::train::data::{mix_seed, rng_for};
-use crate::train::nn::{self, learning_rate, tensor2, to_host, Act, Mlp};
-
-/// Layer sizes of the decoder (`core/ARCHITECTURES.md` §7).
-pub const DECODER_SIZES: [usize; 5] = [
-    DECODER_INPUTS,
-    DECODER_HIDDEN,
-    DECODER_HIDDEN,
-    DECODER_HIDDEN,
-    DECODER_OUTPUTS,
-];
+use crate::nn::{
+    infer_device, optimise, tensor2, to_host, train_device, Activation, Mlp, OptimSettings,
+};
+use crate::util::rng::{mix_seed, rng_for};
 
 /// Direction inputs of the decoder (everything after φ).
 const DIRS: usize = DECODER_INPUTS - FEATURE_DIM;
@@ -62,7 +52,7 @@ const DIRS: usize = DECODER_INPUTS - FEATURE_DIM;
 const CHUNK: usize = 256;
 
 /// Hyper-parameters of [`train`].
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct NeuralTrainConfig {
     /// Texture width (texels along u).
     pub width: u32,
@@ -204,7 +194,7 @@ impl NeuralModel {
     /// The decoder's raw output `ln f` at the queries, `[n, 3]` (before the runtime's clamp).
     pub fn log_f(&self, q: &DeviceQueries) -> Tensor<2> {
         let x = Tensor::cat(vec![self.features(q), q.dirs.clone()], 1);
-        self.decoder.forward(x, Act::Relu)
+        self.decoder.forward(x, Activation::Relu)
     }
 }
 
@@ -428,34 +418,22 @@ pub fn train(source: &dyn Material, cfg: &NeuralTrainConfig) -> Result<TrainedNe
         .num_threads(cfg.threads)
         .build()?;
     pool.install(|| {
-        let device = nn::train_device();
+        let device = train_device();
         let mut rng = rng_for(cfg.seed, 0x7e47, 0);
-        let mut model = NeuralModel::init(cfg, &mut rng, &device);
-        let mut optim = AdamWConfig::new()
-            .with_weight_decay(0.0)
-            .with_grad_clipping(Some(burn::grad_clipping::GradientClippingConfig::Norm(
-                10.0,
-            )))
-            .init();
-        let bar = if cfg.progress {
-            let bar = ProgressBar::new(cfg.steps as u64);
-            bar.set_style(
-                ProgressStyle::with_template(
-                    "{prefix:>18} {bar:30} {pos}/{len} {msg} [{elapsed_precise}<{eta_precise}]",
-                )
-                .expect("valid progress template"),
-            );
-            bar.set_prefix(format!("{} (neural)", source.name()));
-            bar
-        } else {
-            ProgressBar::hidden()
+        let model = NeuralModel::init(cfg, &mut rng, &device);
+        let settings = OptimSettings {
+            name: format!("{} (neural)", source.name()),
+            steps: cfg.steps,
+            lr: cfg.lr,
+            weight_decay: 0.0,
+            grad_clip: 10.0,
+            progress: cfg.progress,
+            report_every: 20,
         };
         let ln_eps = cfg.epsilon.ln();
         let data_seed = mix_seed(cfg.seed, 0xda7a);
         let uvs = uv_pool(source, cfg.uv_pool, mix_seed(cfg.seed, 0x0f));
-        let mut history = Vec::with_capacity(cfg.steps);
-        let mut bad = 0usize;
-        for step in 0..cfg.steps {
+        let (model, history) = optimise(model, &settings, |model, step| {
             let samples = draw(
                 source,
                 Some(&uvs),
@@ -471,26 +449,8 @@ pub fn train(source: &dyn Material, cfg: &NeuralTrainConfig) -> Result<TrainedNe
                 .flat_map(|s| s.f.map(|v| (cfg.epsilon + v).ln()))
                 .collect();
             let target = tensor2(target, cfg.batch, DECODER_OUTPUTS, &device);
-            let l = loss(&model, &q, target, ln_eps);
-            let value: f32 = l.clone().into_scalar();
-            history.push(value);
-            if !value.is_finite() {
-                bad += 1;
-                if bad >= 20 {
-                    bail!("loss not finite for 20 steps in a row (step {step})");
-                }
-                bar.inc(1);
-                continue;
-            }
-            bad = 0;
-            let grads = GradientsParams::from_grads(l.backward(), &model);
-            model = optim.step(learning_rate(cfg.lr, step, cfg.steps), model, grads);
-            if step % 20 == 0 {
-                bar.set_message(format!("loss {value:.4}"));
-            }
-            bar.inc(1);
-        }
-        bar.finish_and_clear();
+            Ok(loss(model, &q, target, ln_eps))
+        })?;
         let parts = model.export(cfg.width, cfg.height);
         parts.validate()?;
         Ok(TrainedNeural {
@@ -509,7 +469,7 @@ pub fn graph_eval(
     parts: &NeuralParts,
     queries: &[(Vec2, Vec3, Vec3)],
 ) -> (Vec<[f32; FEATURE_DIM]>, Vec<[f32; 3]>) {
-    let device = nn::infer_device();
+    let device = infer_device();
     let model = NeuralModel::from_parts(parts, &device);
     let host = HostQueries::new(parts.width, parts.height, queries);
     let q = host.upload(&device);
@@ -538,7 +498,7 @@ pub fn graph_eval(
 }
 
 /// Outcome of [`verify_blob`].
-#[derive(Clone, Copy, Debug, Serialize)]
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
 pub struct BlobCheck {
     /// Queries compared.
     pub queries: usize,
@@ -603,95 +563,4 @@ pub fn verify_blob(bytes: &[u8], n: usize, seed: u64) -> Result<BlobCheck> {
         );
     }
     Ok(check)
-}
-
-/// How well a neural material reproduces its source, measured through the runtime.
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct FitReport {
-    /// Random queries of the RGB error.
-    pub points: usize,
-    /// `Σ|f̂ − f| / Σ|f|` over RGB channels and queries with `wo` uniform on the projected
-    /// disk (the rendering measure): the relative L1 error of `f·cos`.
-    pub relative_rgb_error: f64,
-    /// The same with `wo` around the mirror direction (the highlight region).
-    pub relative_rgb_error_lobe: f64,
-    /// RMS of `ln(ε + f̂) − ln(ε + f)` (the training loss, square-rooted) on fresh queries.
-    pub log_rmse: f64,
-    /// Conditions `(uv, wi)` of the KL and albedo measures.
-    pub conditions: usize,
-    /// Mean `KL(p*_source ‖ p*_neural)` in nats (tables at `res²`, same uv and wi).
-    pub kl_pstar: f64,
-    /// Mean `KL(p*_source ‖ uniform disk)`: the KL of cosine sampling, for scale.
-    pub kl_pstar_vs_cosine: f64,
-    /// `Σ|a_neural − a_source| / Σ a_source` over the conditions, `a` the luminance albedo
-    /// `∫ Y(f) cos θo dωo` at the condition.
-    pub albedo_relative_error: f64,
-}
-
-/// Measures a neural material (any [`Material`], typically a [`super::NeuralMaterialModel`])
-/// against its source: `points` random queries and `conditions` tabulated p* at `res²`.
-pub fn fit_report(
-    source: &dyn Material,
-    neural: &dyn Material,
-    points: usize,
-    conditions: usize,
-    res: usize,
-    epsilon: f32,
-    seed: u64,
-) -> FitReport {
-    let rel = |lobe: f32, s: u64| {
-        let q = draw(source, None, points, lobe, mix_seed(seed, s), 0);
-        let (num, den, se) = q
-            .par_iter()
-            .map(|s| {
-                let g = neural.eval(&neural.features(s.uv), s.wi, s.wo);
-                let (mut num, mut den, mut se) = (0f64, 0f64, 0f64);
-                for c in 0..3 {
-                    num += f64::from((g[c] - s.f[c]).abs());
-                    den += f64::from(s.f[c].abs());
-                    let d = f64::from((epsilon + g[c]).ln() - (epsilon + s.f[c]).ln());
-                    se += d * d;
-                }
-                (num, den, se)
-            })
-            .reduce(|| (0.0, 0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
-        (
-            num / den.max(1e-30),
-            (se / (3 * q.len().max(1)) as f64).sqrt(),
-        )
-    };
-    let (disk, log_rmse) = rel(0.0, 1);
-    let (lobe, _) = rel(1.0, 2);
-    let conds = groundtruth::conditions(source, conditions, mix_seed(seed, 3));
-    let per: Vec<(f64, f64, f64, f64)> = conds
-        .par_iter()
-        .map(|c| {
-            let src = TargetPdf::new(source, c, res);
-            let nc = groundtruth::Condition {
-                phi: neural.features(c.uv),
-                ..*c
-            };
-            let neu = TargetPdf::new(neural, &nc, res);
-            let kl = src.kl_from(|p| neu.pdf(p));
-            let kl_cos = src.kl_from(|_| std::f32::consts::FRAC_1_PI);
-            (
-                kl,
-                kl_cos,
-                (neu.integral() - src.integral()).abs(),
-                src.integral(),
-            )
-        })
-        .collect();
-    let n = per.len().max(1) as f64;
-    FitReport {
-        points,
-        relative_rgb_error: disk,
-        relative_rgb_error_lobe: lobe,
-        log_rmse,
-        conditions: per.len(),
-        kl_pstar: per.iter().map(|p| p.0).sum::<f64>() / n,
-        kl_pstar_vs_cosine: per.iter().map(|p| p.1).sum::<f64>() / n,
-        albedo_relative_error: per.iter().map(|p| p.2).sum::<f64>()
-            / per.iter().map(|p| p.3).sum::<f64>().max(1e-30),
-    }
 }

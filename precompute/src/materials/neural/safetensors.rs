@@ -17,8 +17,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use neusample::neural::{DECODER_PARAM_COUNT, MAX_TEXTURE_SIZE};
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 
-use super::train::DECODER_SIZES;
-use super::NeuralParts;
+use super::{NeuralParts, DECODER_SIZES};
 use crate::materials::FEATURE_DIM;
 
 /// Name of the feature texture tensor.

@@ -72,3 +72,18 @@ pub fn read_blob(path: &Path) -> Result<Vec<u8>> {
     neusample::blob::Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(bytes)
 }
+
+/// A file-name-safe version of a name: ASCII letters, digits, `-` and `_` kept, anything else
+/// replaced by `_`.
+#[must_use]
+pub fn slug(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}

@@ -13,7 +13,7 @@
 //!   the whole render loop (primary ray, features, `prepare`, `sample`, material evaluation,
 //!   shadow ray, environment lookup, and with MIS the environment sample and `pdf`) divided by
 //!   the number of pixel samples of the image (background pixels included), the fastest of a
-//!   few passes interleaved over the techniques ([`crate::render::time_per_sample`]; other
+//!   few passes interleaved over the techniques ([`render::time_per_sample`]; other
 //!   processes on the machine only ever add time). The oracle is timed in one pass on a
 //!   quarter-resolution view at 16× the spp (the same number of samples). For the oracle, the
 //!   per-pixel table build is **excluded** (the table is built once per pixel and its time subtracted): the oracle is
@@ -35,11 +35,13 @@
 //!   `spp_m = round(N · t_b / t_m)` (at least 1) and is rendered with a fresh seed.
 
 use neusample::blob::AnySampler;
-use neusample::Sampler;
-use serde::Serialize;
+use neusample_render::{self as render, Estimator, Image, Render, RenderOptions, Scene, Surface};
+use serde::{Deserialize, Serialize};
 
+use super::oracle::OracleSampler;
 use crate::materials::Material;
-use crate::render::{self, Estimator, Image, OracleSampler, Render, RenderOptions, Scene, Surface};
+use crate::util::json::f64_or_nan;
+use crate::util::stats::ratio;
 
 /// A sampling technique of the evaluation.
 #[derive(Clone, Copy, Debug)]
@@ -62,8 +64,8 @@ impl Technique<'_> {
     pub fn render(&self, scene: &Scene, material: &dyn Material, opts: &RenderOptions) -> Render {
         let o = self.options(opts);
         match self {
-            Technique::Blob(s) => render::render(scene, &[surface(material, *s)], &o),
-            Technique::Oracle(s) => render::render(scene, &[surface(material, *s)], &o),
+            Technique::Blob(s) => render::render(scene, &[Surface::new(material, *s)], &o),
+            Technique::Oracle(s) => render::render(scene, &[Surface::new(material, *s)], &o),
         }
     }
 
@@ -76,23 +78,19 @@ impl Technique<'_> {
         passes: usize,
     ) -> anyhow::Result<f64> {
         let o = self.options(opts);
-        match self {
+        Ok(match self {
             Technique::Blob(s) => {
-                render::time_per_sample(scene, &[surface(material, *s)], &o, passes)
+                render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
             }
             Technique::Oracle(s) => {
-                render::time_per_sample(scene, &[surface(material, *s)], &o, passes)
+                render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
             }
-        }
+        })
     }
 }
 
-fn surface<'a, S: Sampler>(material: &'a dyn Material, sampler: S) -> Surface<'a, S> {
-    Surface { material, sampler }
-}
-
 /// Sizes and seeds of the rendering evaluation.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct RenderSettings {
     /// Largest equal-spp sample count N (convergence checkpoints at powers of two up to it).
     pub max_spp: u32,
@@ -204,14 +202,16 @@ pub fn pixel_average(r: &Render, mask: &[bool]) -> ([f64; 3], [f64; 3]) {
 }
 
 /// One point of a convergence curve.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ConvergencePoint {
     /// Samples per pixel.
     pub spp: u32,
     /// MSE (reference noise subtracted).
+    #[serde(deserialize_with = "f64_or_nan")]
     pub mse: f64,
     /// Single-thread render time of the whole image at this spp, seconds
     /// (`spp · pixels · ns_per_sample`).
+    #[serde(deserialize_with = "f64_or_nan")]
     pub seconds: f64,
 }
 
@@ -368,12 +368,4 @@ pub fn speedup_measured(m: &TechniqueEval, b: &TechniqueEval) -> f64 {
 #[must_use]
 pub fn variance_ratio(m: &TechniqueEval, b: &TechniqueEval) -> f64 {
     ratio(b.mse_expected_equal_spp, m.mse_expected_equal_spp)
-}
-
-fn ratio(num: f64, den: f64) -> f64 {
-    if den > 0.0 && num.is_finite() && den.is_finite() {
-        num / den
-    } else {
-        f64::NAN
-    }
 }

@@ -4,7 +4,7 @@
 //!
 //! Text is drawn by plotters with an embedded font (`fixtures/fonts/`, Roboto, Apache-2.0), so
 //! the figures render the same on a machine without any system fonts. Every file is written
-//! atomically ([`crate::io::atomic_write`]).
+//! atomically ([`crate::util::io::atomic_write`]).
 
 use std::path::Path;
 use std::sync::Once;
@@ -14,8 +14,9 @@ use image::ImageEncoder;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
-use crate::io;
-use crate::render::Image;
+use neusample_render::{luminance, Image};
+
+use crate::util::io;
 
 /// The embedded plot font (a subset of Roboto Regular; licence beside the file).
 static FONT_BYTES: &[u8] = include_bytes!(concat!(
@@ -128,7 +129,7 @@ pub fn auto_exposure(img: &Image, mask: &[bool]) -> f32 {
     let (mut s, mut n) = (0.0f64, 0usize);
     for (i, c) in img.data.iter().enumerate() {
         if mask.get(i).copied().unwrap_or(true) {
-            let y = f64::from(crate::materials::luminance(*c));
+            let y = f64::from(luminance(*c));
             if y.is_finite() {
                 s += y;
                 n += 1;

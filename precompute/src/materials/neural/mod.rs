@@ -5,28 +5,33 @@
 //!   conversion to and from blobs ([`NeuralParts::blob_bytes`], [`NeuralParts::from_blob`]);
 //! * [`NeuralMaterialModel`] — a neural material as a [`Material`] (φ = the learned features,
 //!   eval = the decoder, both through core), so every sampler trains on it unchanged;
-//! * [`train`] — fitting a neural material to any [`Material`] (`neusample train-material`);
-//! * [`safetensors`] — import from and export to safetensors (`neusample import-material`);
-//! * [`eval_cost`] — single-thread cost of a material's evaluation (the Table 1 ratio).
+//! * [`safetensors`] — import from and export to safetensors (`neusample import-material`).
+//!
+//! Fitting one to another material is `crate::train::neural_material`.
 
-pub mod cli;
 pub mod safetensors;
-pub mod train;
 
-use std::hint::black_box;
 use std::path::Path;
-use std::time::Instant;
 
 use anyhow::{anyhow, bail, Context, Result};
 use glam::{Vec2, Vec3};
 use neusample::blob::{Blob, BlobWriter, SamplerKind, TensorRole};
-use neusample::neural::{texture_len, NeuralMaterial, DECODER_PARAM_COUNT, MAX_TEXTURE_SIZE};
+use neusample::neural::{
+    texture_len, NeuralMaterial, DECODER_HIDDEN, DECODER_INPUTS, DECODER_OUTPUTS,
+    DECODER_PARAM_COUNT, MAX_TEXTURE_SIZE,
+};
 use neusample::DType;
-use rand::SeedableRng;
-use serde::Serialize;
 
-use crate::groundtruth;
-use crate::materials::{Material, FEATURE_DIM};
+use super::model::{Material, FEATURE_DIM};
+
+/// Layer sizes of the decoder (`core/ARCHITECTURES.md` §7).
+pub const DECODER_SIZES: [usize; 5] = [
+    DECODER_INPUTS,
+    DECODER_HIDDEN,
+    DECODER_HIDDEN,
+    DECODER_HIDDEN,
+    DECODER_OUTPUTS,
+];
 
 /// File extension of neusample blobs (samplers and neural materials).
 pub const BLOB_EXTENSION: &str = "nsb";
@@ -207,42 +212,4 @@ pub fn is_blob_file(path: &Path) -> bool {
     std::fs::File::open(path)
         .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
         .is_ok_and(|()| magic == neusample::blob::MAGIC)
-}
-
-/// Single-thread cost of a material, nanoseconds per call (medians of repeated passes).
-#[derive(Clone, Copy, Debug, Serialize)]
-pub struct EvalCost {
-    /// `features(uv)` (texture lookup).
-    pub features_ns: f64,
-    /// `eval(φ, wi, wo)` (the decoder, or the analytic BRDF).
-    pub eval_ns: f64,
-}
-
-/// Measures [`EvalCost`] of `material` on `n` random `(uv, wi, wo)`, `passes` times, on the
-/// calling thread.
-pub fn eval_cost(material: &dyn Material, n: usize, passes: usize) -> EvalCost {
-    let n = n.max(1);
-    let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(0xC057_E7A1);
-    let conds: Vec<_> = (0..n)
-        .map(|_| groundtruth::random_condition(material, &mut rng))
-        .collect();
-    let wos = crate::eval::timing_directions(&mut rng, n);
-    let median = crate::eval::median;
-    let (mut tf, mut te) = (Vec::new(), Vec::new());
-    for _ in 0..passes.max(1) {
-        let t0 = Instant::now();
-        for c in &conds {
-            black_box(material.features(black_box(c.uv)));
-        }
-        tf.push(t0.elapsed().as_nanos() as f64 / n as f64);
-        let t0 = Instant::now();
-        for (c, wo) in conds.iter().zip(&wos) {
-            black_box(material.eval(black_box(&c.phi), black_box(c.wi), black_box(*wo)));
-        }
-        te.push(t0.elapsed().as_nanos() as f64 / n as f64);
-    }
-    EvalCost {
-        features_ns: median(tf),
-        eval_ns: median(te),
-    }
 }
