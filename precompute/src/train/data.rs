@@ -9,6 +9,7 @@ use burn::tensor::{Device, Tensor};
 use glam::{Vec2, Vec3};
 use neusample::sampler::{check_condition, encode_condition, raw_condition};
 use neusample::sampler::{CONDITION_DIM, RAW_CONDITION_DIM};
+use neusample::FEATURE_DIM;
 use rand::RngExt;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
@@ -113,6 +114,42 @@ pub struct HostBatch {
     pub y: Vec<f32>,
     /// p* at the points (only for [`PointKind::Regression`]), `b × s`.
     pub target: Vec<f32>,
+}
+
+impl HostBatch {
+    /// One condition `(φ, wi)` (`wi` already checked) with `points` and no targets: the
+    /// training graph evaluated at chosen points.
+    #[must_use]
+    pub fn single(phi: &[f32; FEATURE_DIM], wi: Vec3, points: &[Vec2]) -> HostBatch {
+        HostBatch {
+            b: 1,
+            s: points.len(),
+            cond: encode_condition(phi, wi).to_vec(),
+            raw: raw_condition(phi, wi).to_vec(),
+            x: points.iter().map(|p| p.x).collect(),
+            y: points.iter().map(|p| p.y).collect(),
+            target: Vec::new(),
+        }
+    }
+}
+
+/// The encoded condition of the lobe, flow and direct-histogram networks in f64 (for the
+/// f64 mirrors of trained models).
+#[must_use]
+pub fn encoded_condition_f64(phi: &[f32; FEATURE_DIM], wi: Vec3) -> Vec<f64> {
+    encode_condition(phi, wi)
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect()
+}
+
+/// The raw condition of the histogram networks in f64.
+#[must_use]
+pub fn raw_condition_f64(phi: &[f32; FEATURE_DIM], wi: Vec3) -> Vec<f64> {
+    raw_condition(phi, wi)
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect()
 }
 
 /// A uniform point on the open unit disk.

@@ -11,11 +11,11 @@ use burn::tensor::activation;
 use burn::tensor::{Int, Tensor, TensorData};
 use glam::{Vec2, Vec3};
 use neusample::histogram::{cell_outside_disk, DIRECT_N};
-use neusample::sampler::{encode_condition, CONDITION_DIM};
+use neusample::sampler::CONDITION_DIM;
 use neusample::FEATURE_DIM;
 
 use super::config::{Common, MaxLikelihood};
-use super::data::{fit, Batch, PointKind, Pool};
+use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
 use crate::nn::{mlp_f64, softmax_f64, tensor2, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -111,10 +111,7 @@ pub fn pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let c: Vec<f64> = encode_condition(phi, wi)
-        .iter()
-        .map(|&v| f64::from(v))
-        .collect();
+    let c = encoded_condition_f64(phi, wi);
     let mut at = 0;
     let o = mlp_f64(params, &mut at, &SIZES, Activation::Relu, &c);
     let open: Vec<usize> = (0..GRID * GRID)

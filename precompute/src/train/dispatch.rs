@@ -8,11 +8,12 @@ use glam::{Vec2, Vec3};
 use neusample::blob::SamplerKind;
 use neusample::sampler::check_condition;
 use neusample::FEATURE_DIM;
+use rayon::prelude::*;
 
 use super::config::TrainConfig;
 use super::data::{Batch, HostBatch, Pool};
 use super::histogram_mixture::{self, BakedTables};
-use super::source::{MaterialSource, TargetSource};
+use super::source::{GtCondition, MaterialSource, TargetSource};
 use super::{direct_histogram, flow, lobes};
 use crate::materials::Material;
 use crate::nn::{infer_device, to_host};
@@ -143,17 +144,8 @@ pub fn graph_log_pdf(
     points: &[Vec2],
 ) -> Option<Vec<f32>> {
     let wi = check_condition(phi, wi)?;
-    let host = HostBatch {
-        b: 1,
-        s: points.len(),
-        cond: neusample::sampler::encode_condition(phi, wi).to_vec(),
-        raw: neusample::sampler::raw_condition(phi, wi).to_vec(),
-        x: points.iter().map(|p| p.x).collect(),
-        y: points.iter().map(|p| p.y).collect(),
-        target: Vec::new(),
-    };
     let device = infer_device();
-    let batch = Batch::upload(host, &device);
+    let batch = Batch::upload(HostBatch::single(phi, wi, points), &device);
     let lp = match method {
         SamplerKind::ImprovedBaseline => lobes::graph_log_pdf(params, false, &batch),
         SamplerKind::AnalyticMixture => lobes::graph_log_pdf(params, true, &batch),
@@ -176,16 +168,24 @@ pub fn mean_kl(
     res: usize,
     seed: u64,
 ) -> anyhow::Result<f64> {
-    use rayon::prelude::*;
+    mean_over_conditions(source, conditions, res, seed, |g| {
+        g.target
+            .kl_from(|p| model_pdf_disk(trained, &g.phi, g.wi, p))
+    })
+}
+
+/// The mean of `f` over `conditions` fresh conditions of `source` (targets at `res`), in
+/// parallel and summed in condition order.
+fn mean_over_conditions(
+    source: &dyn TargetSource,
+    conditions: usize,
+    res: usize,
+    seed: u64,
+    f: impl Fn(&GtCondition) -> f64 + Sync,
+) -> anyhow::Result<f64> {
     let gts = source.draw(conditions, res, seed)?;
-    let kls: Vec<f64> = gts
-        .par_iter()
-        .map(|g| {
-            g.target
-                .kl_from(|p| model_pdf_disk(trained, &g.phi, g.wi, p))
-        })
-        .collect();
-    Ok(kls.iter().sum::<f64>() / kls.len().max(1) as f64)
+    let values: Vec<f64> = gts.par_iter().map(&f).collect();
+    Ok(values.iter().sum::<f64>() / values.len().max(1) as f64)
 }
 
 /// Mean KL(p* ‖ p_net) in nats of the *un-baked* training model of `trained` (condition
@@ -204,7 +204,6 @@ pub fn network_mean_kl(
         .tables
         .as_ref()
         .ok_or_else(|| anyhow::anyhow!("not a histogram mixture"))?;
-    let gts = source.draw(conditions, res, seed)?;
     let h = 2.0 / res as f32;
     let points: Vec<Vec2> = (0..res * res)
         .map(|i| {
@@ -214,8 +213,7 @@ pub fn network_mean_kl(
             )
         })
         .collect();
-    let mut total = 0.0;
-    for g in &gts {
+    mean_over_conditions(source, conditions, res, seed, |g| {
         let mut d = histogram_mixture::network_density(
             &trained.params,
             &tables.basis_params,
@@ -231,11 +229,10 @@ pub fn network_mean_kl(
             z += f64::from(*v) * f64::from(h * h);
         }
         let z = z.max(1e-30);
-        total += g.target.kl_from(|p| {
+        g.target.kl_from(|p| {
             let c = (((p.x + 1.0) / h).floor().max(0.0) as usize).min(res - 1);
             let r = (((p.y + 1.0) / h).floor().max(0.0) as usize).min(res - 1);
             (f64::from(d[r * res + c]) / z) as f32
-        });
-    }
-    Ok(total / gts.len().max(1) as f64)
+        })
+    })
 }

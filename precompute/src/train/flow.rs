@@ -20,11 +20,11 @@ use neusample::flow::{
     SPLINE_BINS, SPLINE_NET_LEN, SPLINE_RAW_LEN, TAIL_BOUND,
 };
 use neusample::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
-use neusample::sampler::{encode_condition, CONDITION_DIM};
+use neusample::sampler::CONDITION_DIM;
 use neusample::FEATURE_DIM;
 
 use super::config::{Common, MaxLikelihood};
-use super::data::{fit, Batch, PointKind, Pool};
+use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
 use super::spline::{rq_forward, rq_forward_f64};
 use crate::nn::{self, encode, encode_f64, mlp_f64, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
@@ -235,13 +235,6 @@ fn coupling_f64(params: &[f32], offset: usize, c: &[f64], other: f64, act: Activ
     mlp_f64(params, &mut at, sizes, act, &input)
 }
 
-fn condition_f64(phi: &[f32; FEATURE_DIM], wi: Vec3) -> Vec<f64> {
-    encode_condition(phi, wi)
-        .iter()
-        .map(|&v| f64::from(v))
-        .collect()
-}
-
 /// Density (projected-disk area measure) of a trained RQ-spline flow at `p`, in f64 from the
 /// exported parameters; `wi` must already be normalised. 0 outside the open unit disk.
 #[must_use]
@@ -249,7 +242,7 @@ pub fn spline_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let c = condition_f64(phi, wi);
+    let c = encoded_condition_f64(phi, wi);
     let (x, y) = (f64::from(p.x), f64::from(p.y));
     let bound = f64::from(TAIL_BOUND);
     let raw1 = coupling_f64(params, FLOW_COUPLING1, &c, x, Activation::LeakyRelu);
@@ -273,7 +266,7 @@ pub fn affine_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let c = condition_f64(phi, wi);
+    let c = encoded_condition_f64(phi, wi);
     let (mut x, mut y) = (f64::from(p.x), f64::from(p.y));
     let mut ld = 0.0;
     let bound = f64::from(AFFINE_SCALE_BOUND);

@@ -39,11 +39,11 @@ use burn::tensor::activation;
 use burn::tensor::{Tensor, TensorData};
 use glam::{Vec2, Vec3};
 use neusample::histogram::{self, cell_outside_disk, Interpolation, BASES};
-use neusample::sampler::{raw_condition, RAW_CONDITION_DIM};
+use neusample::sampler::RAW_CONDITION_DIM;
 use neusample::{DType, FEATURE_DIM};
 
 use super::config::{Common, HistogramMixture as Config};
-use super::data::{fit, Batch, HostBatch, PointKind, Pool};
+use super::data::{fit, raw_condition_f64, Batch, HostBatch, PointKind, Pool};
 use crate::nn::{
     encode, infer_device, mlp_f64, softmax_f64, tensor2, to_host, train_device, Activation, Mlp,
 };
@@ -208,16 +208,7 @@ pub fn network_density(
         basis: Mlp::from_flat(&BASIS_SIZES, basis_params, &device),
     };
     let wi = neusample::sampler::check_condition(phi, wi).unwrap_or(Vec3::Z);
-    let host = HostBatch {
-        b: 1,
-        s: points.len(),
-        cond: neusample::sampler::encode_condition(phi, wi).to_vec(),
-        raw: raw_condition(phi, wi).to_vec(),
-        x: points.iter().map(|p| p.x).collect(),
-        y: points.iter().map(|p| p.y).collect(),
-        target: Vec::new(),
-    };
-    let batch = Batch::upload(host, &device);
+    let batch = Batch::upload(HostBatch::single(phi, wi, points), &device);
     to_host(model.density(&batch, 1.0).0)
 }
 
@@ -456,10 +447,7 @@ pub fn pdf_f64(
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let r: Vec<f64> = raw_condition(phi, wi)
-        .iter()
-        .map(|&v| f64::from(v))
-        .collect();
+    let r = raw_condition_f64(phi, wi);
     let mut at = 0;
     let o = mlp_f64(params, &mut at, &COND_SIZES, Activation::Relu, &r);
     let a: Vec<f64> = (0..BASES).map(|k| o[4 * k]).collect();

@@ -15,11 +15,11 @@ use burn::tensor::activation;
 use burn::tensor::Tensor;
 use glam::{Vec2, Vec3};
 use neusample::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
-use neusample::sampler::{encode_condition, CONDITION_DIM};
+use neusample::sampler::CONDITION_DIM;
 use neusample::FEATURE_DIM;
 
 use super::config::{Common, MaxLikelihood};
-use super::data::{fit, Batch, PointKind, Pool};
+use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
 use crate::nn::{self, log_sum_exp_last, mlp_f64, softmax_f64, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -185,10 +185,7 @@ pub fn pdf_f64(params: &[f32], analytic: bool, phi: &[f32; FEATURE_DIM], wi: Vec
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let c: Vec<f64> = encode_condition(phi, wi)
-        .iter()
-        .map(|&v| f64::from(v))
-        .collect();
+    let c = encoded_condition_f64(phi, wi);
     let mut at = 0;
     let inv_pi = std::f64::consts::FRAC_1_PI;
     if analytic {

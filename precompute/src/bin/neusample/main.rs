@@ -4,6 +4,7 @@
 
 mod demo;
 mod material;
+mod output;
 mod train;
 
 use std::path::PathBuf;
@@ -12,6 +13,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 use neusample_precompute::jobs::inspect::inspect;
 use neusample_precompute::materials;
+use output::print_json;
 
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
@@ -72,11 +74,11 @@ fn run(cli: Cli) -> Result<()> {
         Command::Inspect { blob, json } => {
             let info = inspect(&blob)?;
             if json {
-                println!("{}", serde_json::to_string_pretty(&info)?);
+                print_json(&info)
             } else {
                 print!("{}", info.text());
+                Ok(())
             }
-            Ok(())
         }
         Command::Fixtures(a) => demo::fixtures(&a),
         Command::Demo(a) => neusample_precompute::demo::run(&a.into()),
@@ -89,7 +91,7 @@ fn run(cli: Cli) -> Result<()> {
 fn list_materials(json: bool) -> Result<()> {
     let names = materials::builtin_names();
     if json {
-        println!("{}", serde_json::to_string_pretty(&names)?);
+        print_json(&names)?;
     } else {
         for n in names {
             println!("{n}");

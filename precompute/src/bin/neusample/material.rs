@@ -12,6 +12,8 @@ use neusample_precompute::materials;
 use neusample_precompute::train::neural_material::NeuralTrainConfig;
 use neusample_precompute::util::io;
 
+use crate::output::print_json;
+
 /// Arguments of `neusample train-material`.
 #[derive(Args, Debug, Clone)]
 pub struct TrainMaterialArgs {
@@ -149,7 +151,7 @@ pub fn train_material(a: &TrainMaterialArgs) -> Result<()> {
         io::atomic_write(p, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        print_json(&report)?;
     }
     Ok(())
 }
@@ -193,7 +195,7 @@ impl From<&ImportMaterialArgs> for ImportMaterialJob {
 pub fn import_material(a: &ImportMaterialArgs) -> Result<()> {
     let report = material::import_material(&a.into())?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        print_json(&report)?;
     }
     Ok(())
 }
@@ -221,7 +223,7 @@ pub fn material_cost(a: &MaterialCostArgs) -> Result<()> {
     let m = materials::resolve(&a.material)?;
     let c = material::material_cost(m.as_ref(), a.n, a.passes);
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&c)?);
+        print_json(&c)?;
     } else {
         println!(
             "{}: eval {:.0} ns/call, features {:.0} ns/call (single thread, median of {} passes × {})",
