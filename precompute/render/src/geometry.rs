@@ -98,7 +98,7 @@ pub struct Object {
     pub shape: Shape,
     /// Texture tiling scale (how many times the material repeats across the object).
     pub uv_scale: f32,
-    /// Index into the surfaces passed to [`render`].
+    /// Index into the surfaces passed to [`crate::render()`].
     pub surface: usize,
 }
 
