@@ -5,7 +5,7 @@
 
 use core::fmt;
 
-use crate::weights::DType;
+use crate::kind::{DType, SamplerKind};
 
 /// Why a blob could not be opened.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -41,16 +41,16 @@ pub enum Error {
     /// The blob holds a different kind of sampler than the caller asked for.
     WrongKind {
         /// Kind the caller asked for.
-        expected: crate::blob::SamplerKind,
+        expected: SamplerKind,
         /// Kind stored in the blob.
-        found: crate::blob::SamplerKind,
+        found: SamplerKind,
     },
     /// [`Blob::sampler`](crate::blob::Blob::sampler) was called on a blob that holds no
     /// sampler (a neural material: open it with
     /// [`Blob::neural_material`](crate::blob::Blob::neural_material)).
     NotASampler {
         /// Kind stored in the blob.
-        found: crate::blob::SamplerKind,
+        found: SamplerKind,
     },
     /// An architecture dimension differs from the one compiled into this build, or a table
     /// dimension is zero or above its limit.

@@ -16,11 +16,26 @@
 //! [`Prepared::pdf`] and [`Sample::pdf`] are with respect to **solid angle**,
 //! `p_ω = p_disk · cos θo` ([`warp`]).
 //!
+//! ## Layout
+//!
+//! Data flows one way, from leaves to the blob reader:
+//!
+//! | module | what |
+//! |---|---|
+//! | `error`, `kind`, `math`, [`warp`], `weights` | leaves: the error type, the kind enums, the only calls to transcendental functions, disk ↔ hemisphere warps, parameter storage ([`Weights`]) |
+//! | [`nn`] | dense layers and the condition encodings |
+//! | [`distrib`] | Gaussians, RQ splines, [`Table2D`] |
+//! | [`samplers`] | one file per method, the [`Sampler`]/[`Prepared`] traits, [`AnySampler`] |
+//! | [`neural_material`] | the neural BRDF the samplers are trained for |
+//! | [`blob`] | the file format: layout, reader, validation, writer |
+//!
+//! Everything a renderer needs is re-exported here; the modules add the architecture
+//! constants and building blocks a trainer or a test needs.
+//!
 //! ## A renderer's view
 //!
 //! ```
-//! use neusample::blob::{Blob, BlobWriter, SamplerKind, TensorRole};
-//! use neusample::{DType, Prepared, Sampler, Vec2, Vec3};
+//! use neusample::{Blob, BlobWriter, DType, Prepared, Sampler, SamplerKind, TensorRole, Vec2, Vec3};
 //!
 //! # let params = vec![0.0f32; SamplerKind::AnalyticMixture.param_count()];
 //! # let mut w = BlobWriter::new(SamplerKind::AnalyticMixture, DType::F32, "doc");
@@ -53,31 +68,32 @@
 extern crate alloc;
 
 pub mod blob;
-pub mod error;
-pub mod flow;
-pub mod gaussian;
-pub mod histogram;
-pub mod lobes;
-pub mod math;
-pub mod mlp;
-pub mod neural;
-pub mod sampler;
-pub mod spline;
+pub mod distrib;
+mod error;
+mod kind;
+mod math;
+pub mod neural_material;
+pub mod nn;
+pub mod samplers;
 pub mod warp;
-pub mod weights;
+mod weights;
 
+#[cfg(feature = "alloc")]
+pub use blob::BlobWriter;
+pub use blob::{Blob, TensorRole};
+pub use distrib::Table2D;
 pub use error::{Error, Result};
-pub use flow::{AffineFlowPrepared, AffineFlowSampler, FlowPrepared, FlowSampler};
 pub use glam::{Vec2, Vec3};
-pub use histogram::{
-    DirectHistogramPrepared, DirectHistogramSampler, HistogramMixturePrepared,
-    HistogramMixtureSampler, Interpolation, Table2D,
+pub use kind::{DType, Interpolation, SamplerKind};
+pub use math::ONE_MINUS_EPSILON;
+pub use neural_material::NeuralMaterial;
+pub use nn::FEATURE_DIM;
+pub use samplers::{
+    AffineFlowPrepared, AffineFlowSampler, AnalyticMixturePrepared, AnalyticMixtureSampler,
+    AnyPrepared, AnySampler, CosinePrepared, CosineSampler, DirectHistogramPrepared,
+    DirectHistogramSampler, FlowPrepared, FlowSampler, HistogramMixturePrepared,
+    HistogramMixtureSampler, ImprovedBaselinePrepared, ImprovedBaselineSampler, Prepared, Sample,
+    Sampler,
 };
-pub use lobes::{
-    AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,
-    ImprovedBaselineSampler,
-};
-pub use neural::NeuralMaterial;
-pub use sampler::{CosineSampler, Prepared, Sample, Sampler, FEATURE_DIM};
 pub use warp::Frame;
-pub use weights::{DType, Tensor, Weights};
+pub use weights::{Tensor, Weights};

@@ -105,6 +105,13 @@ pub fn to_disk(w: Vec3) -> Vec2 {
     Vec2::new(w.x, w.y)
 }
 
+/// `true` when `p` is finite and strictly inside the open unit disk.
+#[inline(always)]
+#[must_use]
+pub fn inside_disk(p: Vec2) -> bool {
+    p.x * p.x + p.y * p.y < 1.0
+}
+
 /// The upper-hemisphere direction above a disk point, or `None` when the point is not
 /// strictly inside the unit disk (or not finite). `cos θ = √(1 − |p|²)`.
 #[inline]

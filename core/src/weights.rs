@@ -14,6 +14,8 @@
 
 use half::f16;
 
+use crate::kind::DType;
+
 /// Random access to an array of `f32` parameters.
 pub trait Weights {
     /// Number of elements.
@@ -28,7 +30,7 @@ pub trait Weights {
 
     /// `acc[j] += Σ_i x[i] · self[offset + (row0 + i)·O + j]` for `i < I`, `j < O`: the
     /// product of `x` with rows `row0 .. row0 + I` of the row-major `· × O` matrix stored at
-    /// `offset`. This is the inner loop of every dense layer ([`crate::mlp`]); storages
+    /// `offset`. This is the inner loop of every dense layer ([`crate::nn`]); storages
     /// override it to read their elements without per-element dispatch.
     #[inline(always)]
     fn accumulate<const I: usize, const O: usize>(
@@ -62,6 +64,8 @@ pub fn read_generic<W: Weights + ?Sized, const N: usize>(w: &W, offset: u32) -> 
 }
 
 /// Slice fast path of [`Weights::read`]: one range check for the window.
+// rust-gpu: the slice fast paths use sub-slices and iterators, which rust-gpu rejects;
+// shaders take the portable index loops.
 #[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 fn read_slice<const N: usize>(w: &[f32], offset: u32) -> [f32; N] {
@@ -391,27 +395,6 @@ impl<W: Weights + ?Sized> Weights for &W {
     #[inline(always)]
     fn read<const N: usize>(&self, offset: u32) -> [f32; N] {
         (**self).read(offset)
-    }
-}
-
-/// Element type of a stored tensor.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-pub enum DType {
-    /// IEEE-754 binary32, little-endian.
-    F32,
-    /// IEEE-754 binary16, little-endian, widened to f32 on read.
-    F16,
-}
-
-impl DType {
-    /// Bytes per element.
-    #[inline]
-    #[must_use]
-    pub const fn size(self) -> usize {
-        match self {
-            DType::F32 => 4,
-            DType::F16 => 2,
-        }
     }
 }
 

@@ -5,7 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use neusample::blob::Blob;
+use neusample::Blob;
 use neusample::{Prepared, Sampler, Vec2, Vec3};
 
 fn f32_at(d: &[u8], i: usize) -> f32 {

@@ -21,7 +21,7 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use divan::Bencher;
-use neusample::blob::{AnyPrepared, AnySampler, Blob, TensorRole};
+use neusample::{AnyPrepared, AnySampler, Blob, TensorRole};
 use neusample::{Prepared, Sampler, Tensor, Vec2, Vec3, Weights};
 use rand::RngExt;
 

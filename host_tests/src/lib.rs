@@ -207,11 +207,11 @@ pub fn full_tests() -> bool {
 /// the f32 parameters that were written.
 #[must_use]
 pub fn small_blob(
-    kind: neusample::blob::SamplerKind,
+    kind: neusample::SamplerKind,
     dtype: neusample::DType,
     seed: u64,
 ) -> (Vec<u8>, Vec<f32>) {
-    use neusample::blob::{BlobWriter, SamplerKind, TableInterpolation, TensorRole};
+    use neusample::{BlobWriter, Interpolation, SamplerKind, TensorRole};
     let mut r = rng(seed);
     let params: Vec<f32> = (0..kind.param_count())
         .map(|_| (r.random::<f32>() - 0.5) * 0.6)
@@ -222,12 +222,14 @@ pub fn small_blob(
     }
     if kind == SamplerKind::HistogramMixture {
         let (t, n) = (4u32, 8u32);
-        w = w.histogram_dims(t, n, TableInterpolation::Linear);
-        let k = neusample::histogram::BASES;
+        w = w.histogram_dims(t, n, Interpolation::Linear);
+        let k = neusample::samplers::histogram_mixture::BASES;
         let raw: Vec<f32> = (0..k * (t * n * n) as usize)
             .map(|_| r.random::<f32>())
             .collect();
-        let baked = neusample::histogram::bake_slices(&raw, k, t as usize, n as usize, dtype);
+        let baked = neusample::samplers::histogram_mixture::bake_slices(
+            &raw, k, t as usize, n as usize, dtype,
+        );
         w.tensor(TensorRole::Mass, &baked.mass)
             .tensor(TensorRole::Table, &baked.table)
             .tensor(TensorRole::Marginal, &baked.marginal)

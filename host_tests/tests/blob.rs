@@ -1,7 +1,7 @@
 //! Blob container: round trips, golden bytes, and structured corruptions that must all give
 //! typed errors (never a panic).
 
-use neusample::blob::{Blob, BlobWriter, SamplerKind, TableInterpolation, TensorRole};
+use neusample::{Blob, BlobWriter, Interpolation, SamplerKind, TensorRole};
 use neusample::{DType, Error, Prepared, Sampler, Vec2, Vec3};
 use neusample_host_tests::{rng, small_blob, uniform2};
 use proptest::prelude::*;
@@ -211,7 +211,7 @@ fn wrong_dimensions_are_refused() {
         let mut w = BlobWriter::new(SamplerKind::HistogramMixture, DType::F32, "").histogram_dims(
             t,
             n,
-            TableInterpolation::Linear,
+            Interpolation::Linear,
         );
         for role in [
             TensorRole::Params,

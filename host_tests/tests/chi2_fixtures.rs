@@ -9,7 +9,7 @@
 
 use std::path::PathBuf;
 
-use neusample::blob::Blob;
+use neusample::Blob;
 use neusample::Sampler;
 use neusample_host_tests::{
     bonferroni, chi2_test, fixture_blobs_dir, fixture_conditions, full_tests, rng,

@@ -1,6 +1,6 @@
 //! The same blob and inputs give bit-identical outputs, whatever the thread count.
 
-use neusample::blob::{Blob, SamplerKind};
+use neusample::{Blob, SamplerKind};
 use neusample::{DType, Prepared, Sampler, Vec2, Vec3};
 use neusample_host_tests::{rng, small_blob, uniform2};
 use rand::RngExt;

@@ -1,10 +1,10 @@
-//! The flow samplers (`neusample::flow`): agreement with an independent f64 transcription
+//! The flow samplers (`neusample::samplers::{spline_flow, affine_flow}`): agreement with an independent f64 transcription
 //! of `core/ARCHITECTURES.md` §3–4, sample/pdf/invert consistency, normalisation, χ²
 //! goodness of fit, and totality on hostile input. Weights are random (seeded), scaled so
 //! that the densities are far from uniform.
 
-use neusample::flow::{self, AffineFlowSampler, FlowSampler};
-use neusample::sampler::FEATURE_DIM;
+use neusample::samplers::{affine_flow, spline_flow as flow};
+use neusample::{AffineFlowSampler, FlowSampler, FEATURE_DIM};
 use neusample::{DType, Prepared, Sampler, Tensor, Vec2, Vec3};
 use neusample_host_tests::{bonferroni, chi2_test, disk_integral, full_tests, rng, TestRng};
 use rand::RngExt;
@@ -60,7 +60,7 @@ fn spline_params(seed: u64) -> Vec<f32> {
 /// splines oscillate so fast across the other coordinate that ∇ ln p reaches ~10⁴, beyond
 /// what a 768² midpoint rule integrates to χ² accuracy.
 fn soften_other_coordinate(p: &mut [f32], net: usize) {
-    let rows = net + neusample::sampler::CONDITION_DIM * flow::HIDDEN;
+    let rows = net + neusample::nn::CONDITION_DIM * flow::HIDDEN;
     for v in &mut p[rows..rows + flow::OTHER_DIM * flow::HIDDEN] {
         *v *= 0.3;
     }
@@ -70,12 +70,12 @@ fn soften_other_coordinate(p: &mut [f32], net: usize) {
 /// the base's unit Gaussian is squeezed into the disk (s biased by +0.35 per layer).
 fn affine_params(seed: u64) -> Vec<f32> {
     let mut r = rng(seed);
-    let mut p = random_params(&mut r, flow::AFFINE_PARAM_COUNT, 0.3);
-    for l in 0..flow::AFFINE_LAYERS {
-        let off = l * flow::AFFINE_NET_LEN + flow::AFFINE_NET_L2;
-        scale_layer(&mut p, off, flow::HIDDEN, flow::AFFINE_OUTPUTS, 0.1);
-        p[off + flow::HIDDEN * flow::AFFINE_OUTPUTS] += 0.35;
-        soften_other_coordinate(&mut p, l * flow::AFFINE_NET_LEN);
+    let mut p = random_params(&mut r, affine_flow::AFFINE_PARAM_COUNT, 0.3);
+    for l in 0..affine_flow::AFFINE_LAYERS {
+        let off = l * affine_flow::AFFINE_NET_LEN + affine_flow::AFFINE_NET_L2;
+        scale_layer(&mut p, off, flow::HIDDEN, affine_flow::AFFINE_OUTPUTS, 0.1);
+        p[off + flow::HIDDEN * affine_flow::AFFINE_OUTPUTS] += 0.35;
+        soften_other_coordinate(&mut p, l * affine_flow::AFFINE_NET_LEN);
     }
     p
 }
@@ -407,7 +407,7 @@ fn parameter_counts() {
     assert_eq!(AffineFlowSampler::<&[f32]>::PARAM_COUNT, 9608);
     assert_eq!(flow::FLOW_BASE_LEN, 1124);
     assert_eq!(flow::SPLINE_NET_LEN, 4283);
-    assert_eq!(flow::AFFINE_NET_LEN, 2402);
+    assert_eq!(affine_flow::AFFINE_NET_LEN, 2402);
     let p = vec![0.0f32; 9690];
     assert!(FlowSampler::new(&p[..]).is_some());
     assert!(FlowSampler::new(&p[..9689]).is_none());
@@ -511,7 +511,9 @@ fn sample_pdf_and_invert_agree() {
             let ss = fs.prepare(&c.phi, c.wi).unwrap();
             let sa = fa.prepare(&c.phi, c.wi).unwrap();
             for _ in 0..2000 {
-                let n = neusample::gaussian::box_muller(neusample_host_tests::uniform2(&mut r));
+                let n = neusample::distrib::gaussian::box_muller(neusample_host_tests::uniform2(
+                    &mut r,
+                ));
                 let (q, li) = ss.from_latent(ss.mu + ss.sigma * n);
                 if let Some((_, lf)) = ss.to_latent(q) {
                     dir_s = dir_s.max(f64::from((li + lf).abs()));

@@ -1,15 +1,19 @@
-//! Histogram tables and samplers (`neusample::histogram`): baking and validation of tables,
+//! Histogram tables and samplers (`neusample::distrib::table2d`, `neusample::samplers::{direct_histogram, histogram_mixture}`): baking and validation of tables,
 //! `Table2D` sample/pdf/invert (single slices and linear blends), the direct histogram
 //! baseline and the histogram mixture (paper Eq. 5–6) with random weights and random baked
 //! tables: sample/pdf consistency, mass on the disk, χ², inverses, hostile input.
 
-use neusample::gaussian::select_component;
-use neusample::histogram::{
-    bake_slices, cell_area, cell_outside_disk, running_sums, try_bake_slices, validate_tables,
-    BakedTables, DirectHistogramPrepared, DirectHistogramSampler, HistogramMixtureSampler,
-    Interpolation, Table2D, BASES, DIRECT_N, MAX_N, MAX_T,
+use neusample::distrib::gaussian::select_component;
+use neusample::distrib::table2d::{cell_area, cell_outside_disk, running_sums};
+use neusample::samplers::direct_histogram::DIRECT_N;
+use neusample::samplers::histogram_mixture::{
+    bake_slices, try_bake_slices, validate_tables, BakedTables, BASES, MAX_N, MAX_T,
 };
 use neusample::{DType, Error, Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
+use neusample::{
+    DirectHistogramPrepared, DirectHistogramSampler, HistogramMixtureSampler, Interpolation,
+    Table2D,
+};
 use neusample_host_tests::{
     bonferroni, chi2_test, disk_integral, full_tests, pooled_chi2, rng, uniform2, TestRng,
 };
@@ -1105,7 +1109,8 @@ fn edge_u() {
 /// back into the cell they were drawn in, and their density is that cell's.
 #[test]
 fn stratified_u_including_one_is_never_refused() {
-    use neusample::histogram::{bake_slices, Table2D};
+    use neusample::samplers::histogram_mixture::bake_slices;
+    use neusample::Table2D;
     let n = 16usize;
     let mut r = neusample_host_tests::rng(31);
     let raw: Vec<f32> = (0..n * n)

@@ -1,8 +1,8 @@
-//! Lobe mixtures (`neusample::lobes`, paper Eq. 1–2) with random weights: sample/pdf
+//! Lobe mixtures (`neusample::samplers::lobes`, paper Eq. 1–2) with random weights: sample/pdf
 //! consistency, mass on the disk against the fraction of samples inside it, χ² goodness of
 //! fit, and totality on hostile input.
 
-use neusample::lobes::{
+use neusample::samplers::lobes::{
     AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,
     ImprovedBaselineSampler, ANALYTIC_OUTPUTS, BASELINE_OUTPUTS,
 };

@@ -1,12 +1,12 @@
-//! The runtime's neural material (`neusample::neural`, ARCHITECTURES.md §7): bilinear wrap
+//! The runtime's neural material (`neusample::neural_material`, ARCHITECTURES.md §7): bilinear wrap
 //! lookup against hand computations, totality of `eval` (no NaN, 0 below the horizon), and
 //! typed errors for corrupted neural-material blobs.
 
-use neusample::blob::{Blob, BlobWriter, SamplerKind, TensorRole};
-use neusample::neural::{
+use neusample::neural_material::{
     decoder_input, texture_len, wrap_bilinear, NeuralMaterial, DECODER_PARAM_COUNT, LOG_F_MAX,
     LOG_F_MIN, MAX_TEXTURE_SIZE,
 };
+use neusample::{Blob, BlobWriter, SamplerKind, TensorRole};
 use neusample::{DType, Error, Vec2, Vec3};
 use neusample_host_tests::rng;
 use proptest::prelude::*;

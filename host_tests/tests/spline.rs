@@ -1,8 +1,8 @@
-//! Rational-quadratic spline (`neusample::spline`): agreement with an independent f64
+//! Rational-quadratic spline (`neusample::distrib::spline`): agreement with an independent f64
 //! transcription of nflows' `unconstrained_rational_quadratic_spline`, bijectivity,
 //! monotonicity, log-determinants, and totality on hostile input.
 
-use neusample::spline::{Knots, MIN_BIN_HEIGHT, MIN_BIN_WIDTH, MIN_DERIVATIVE, RAW_LIMIT};
+use neusample::distrib::spline::{Knots, MIN_BIN_HEIGHT, MIN_BIN_WIDTH, MIN_DERIVATIVE, RAW_LIMIT};
 use neusample_host_tests::TestRng;
 use proptest::prelude::*;
 use rand::RngExt;

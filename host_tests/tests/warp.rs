@@ -1,8 +1,8 @@
 //! Warps and the cosine sampler: inverses, densities that integrate to 1, χ², golden values
 //! of the encodings.
 
-use neusample::mlp::{encode_scalar, Activation};
-use neusample::sampler::{encode_condition, CONDITION_DIM};
+use neusample::nn::{encode_condition, CONDITION_DIM};
+use neusample::nn::{encode_scalar, Activation};
 use neusample::warp::{self, Frame};
 use neusample::{CosineSampler, Prepared, Sampler, Vec2, Vec3};
 use neusample_host_tests::{chi2_test, disk_integral, rng, uniform2};

@@ -1,14 +1,13 @@
 //! Baking: a trained model → a blob, and the check that the blob reproduces the model.
 //!
-//! The check opens the written bytes with the runtime (`neusample::blob::Blob::open`, the
+//! The check opens the written bytes with the runtime (`neusample::Blob::open`, the
 //! same code a renderer runs) and compares its disk density with the trained model's
 //! ([`crate::train::model_pdf_disk`], f64) at random conditions and points. f32 blobs must
 //! agree to [`F32_TOLERANCE`] relative; f16 blobs are reported, with a looser bound.
 
 use anyhow::{bail, Context, Result};
 use glam::Vec2;
-use neusample::blob::{Blob, BlobWriter, SamplerKind, TableInterpolation, TensorRole};
-use neusample::histogram::Interpolation;
+use neusample::{Blob, BlobWriter, SamplerKind, TensorRole};
 use neusample::{DType, Prepared, Sampler};
 use rand::{RngExt, SeedableRng};
 
@@ -29,12 +28,7 @@ pub fn blob_bytes(trained: &Trained, dtype: DType, label: &str) -> Result<Vec<u8
         let baked = t.rebake(dtype)?;
         let n = baked.resolution;
         let levels = baked.t_levels;
-        // The blob header's name for the runtime's interpolation (the one mapping).
-        let interp = match t.interpolation {
-            Interpolation::Nearest => TableInterpolation::Nearest,
-            Interpolation::Linear => TableInterpolation::Linear,
-        };
-        w = w.histogram_dims(levels, n, interp);
+        w = w.histogram_dims(levels, n, t.interpolation);
         w.tensor(TensorRole::Mass, &baked.mass)
             .tensor(TensorRole::Table, &baked.table)
             .tensor(TensorRole::Marginal, &baked.marginal)

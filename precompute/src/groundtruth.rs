@@ -28,12 +28,12 @@
 //!   the active cells and [`TargetPdf::degenerate`] says so.
 //!
 //! The table is stored in the layout of the runtime's baked histograms
-//! (`neusample::histogram`: normalised cell densities plus unnormalised running sums, a
+//! (`neusample::samplers::histogram_mixture`: normalised cell densities plus unnormalised running sums, a
 //! marginal over rows and a conditional within each row), and sampling, density and inverse
-//! go through [`neusample::histogram::Table2D`] — the very code that samples baked tables:
+//! go through [`neusample::Table2D`] — the very code that samples baked tables:
 //! a row from the marginal with `u.x`, a column from the row's conditional with `u.y`, the
 //! remainders as the offset inside the cell, so `u ↦ ω⊥` is a bijection with an inverse
-//! ([`TargetPdf::invert`]). `Table2D` supports `R ≤` [`neusample::histogram::MAX_N`] (128);
+//! ([`TargetPdf::invert`]). `Table2D` supports `R ≤` [`neusample::samplers::histogram_mixture::MAX_N`] (128);
 //! larger tables still give [`TargetPdf::density`], [`TargetPdf::pdf`] and
 //! [`TargetPdf::kl_from`], but `sample` and `invert` return `None`.
 
@@ -41,7 +41,7 @@ use glam::{Vec2, Vec3};
 use rand::RngExt;
 use rayon::prelude::*;
 
-use neusample::histogram::Table2D;
+use neusample::Table2D;
 
 use crate::materials::{luminance, Material, FEATURE_DIM};
 use crate::util::rng::indexed_rng;
@@ -256,7 +256,12 @@ impl TargetPdf {
             .collect();
         let mut marginal = vec![0f32; res];
         let mut conditional = vec![0f32; res * res];
-        neusample::histogram::running_sums(&density, res as u32, &mut marginal, &mut conditional);
+        neusample::distrib::table2d::running_sums(
+            &density,
+            res as u32,
+            &mut marginal,
+            &mut conditional,
+        );
         TargetPdf {
             res,
             density,
@@ -306,7 +311,7 @@ impl TargetPdf {
         Some(r * self.res + c)
     }
 
-    /// The runtime's view of the table (`None` when `R >` [`neusample::histogram::MAX_N`]).
+    /// The runtime's view of the table (`None` when `R >` [`neusample::samplers::histogram_mixture::MAX_N`]).
     #[must_use]
     pub fn table(&self) -> Option<Table2D<&[f32]>> {
         Table2D::new(
@@ -319,7 +324,7 @@ impl TargetPdf {
     }
 
     /// The table in the runtime's layout: `(density, marginal, conditional)` with `R²`, `R` and
-    /// `R²` values (module docs of `neusample::histogram`), e.g. to bake it into a blob.
+    /// `R²` values (module docs of `neusample::samplers::histogram_mixture`), e.g. to bake it into a blob.
     #[must_use]
     pub fn tensors(&self) -> (&[f32], &[f32], &[f32]) {
         (&self.density, &self.marginal, &self.conditional)

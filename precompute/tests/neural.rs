@@ -3,9 +3,9 @@
 //! `train-material` run reduces its loss, and a neural material loads as a material and
 //! trains a sampler unchanged.
 
-use neusample::blob::SamplerKind;
-use neusample::neural::{NeuralMaterial, DECODER_PARAM_COUNT};
+use neusample::neural_material::{NeuralMaterial, DECODER_PARAM_COUNT};
 use neusample::DType;
+use neusample::SamplerKind;
 use neusample::{Vec2, Vec3};
 use neusample_precompute::eval::fit_report;
 use neusample_precompute::materials::neural::safetensors::{self as st, ExportDtype};

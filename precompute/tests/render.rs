@@ -4,7 +4,7 @@
 //! estimators, environment sampling — are in `precompute/render/tests/`.)
 
 use glam::{Vec2, Vec3};
-use neusample::blob::{AnySampler, Blob};
+use neusample::{AnySampler, Blob};
 use neusample::{CosineSampler, Prepared, Sampler};
 use neusample_precompute::demo::fixtures_dir;
 use neusample_precompute::eval::metrics::{self, Technique};

@@ -73,12 +73,9 @@ fn killed_write_leaves_old_file_intact() {
 fn corrupted_blob_is_refused_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cosine.nsb");
-    let mut bytes = neusample::blob::BlobWriter::new(
-        neusample::blob::SamplerKind::Cosine,
-        neusample::DType::F32,
-        "x",
-    )
-    .to_bytes();
+    let mut bytes =
+        neusample::BlobWriter::new(neusample::SamplerKind::Cosine, neusample::DType::F32, "x")
+            .to_bytes();
     atomic_write(&path, &bytes).unwrap();
     assert!(read_blob(&path).is_ok());
     let n = bytes.len();

@@ -8,10 +8,10 @@
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
-use neusample::blob::SamplerKind;
-use neusample::flow::{AffineFlowSampler, FlowSampler};
-use neusample::histogram::{DirectHistogramSampler, HistogramMixtureSampler};
-use neusample::lobes::{AnalyticMixtureSampler, ImprovedBaselineSampler};
+use neusample::SamplerKind;
+use neusample::{AffineFlowSampler, FlowSampler};
+use neusample::{AnalyticMixtureSampler, ImprovedBaselineSampler};
+use neusample::{DirectHistogramSampler, HistogramMixtureSampler};
 use neusample::{Prepared, Sampler, Vec2, Vec3};
 use neusample_precompute::train::{
     self, graph_log_pdf, model_pdf_disk, parse_method, train_with, SyntheticSource, TargetSource,
@@ -321,7 +321,7 @@ fn default_training_kl() {
 #[test]
 #[ignore]
 fn histogram_mixture_diagnostics() {
-    use neusample::histogram::Interpolation;
+    use neusample::Interpolation;
     use neusample_precompute::train::histogram_mixture::bake;
     use neusample_precompute::train::network_mean_kl;
     let env = |k: &str| std::env::var(k).ok();

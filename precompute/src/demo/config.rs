@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use neusample::blob::SamplerKind;
+use neusample::SamplerKind;
 use neusample_render::{EnvMap, Estimator, SceneParams};
 
 use crate::eval::metrics::RenderSettings;

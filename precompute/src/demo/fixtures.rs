@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use neusample::blob::{BlobWriter, SamplerKind};
 use neusample::DType;
+use neusample::{BlobWriter, SamplerKind};
 
 use super::config::{DEFAULT_MATERIALS, NEURAL_SUFFIX};
 use crate::bake;

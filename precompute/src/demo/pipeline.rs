@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use indicatif::ProgressBar;
-use neusample::blob::{AnySampler, Blob};
+use neusample::{AnySampler, Blob};
 use neusample::{CosineSampler, DType, Prepared, Sampler};
 use neusample_render::{demo_scene, Estimator};
 

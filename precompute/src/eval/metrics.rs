@@ -34,7 +34,7 @@
 //! * **Equal time** — every technique gets the time the baseline needs for `N` spp:
 //!   `spp_m = round(N · t_b / t_m)` (at least 1) and is rendered with a fresh seed.
 
-use neusample::blob::AnySampler;
+use neusample::AnySampler;
 use neusample_render::{self as render, Estimator, Image, Render, RenderOptions, Scene, Surface};
 use serde::{Deserialize, Serialize};
 

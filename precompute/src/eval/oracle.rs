@@ -3,8 +3,8 @@
 //! like any runtime sampler, through the public [`Sampler`] / [`Prepared`] traits.
 
 use glam::{Vec2, Vec3};
-use neusample::histogram::MAX_N;
-use neusample::{warp, Prepared, Sample, Sampler, Table2D, FEATURE_DIM};
+use neusample::distrib::table2d::MAX_N;
+use neusample::{warp, Prepared, Sample, Sampler, Table2D, FEATURE_DIM, ONE_MINUS_EPSILON};
 
 use crate::groundtruth::cell_luminance_sum;
 use crate::materials::Material;
@@ -85,14 +85,14 @@ impl Sampler for OracleSampler<'_> {
         Self: 's;
 
     fn prepare(&self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<OraclePrepared> {
-        let wi = neusample::sampler::check_condition(phi, wi)?;
+        let wi = neusample::nn::check_condition(phi, wi)?;
         let res = self.res.clamp(1, MAX_N);
         let s = self.supersample.max(1);
         let mut values = vec![0f32; res * res];
         let mut total = 0.0f64;
         for r in 0..res {
             for c in 0..res {
-                if neusample::histogram::cell_outside_disk(r as u32, c as u32, res as u32) {
+                if neusample::distrib::table2d::cell_outside_disk(r as u32, c as u32, res as u32) {
                     continue;
                 }
                 let acc = cell_luminance_sum(self.material, phi, wi, res, (r, c), s, |r2| r2 < 1.0);
@@ -110,7 +110,12 @@ impl Sampler for OracleSampler<'_> {
         }
         let mut marginal = vec![0f32; res];
         let mut conditional = vec![0f32; res * res];
-        neusample::histogram::running_sums(&values, res as u32, &mut marginal, &mut conditional);
+        neusample::distrib::table2d::running_sums(
+            &values,
+            res as u32,
+            &mut marginal,
+            &mut conditional,
+        );
         Some(OraclePrepared {
             values,
             marginal,
@@ -123,12 +128,16 @@ impl Sampler for OracleSampler<'_> {
 
 impl Prepared for OraclePrepared {
     fn sample(&self, u: Vec2) -> Option<Sample> {
-        let u = neusample::sampler::sanitize_u2(u)?;
+        // u outside [0, 1]² (or NaN) is refused; u = 1 is moved just below 1.
+        if !(u.x >= 0.0 && u.x <= 1.0 && u.y >= 0.0 && u.y <= 1.0) {
+            return None;
+        }
+        let u = u.min(Vec2::splat(ONE_MINUS_EPSILON));
         let d = self.defensive;
         let p = if u.x < d {
             warp::sample_uniform_disk_concentric(Vec2::new(u.x / d, u.y))
         } else {
-            let ux = ((u.x - d) / (1.0 - d)).min(neusample::math::ONE_MINUS_EPSILON);
+            let ux = ((u.x - d) / (1.0 - d)).min(ONE_MINUS_EPSILON);
             self.table()?.sample(Vec2::new(ux, u.y))?.0
         };
         Sample::from_disk(p, self.pdf_disk(p))

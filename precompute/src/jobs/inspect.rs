@@ -5,8 +5,9 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::Result;
-use neusample::blob::{Blob, SamplerKind, TensorRole, FORMAT_VERSION};
+use neusample::blob::FORMAT_VERSION;
 use neusample::Weights;
+use neusample::{Blob, SamplerKind, TensorRole};
 use serde::{Deserialize, Serialize};
 
 use crate::util::io;

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use neusample::blob::{Blob, SamplerKind};
+use neusample::{Blob, SamplerKind};
 use neusample::{CosineSampler, DType};
 use serde::{Deserialize, Serialize};
 

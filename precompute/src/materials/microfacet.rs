@@ -23,8 +23,8 @@
 //! energy).
 
 use glam::Vec3;
-use neusample::math::{INV_PI, PI};
 use neusample::Frame;
+use std::f32::consts::{FRAC_1_PI as INV_PI, PI};
 
 /// Smallest GGX α accepted (below it the lobe is a near-delta the 64² to 128² targets
 /// cannot resolve).

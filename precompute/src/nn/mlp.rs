@@ -8,8 +8,8 @@ use burn::tensor::{Device, Tensor, TensorData};
 use rand::RngExt;
 use rand_pcg::Pcg64;
 
-pub use neusample::mlp::Activation;
-use neusample::mlp::LEAKY_RELU_SLOPE;
+pub use neusample::nn::Activation;
+use neusample::nn::LEAKY_RELU_SLOPE;
 
 use super::ops::softplus_f64;
 use super::tensor::to_host;

@@ -5,7 +5,7 @@ use burn::tensor::Tensor;
 use super::tensor::tensor2;
 
 /// `encB(v) = [v, sin(πv), cos(πv), …, sin(2^(B−1)πv), cos(2^(B−1)πv)]` of a column
-/// `[n, 1]`, giving `[n, 1 + 2B]` (the same order as `neusample::mlp::encode_scalar`).
+/// `[n, 1]`, giving `[n, 1 + 2B]` (the same order as `neusample::nn::encode_scalar`).
 pub fn encode(v: Tensor<2>, bands: usize) -> Tensor<2> {
     let n = v.dims()[0];
     let device = v.device();
@@ -32,7 +32,7 @@ pub fn encode_f64(v: f64, bands: usize, out: &mut Vec<f64>) {
 /// zero gradient outside the range, and a network whose `log σ` overshoots the upper bound
 /// early in training then never recovers (its Gaussian loses all weight to the Lambert lobe).
 pub fn clamp_log_sigma<const D: usize>(x: Tensor<D>) -> Tensor<D> {
-    use neusample::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
+    use neusample::distrib::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
     let clamped = x.clone().clamp(LOG_SIGMA_MIN, LOG_SIGMA_MAX);
     x.clone() + (clamped - x).detach()
 }
@@ -50,7 +50,7 @@ pub fn log_sum_exp_last<const D: usize>(x: Tensor<D>) -> Tensor<D> {
     (x - m.clone()).exp().sum_dim(D - 1).log() + m
 }
 
-/// Stable softplus ln(1 + eˣ) in f64 (matches `neusample::math::softplus` for x ≤ 20).
+/// Stable softplus ln(1 + eˣ) in f64 (the runtime's softplus for x ≤ 20).
 #[must_use]
 pub fn softplus_f64(x: f64) -> f64 {
     if x > 20.0 {

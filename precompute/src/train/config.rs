@@ -3,7 +3,7 @@
 //! `default()` (the default run: about a minute per method on two cores); the quick settings
 //! are written as changes to the default ones.
 
-use neusample::blob::SamplerKind;
+use neusample::SamplerKind;
 
 use super::method::METHODS;
 

@@ -7,8 +7,8 @@
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use glam::{Vec2, Vec3};
-use neusample::sampler::{check_condition, encode_condition, raw_condition};
-use neusample::sampler::{CONDITION_DIM, RAW_CONDITION_DIM};
+use neusample::nn::{check_condition, encode_condition, raw_condition};
+use neusample::nn::{CONDITION_DIM, RAW_CONDITION_DIM};
 use neusample::FEATURE_DIM;
 use rand::RngExt;
 use rand_pcg::Pcg64;

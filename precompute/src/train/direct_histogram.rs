@@ -10,8 +10,9 @@ use burn::module::Module;
 use burn::tensor::activation;
 use burn::tensor::{Int, Tensor, TensorData};
 use glam::{Vec2, Vec3};
-use neusample::histogram::{cell_outside_disk, DIRECT_N};
-use neusample::sampler::CONDITION_DIM;
+use neusample::distrib::table2d::cell_outside_disk;
+use neusample::nn::CONDITION_DIM;
+use neusample::samplers::direct_histogram::DIRECT_N;
 use neusample::FEATURE_DIM;
 
 use super::config::{Common, MaxLikelihood};

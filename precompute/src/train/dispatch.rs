@@ -5,8 +5,8 @@
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use neusample::blob::SamplerKind;
-use neusample::sampler::check_condition;
+use neusample::nn::check_condition;
+use neusample::SamplerKind;
 use neusample::FEATURE_DIM;
 use rayon::prelude::*;
 

@@ -14,13 +14,15 @@
 use burn::module::Module;
 use burn::tensor::Tensor;
 use glam::{Vec2, Vec3};
-use neusample::flow::{
-    AFFINE_LAYERS, AFFINE_NET_LEN, AFFINE_OUTPUTS, AFFINE_SCALE_BOUND, BASE_OUTPUTS,
-    COUPLING_INPUTS, FLOW_BASE_LEN, FLOW_COUPLING0, FLOW_COUPLING1, HIDDEN, OTHER_BANDS,
-    SPLINE_BINS, SPLINE_NET_LEN, SPLINE_RAW_LEN, TAIL_BOUND,
+use neusample::distrib::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
+use neusample::nn::CONDITION_DIM;
+use neusample::samplers::affine_flow::{
+    AFFINE_LAYERS, AFFINE_NET_LEN, AFFINE_OUTPUTS, AFFINE_SCALE_BOUND,
 };
-use neusample::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
-use neusample::sampler::CONDITION_DIM;
+use neusample::samplers::spline_flow::{
+    BASE_OUTPUTS, COUPLING_INPUTS, FLOW_BASE_LEN, FLOW_COUPLING0, FLOW_COUPLING1, HIDDEN,
+    OTHER_BANDS, SPLINE_BINS, SPLINE_NET_LEN, SPLINE_RAW_LEN, TAIL_BOUND,
+};
 use neusample::FEATURE_DIM;
 
 use super::config::{Common, MaxLikelihood};

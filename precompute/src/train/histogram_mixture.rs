@@ -38,8 +38,10 @@ use burn::module::Module;
 use burn::tensor::activation;
 use burn::tensor::{Tensor, TensorData};
 use glam::{Vec2, Vec3};
-use neusample::histogram::{self, cell_outside_disk, Interpolation, BASES};
-use neusample::sampler::RAW_CONDITION_DIM;
+use neusample::distrib::table2d::cell_outside_disk;
+use neusample::nn::RAW_CONDITION_DIM;
+use neusample::samplers::histogram_mixture::{self as histogram, BASES};
+use neusample::Interpolation;
 use neusample::{DType, FEATURE_DIM};
 
 use super::config::{Common, HistogramMixture as Config};
@@ -73,7 +75,7 @@ pub const BASIS_SIZES: [usize; 5] = [
 #[derive(Clone, Debug)]
 pub struct BakedTables {
     /// mass, table, marginal and conditional as core builds them
-    /// ([`neusample::histogram::try_bake_slices`], f32 storage).
+    /// ([`neusample::samplers::histogram_mixture::try_bake_slices`], f32 storage).
     pub baked: histogram::BakedTables,
     /// How the runtime reads the latent axis.
     pub interpolation: Interpolation,
@@ -207,7 +209,7 @@ pub fn network_density(
         cond: Mlp::from_flat(&COND_SIZES, params, &device),
         basis: Mlp::from_flat(&BASIS_SIZES, basis_params, &device),
     };
-    let wi = neusample::sampler::check_condition(phi, wi).unwrap_or(Vec3::Z);
+    let wi = neusample::nn::check_condition(phi, wi).unwrap_or(Vec3::Z);
     let batch = Batch::upload(HostBatch::single(phi, wi, points), &device);
     to_host(model.density(&batch, 1.0).0)
 }

@@ -14,8 +14,8 @@ use burn::module::Module;
 use burn::tensor::activation;
 use burn::tensor::Tensor;
 use glam::{Vec2, Vec3};
-use neusample::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
-use neusample::sampler::CONDITION_DIM;
+use neusample::distrib::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
+use neusample::nn::CONDITION_DIM;
 use neusample::FEATURE_DIM;
 
 use super::config::{Common, MaxLikelihood};

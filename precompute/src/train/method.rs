@@ -2,7 +2,7 @@
 //! [`SamplerKind::name`]: `baseline`, `analytic`, `flow`, `affine-flow`, `direct-histogram`,
 //! `histogram-mixture`).
 
-use neusample::blob::SamplerKind;
+use neusample::SamplerKind;
 
 /// Every trainable method, in the paper's order (every sampler kind but cosine).
 pub const METHODS: [SamplerKind; 6] = [

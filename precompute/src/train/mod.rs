@@ -14,7 +14,7 @@
 //! [`model_pdf_disk`] evaluates a trained model in f64 from the exported arrays, so a blob
 //! can be checked against it.
 //!
-//! Methods are named by the runtime's [`neusample::blob::SamplerKind`] ([`METHODS`]).
+//! Methods are named by the runtime's [`neusample::SamplerKind`] ([`METHODS`]).
 //!
 //! Files: `config` (the hyper-parameters: common settings plus one block per method),
 //! `source` (where conditions come from), `data` (pool, batches, the loop feeding the

@@ -29,7 +29,7 @@ use anyhow::{bail, Result};
 use burn::module::{Module, Param};
 use burn::tensor::{Device, Int, Tensor, TensorData};
 use glam::{Vec2, Vec3};
-use neusample::neural::{
+use neusample::neural_material::{
     decoder_input, output_to_brdf, wrap_bilinear, DECODER_INPUTS, DECODER_OUTPUTS,
 };
 use rand::RngExt;
@@ -400,14 +400,14 @@ pub fn train(source: &dyn Material, cfg: &NeuralTrainConfig) -> Result<TrainedNe
     }
     if cfg.width == 0
         || cfg.height == 0
-        || cfg.width > neusample::neural::MAX_TEXTURE_SIZE
-        || cfg.height > neusample::neural::MAX_TEXTURE_SIZE
+        || cfg.width > neusample::neural_material::MAX_TEXTURE_SIZE
+        || cfg.height > neusample::neural_material::MAX_TEXTURE_SIZE
     {
         bail!(
             "texture {}×{} is outside 1..={} per side",
             cfg.width,
             cfg.height,
-            neusample::neural::MAX_TEXTURE_SIZE
+            neusample::neural_material::MAX_TEXTURE_SIZE
         );
     }
     if !(cfg.epsilon > 0.0 && cfg.epsilon.is_finite()) {
@@ -518,7 +518,7 @@ pub const VERIFY_TOLERANCE: f64 = 1e-4;
 /// `n` random queries. Fails above [`VERIFY_TOLERANCE`].
 pub fn verify_blob(bytes: &[u8], n: usize, seed: u64) -> Result<BlobCheck> {
     let (parts, _) = NeuralParts::from_blob(bytes)?;
-    let blob = neusample::blob::Blob::open(bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let blob = neusample::Blob::open(bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
     let core = blob.neural_material().map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut rng = rng_for(seed, 0xc4ec, 0);
     let queries: Vec<(Vec2, Vec3, Vec3)> = (0..n)

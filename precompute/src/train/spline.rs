@@ -1,6 +1,6 @@
 //! The rational-quadratic spline of the flow's coupling layers (paper Eq. 4), batched in
 //! burn for training and in f64 for checking, with exactly the runtime's conventions
-//! (`neusample::spline`): `K` bins on `[−B, B]`, minimum bin width/height/derivative 1e−3,
+//! (`neusample::distrib::spline`): `K` bins on `[−B, B]`, minimum bin width/height/derivative 1e−3,
 //! `widths = min_w + (1 − K·min_w)·softmax(raw_w)`, knots the cumulative sum scaled to
 //! `[−B, B]` with both ends exact, interior derivatives `min_d + softplus(raw_d)`, boundary
 //! derivatives 1, identity outside `[−B, B]`. Only the forward (density-direction) map is
@@ -8,7 +8,7 @@
 
 use burn::tensor::activation;
 use burn::tensor::{Int, Tensor};
-use neusample::spline::{MIN_BIN_HEIGHT, MIN_BIN_WIDTH, MIN_DERIVATIVE};
+use neusample::distrib::spline::{MIN_BIN_HEIGHT, MIN_BIN_WIDTH, MIN_DERIVATIVE};
 
 use crate::nn::{softmax_f64, softplus_f64};
 
@@ -80,7 +80,7 @@ pub fn rq_forward(v: Tensor<2>, raw: Tensor<2>, bins: usize, bound: f32) -> (Ten
     (y, logdet)
 }
 
-/// f64 knots `[K]` (the last knot, `+B`, is implicit) as in `neusample::spline`.
+/// f64 knots `[K]` (the last knot, `+B`, is implicit) as in `neusample::distrib::spline`.
 fn knots_f64(raw: &[f64], min_size: f64, bound: f64) -> Vec<f64> {
     let k = raw.len();
     let sm = softmax_f64(raw);

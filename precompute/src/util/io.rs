@@ -69,7 +69,7 @@ fn parent_dir(path: &Path) -> PathBuf {
 /// Reads a blob file and opens it, with errors that name the file.
 pub fn read_blob(path: &Path) -> Result<Vec<u8>> {
     let bytes = fs::read(path).with_context(|| format!("cannot read blob {}", path.display()))?;
-    neusample::blob::Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    neusample::Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(bytes)
 }
 

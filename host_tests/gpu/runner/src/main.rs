@@ -130,8 +130,8 @@ const HM_CELLS: u32 = 32;
 /// Baked histogram-mixture tables from random raw slices: per (basis, level) a sum of two
 /// Gaussian bumps with random centres and widths plus a little noise, so the densities have
 /// structure (and cell edges) everywhere, baked by core's own `bake_slices`.
-fn histogram_tables(rng: &mut Rng, levels: u32, cells: u32) -> neusample::histogram::BakedTables {
-    let (k, t, n) = (neusample::histogram::BASES, levels as usize, cells as usize);
+fn histogram_tables(rng: &mut Rng, levels: u32, cells: u32) -> neusample::samplers::histogram_mixture::BakedTables {
+    let (k, t, n) = (neusample::samplers::histogram_mixture::BASES, levels as usize, cells as usize);
     let mut raw = Vec::with_capacity(k * t * n * n);
     for _ in 0..k * t {
         let mut bumps = [[0.0f32; 4]; 2];
@@ -156,7 +156,7 @@ fn histogram_tables(rng: &mut Rng, levels: u32, cells: u32) -> neusample::histog
             }
         }
     }
-    neusample::histogram::bake_slices(&raw, k, t, n, neusample::DType::F32)
+    neusample::samplers::histogram_mixture::bake_slices(&raw, k, t, n, neusample::DType::F32)
 }
 
 /// Input records: random conditions, u and second directions, with edge cases mixed in at

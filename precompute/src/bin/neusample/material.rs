@@ -84,7 +84,7 @@ fn parse_texture(s: &str) -> Result<(u32, u32)> {
             (n, n)
         }
     };
-    let max = neusample::neural::MAX_TEXTURE_SIZE;
+    let max = neusample::neural_material::MAX_TEXTURE_SIZE;
     if w == 0 || h == 0 || w > max || h > max {
         bail!("--texture: {w}×{h} is outside 1..={max} per side");
     }

@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use neusample::blob::SamplerKind;
-use neusample::histogram::{MAX_N, MAX_T};
+use neusample::samplers::histogram_mixture::{MAX_N, MAX_T};
 use neusample::DType;
+use neusample::SamplerKind;
 use neusample_precompute::jobs::sampler::{sweep, train_sampler, SweepJob};
 use neusample_precompute::materials;
 use neusample_precompute::train::{parse_method, TrainConfig, METHODS};

@@ -1,5 +1,5 @@
 //! Neural materials (NeuMIP-style, `NEURAL.md`): a learned `W × H × 8` feature texture and a
-//! decoder MLP, evaluated by the runtime's [`neusample::neural::NeuralMaterial`].
+//! decoder MLP, evaluated by the runtime's [`neusample::neural_material::NeuralMaterial`].
 //!
 //! * [`NeuralParts`] — the arrays of a neural material in the runtime layout, with
 //!   conversion to and from blobs ([`NeuralParts::blob_bytes`], [`NeuralParts::from_blob`]);
@@ -15,12 +15,12 @@ use std::path::Path;
 
 use anyhow::{anyhow, bail, Context, Result};
 use glam::{Vec2, Vec3};
-use neusample::blob::{Blob, BlobWriter, SamplerKind, TensorRole};
-use neusample::neural::{
+use neusample::neural_material::{
     texture_len, NeuralMaterial, DECODER_HIDDEN, DECODER_INPUTS, DECODER_OUTPUTS,
     DECODER_PARAM_COUNT, MAX_TEXTURE_SIZE,
 };
 use neusample::DType;
+use neusample::{Blob, BlobWriter, SamplerKind, TensorRole};
 
 use super::model::{Material, FEATURE_DIM};
 

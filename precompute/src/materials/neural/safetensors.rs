@@ -14,7 +14,7 @@
 use std::collections::HashMap;
 
 use anyhow::{anyhow, bail, Context, Result};
-use neusample::neural::{DECODER_PARAM_COUNT, MAX_TEXTURE_SIZE};
+use neusample::neural_material::{DECODER_PARAM_COUNT, MAX_TEXTURE_SIZE};
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 
 use super::{NeuralParts, DECODER_SIZES};
@@ -40,8 +40,8 @@ pub fn architecture() -> String {
     format!(
         "decoder {} relu; input [phi(8), wi.xy, wo.xy, h.xy]; f = exp(clamp(out, {}, {}))",
         sizes.join("-"),
-        neusample::neural::LOG_F_MIN,
-        neusample::neural::LOG_F_MAX
+        neusample::neural_material::LOG_F_MIN,
+        neusample::neural_material::LOG_F_MAX
     )
 }
 

@@ -21,15 +21,14 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::gaussian;
-use crate::math;
-use crate::mlp::{self, Activation};
-use crate::sampler::{
-    check_condition, encode_condition, sanitize_u2, Prepared, Sample, Sampler, CONDITION_DIM,
-    FEATURE_DIM,
-};
-use crate::warp;
+use crate::distrib::gaussian;
+use crate::math::{self, clamp_logit, finite_density};
+use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
+use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
+
+use super::traits::params_constructors;
+use super::{Prepared, Sample, Sampler};
 
 /// Bound applied to every predicted Gaussian mean coordinate (NaN → −bound).
 ///
@@ -38,37 +37,12 @@ use crate::weights::Weights;
 /// has no mass on the disk anyway).
 pub const MEAN_BOUND: f32 = 1.0e4;
 
-/// Bound applied to every mixture logit before the softmax (NaN → −bound), so that an
-/// infinite or NaN logit cannot turn the weights into NaN.
-pub const LOGIT_BOUND: f32 = 1.0e30;
-
 /// Width of the hidden layers of both lobe networks.
 const HIDDEN: usize = 32;
 
 #[inline(always)]
 fn mean(x: f32) -> f32 {
     math::clamp(x, -MEAN_BOUND, MEAN_BOUND)
-}
-
-#[inline(always)]
-fn logit(x: f32) -> f32 {
-    math::clamp(x, -LOGIT_BOUND, LOGIT_BOUND)
-}
-
-/// `[|p| < 1]`, false for non-finite `p`.
-#[inline(always)]
-fn inside_disk(p: Vec2) -> bool {
-    p.x * p.x + p.y * p.y < 1.0
-}
-
-/// Makes a density safe to return: non-finite or negative values become 0.
-#[inline(always)]
-fn finite_density(p: f32) -> f32 {
-    if p >= 0.0 && math::is_finite(p) {
-        p
-    } else {
-        0.0
-    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -79,10 +53,10 @@ fn finite_density(p: f32) -> f32 {
 pub const BASELINE_OUTPUTS: usize = 5;
 
 const BASELINE_L0: usize = 0;
-const BASELINE_L1: usize = BASELINE_L0 + mlp::dense_len(CONDITION_DIM, HIDDEN);
-const BASELINE_L2: usize = BASELINE_L1 + mlp::dense_len(HIDDEN, HIDDEN);
-const BASELINE_L3: usize = BASELINE_L2 + mlp::dense_len(HIDDEN, HIDDEN);
-const BASELINE_END: usize = BASELINE_L3 + mlp::dense_len(HIDDEN, BASELINE_OUTPUTS);
+const BASELINE_L1: usize = BASELINE_L0 + nn::dense_len(CONDITION_DIM, HIDDEN);
+const BASELINE_L2: usize = BASELINE_L1 + nn::dense_len(HIDDEN, HIDDEN);
+const BASELINE_L3: usize = BASELINE_L2 + nn::dense_len(HIDDEN, HIDDEN);
+const BASELINE_END: usize = BASELINE_L3 + nn::dense_len(HIDDEN, BASELINE_OUTPUTS);
 
 /// The improved baseline of paper §3.1 (Eq. 1): Lambert + one isotropic Gaussian on the
 /// projected disk, predicted by an MLP `30 → 32 → 32 → 32 → 5` (ReLU hidden, identity
@@ -96,42 +70,17 @@ impl<W: Weights> ImprovedBaselineSampler<W> {
     /// Number of parameters: `dense(30,32) dense(32,32) dense(32,32) dense(32,5)` = 3269.
     pub const PARAM_COUNT: usize = BASELINE_END;
 
-    /// A sampler over `params` without the length check of [`Self::new`], for GPU shaders
-    /// (`Option<Self>` with a borrowed `W` cannot be tested by rust-gpu). Not `unsafe`:
-    /// reads past the end of a short array give 0.0, so wrong densities but never a panic
-    /// or NaN. Check `params.len() == PARAM_COUNT` on the host.
-    #[inline]
-    #[must_use]
-    pub const fn new_unchecked(params: W) -> Self {
-        ImprovedBaselineSampler { params }
-    }
-
-    /// A sampler over the flat parameter array `params`, or `None` when it does not hold
-    /// exactly [`Self::PARAM_COUNT`] values.
-    #[must_use]
-    pub fn new(params: W) -> Option<Self> {
-        if params.len() as usize == Self::PARAM_COUNT {
-            Some(Self::new_unchecked(params))
-        } else {
-            None
-        }
-    }
-
-    /// The parameter array.
-    #[must_use]
-    pub fn params(&self) -> &W {
-        &self.params
-    }
+    params_constructors!();
 
     /// The raw network outputs `[μx, μy, log σ, a_L, a_G]` for an encoded condition.
     #[inline]
     #[must_use]
     pub fn forward(&self, c: &[f32; CONDITION_DIM]) -> [f32; BASELINE_OUTPUTS] {
         let w = &self.params;
-        let h: [f32; HIDDEN] = mlp::dense(w, BASELINE_L0 as u32, c, Activation::Relu);
-        let h: [f32; HIDDEN] = mlp::dense(w, BASELINE_L1 as u32, &h, Activation::Relu);
-        let h: [f32; HIDDEN] = mlp::dense(w, BASELINE_L2 as u32, &h, Activation::Relu);
-        mlp::dense(w, BASELINE_L3 as u32, &h, Activation::Identity)
+        let h: [f32; HIDDEN] = nn::dense(w, BASELINE_L0 as u32, c, Activation::Relu);
+        let h: [f32; HIDDEN] = nn::dense(w, BASELINE_L1 as u32, &h, Activation::Relu);
+        let h: [f32; HIDDEN] = nn::dense(w, BASELINE_L2 as u32, &h, Activation::Relu);
+        nn::dense(w, BASELINE_L3 as u32, &h, Activation::Identity)
     }
 }
 
@@ -147,11 +96,11 @@ pub struct ImprovedBaselinePrepared {
 impl ImprovedBaselinePrepared {
     /// The lobes from raw network outputs `[μx, μy, log σ, a_L, a_G]`: `(w_L, w_G) =
     /// softmax(a_L, a_G)`, `σ = exp(clamp(log σ, −7, 1))`. Non-finite outputs are clamped
-    /// ([`MEAN_BOUND`], [`LOGIT_BOUND`]) so the lobes are always finite.
+    /// ([`MEAN_BOUND`], ±10³⁰) so the lobes are always finite.
     #[inline]
     #[must_use]
     pub fn from_outputs(o: &[f32; BASELINE_OUTPUTS]) -> Self {
-        let mut weights = [logit(o[3]), logit(o[4])];
+        let mut weights = [clamp_logit(o[3]), clamp_logit(o[4])];
         gaussian::softmax(&mut weights);
         ImprovedBaselinePrepared {
             weights,
@@ -198,7 +147,7 @@ impl Prepared for ImprovedBaselinePrepared {
     /// the reported density is the full Eq. 1 mixture at the drawn point.
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
-        let u = sanitize_u2(u)?;
+        let u = math::sanitize_u2(u)?;
         let (i, u0) = gaussian::select_component(&self.weights, u.x);
         let v = Vec2::new(u0, u.y);
         let p = if i == 0 {
@@ -231,8 +180,8 @@ impl Prepared for ImprovedBaselinePrepared {
 pub const ANALYTIC_OUTPUTS: usize = 11;
 
 const ANALYTIC_L0: usize = 0;
-const ANALYTIC_L1: usize = ANALYTIC_L0 + mlp::dense_len(CONDITION_DIM, HIDDEN);
-const ANALYTIC_END: usize = ANALYTIC_L1 + mlp::dense_len(HIDDEN, ANALYTIC_OUTPUTS);
+const ANALYTIC_L1: usize = ANALYTIC_L0 + nn::dense_len(CONDITION_DIM, HIDDEN);
+const ANALYTIC_END: usize = ANALYTIC_L1 + nn::dense_len(HIDDEN, ANALYTIC_OUTPUTS);
 
 /// The analytic mixture of paper §3.1 (Eq. 2): Lambert + two axis-aligned anisotropic
 /// Gaussians on the projected disk, predicted by an MLP `30 → 32 → 11` (ReLU hidden) from
@@ -246,40 +195,15 @@ impl<W: Weights> AnalyticMixtureSampler<W> {
     /// Number of parameters: `dense(30,32) dense(32,11)` = 1355.
     pub const PARAM_COUNT: usize = ANALYTIC_END;
 
-    /// A sampler over `params` without the length check of [`Self::new`], for GPU shaders
-    /// (`Option<Self>` with a borrowed `W` cannot be tested by rust-gpu). Not `unsafe`:
-    /// reads past the end of a short array give 0.0, so wrong densities but never a panic
-    /// or NaN. Check `params.len() == PARAM_COUNT` on the host.
-    #[inline]
-    #[must_use]
-    pub const fn new_unchecked(params: W) -> Self {
-        AnalyticMixtureSampler { params }
-    }
-
-    /// A sampler over the flat parameter array `params`, or `None` when it does not hold
-    /// exactly [`Self::PARAM_COUNT`] values.
-    #[must_use]
-    pub fn new(params: W) -> Option<Self> {
-        if params.len() as usize == Self::PARAM_COUNT {
-            Some(Self::new_unchecked(params))
-        } else {
-            None
-        }
-    }
-
-    /// The parameter array.
-    #[must_use]
-    pub fn params(&self) -> &W {
-        &self.params
-    }
+    params_constructors!();
 
     /// The raw network outputs (see [`ANALYTIC_OUTPUTS`]) for an encoded condition.
     #[inline]
     #[must_use]
     pub fn forward(&self, c: &[f32; CONDITION_DIM]) -> [f32; ANALYTIC_OUTPUTS] {
         let w = &self.params;
-        let h: [f32; HIDDEN] = mlp::dense(w, ANALYTIC_L0 as u32, c, Activation::Relu);
-        mlp::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity)
+        let h: [f32; HIDDEN] = nn::dense(w, ANALYTIC_L0 as u32, c, Activation::Relu);
+        nn::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity)
     }
 }
 
@@ -295,11 +219,11 @@ pub struct AnalyticMixturePrepared {
 impl AnalyticMixturePrepared {
     /// The lobes from raw network outputs (see [`ANALYTIC_OUTPUTS`]): `w = softmax(a)`,
     /// `σ = exp(clamp(log σ, −7, 1))` per axis. Non-finite outputs are clamped
-    /// ([`MEAN_BOUND`], [`LOGIT_BOUND`]) so the lobes are always finite.
+    /// ([`MEAN_BOUND`], ±10³⁰) so the lobes are always finite.
     #[inline]
     #[must_use]
     pub fn from_outputs(o: &[f32; ANALYTIC_OUTPUTS]) -> Self {
-        let mut weights = [logit(o[8]), logit(o[9]), logit(o[10])];
+        let mut weights = [clamp_logit(o[8]), clamp_logit(o[9]), clamp_logit(o[10])];
         gaussian::softmax(&mut weights);
         AnalyticMixturePrepared {
             weights,
@@ -358,7 +282,7 @@ impl Prepared for AnalyticMixturePrepared {
     /// Box–Muller; the reported density is the full Eq. 2 mixture at the drawn point.
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
-        let u = sanitize_u2(u)?;
+        let u = math::sanitize_u2(u)?;
         let (i, u0) = gaussian::select_component(&self.weights, u.x);
         let v = Vec2::new(u0, u.y);
         let p = if i == 0 {

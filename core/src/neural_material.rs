@@ -21,8 +21,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::math;
-use crate::mlp::{self, Activation};
-use crate::sampler::{check_condition, FEATURE_DIM};
+use crate::nn::{self, check_condition, Activation, FEATURE_DIM};
 use crate::warp;
 use crate::weights::Weights;
 
@@ -40,10 +39,10 @@ pub const LOG_F_MAX: f32 = 12.0;
 pub const MAX_TEXTURE_SIZE: u32 = 4096;
 
 const L0: usize = 0;
-const L1: usize = L0 + mlp::dense_len(DECODER_INPUTS, DECODER_HIDDEN);
-const L2: usize = L1 + mlp::dense_len(DECODER_HIDDEN, DECODER_HIDDEN);
-const L3: usize = L2 + mlp::dense_len(DECODER_HIDDEN, DECODER_HIDDEN);
-const END: usize = L3 + mlp::dense_len(DECODER_HIDDEN, DECODER_OUTPUTS);
+const L1: usize = L0 + nn::dense_len(DECODER_INPUTS, DECODER_HIDDEN);
+const L2: usize = L1 + nn::dense_len(DECODER_HIDDEN, DECODER_HIDDEN);
+const L3: usize = L2 + nn::dense_len(DECODER_HIDDEN, DECODER_HIDDEN);
+const END: usize = L3 + nn::dense_len(DECODER_HIDDEN, DECODER_OUTPUTS);
 
 /// Number of decoder parameters: `dense(14,64) dense(64,64) dense(64,64) dense(64,3)` = 9475.
 pub const DECODER_PARAM_COUNT: usize = END;
@@ -255,10 +254,10 @@ impl<W: Weights> NeuralMaterial<W> {
     #[must_use]
     pub fn forward(&self, x: &[f32; DECODER_INPUTS]) -> [f32; DECODER_OUTPUTS] {
         let w = &self.params;
-        let h: [f32; DECODER_HIDDEN] = mlp::dense(w, L0 as u32, x, Activation::Relu);
-        let h: [f32; DECODER_HIDDEN] = mlp::dense(w, L1 as u32, &h, Activation::Relu);
-        let h: [f32; DECODER_HIDDEN] = mlp::dense(w, L2 as u32, &h, Activation::Relu);
-        mlp::dense(w, L3 as u32, &h, Activation::Identity)
+        let h: [f32; DECODER_HIDDEN] = nn::dense(w, L0 as u32, x, Activation::Relu);
+        let h: [f32; DECODER_HIDDEN] = nn::dense(w, L1 as u32, &h, Activation::Relu);
+        let h: [f32; DECODER_HIDDEN] = nn::dense(w, L2 as u32, &h, Activation::Relu);
+        nn::dense(w, L3 as u32, &h, Activation::Identity)
     }
 
     /// The BRDF `f(φ, wi, wo)` in linear RGB, **without** the cosine (multiply by `cos θo`

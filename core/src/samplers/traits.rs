@@ -15,18 +15,8 @@ use core::fmt;
 
 use glam::{Vec2, Vec3};
 
-use crate::mlp::{self, CONDITION_BANDS};
+use crate::nn::FEATURE_DIM;
 use crate::warp;
-
-/// Length of the material feature vector φ (NeuMIP-style latent, paper §3).
-pub const FEATURE_DIM: usize = 8;
-
-/// Length of the encoded condition fed to the lobe-mixture and flow networks:
-/// φ, then `wi.x` and `wi.y` each with a [`CONDITION_BANDS`]-band sinusoidal encoding.
-pub const CONDITION_DIM: usize = FEATURE_DIM + 2 * mlp::encoding_len(CONDITION_BANDS);
-
-/// Length of the raw condition `(φ, wi.x, wi.y)` fed to the histogram networks.
-pub const RAW_CONDITION_DIM: usize = FEATURE_DIM + 2;
 
 /// A direction drawn by a sampler.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -102,108 +92,9 @@ pub trait Prepared {
     }
 }
 
-/// Checks a condition: normalised `wi` strictly above the horizon and finite `phi`.
-#[inline]
-#[must_use]
-pub fn check_condition(phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<Vec3> {
-    let wi = warp::upper_hemisphere(wi)?;
-    let mut k = 0;
-    while k < FEATURE_DIM {
-        if !crate::math::is_finite(phi[k]) {
-            return None;
-        }
-        k += 1;
-    }
-    Some(wi)
-}
-
-/// The encoded condition for the lobe-mixture and flow networks (release layout):
-///
-/// ```text
-/// [ φ₀ … φ₇,  enc(wi.x),  enc(wi.y) ]      enc = mlp::encode_scalar::<5>  (11 values each)
-/// ```
-#[inline]
-#[must_use]
-pub fn encode_condition(phi: &[f32; FEATURE_DIM], wi: Vec3) -> [f32; CONDITION_DIM] {
-    let mut x = [0.0f32; CONDITION_DIM];
-    let mut k = 0;
-    while k < FEATURE_DIM {
-        x[k] = phi[k];
-        k += 1;
-    }
-    mlp::encode_scalar::<CONDITION_BANDS, CONDITION_DIM>(wi.x, &mut x, FEATURE_DIM);
-    mlp::encode_scalar::<CONDITION_BANDS, CONDITION_DIM>(
-        wi.y,
-        &mut x,
-        FEATURE_DIM + mlp::encoding_len(CONDITION_BANDS),
-    );
-    x
-}
-
-/// The raw condition `[φ₀ … φ₇, wi.x, wi.y]` for the histogram networks.
-#[inline]
-#[must_use]
-pub fn raw_condition(phi: &[f32; FEATURE_DIM], wi: Vec3) -> [f32; RAW_CONDITION_DIM] {
-    let mut x = [0.0f32; RAW_CONDITION_DIM];
-    let mut k = 0;
-    while k < FEATURE_DIM {
-        x[k] = phi[k];
-        k += 1;
-    }
-    x[FEATURE_DIM] = wi.x;
-    x[FEATURE_DIM + 1] = wi.y;
-    x
-}
-
-/// Checks both components of `u` with [`crate::math::sanitize_u`].
-#[inline(always)]
-#[must_use]
-pub fn sanitize_u2(u: Vec2) -> Option<Vec2> {
-    Some(Vec2::new(
-        crate::math::sanitize_u(u.x)?,
-        crate::math::sanitize_u(u.y)?,
-    ))
-}
-
-/// Cosine-hemisphere sampling as a [`Sampler`]: the density is 1/π on the disk for every
-/// condition. It has no parameters, so it needs no blob.
-#[derive(Copy, Clone, Debug, Default)]
-pub struct CosineSampler;
-
-/// The prepared state of [`CosineSampler`] (nothing).
-#[derive(Copy, Clone, Debug, Default)]
-pub struct CosinePrepared;
-
-impl Sampler for CosineSampler {
-    type Prepared<'s> = CosinePrepared;
-    #[inline]
-    fn prepare(&self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<CosinePrepared> {
-        check_condition(phi, wi)?;
-        Some(CosinePrepared)
-    }
-}
-
-impl Prepared for CosinePrepared {
-    #[inline]
-    fn sample(&self, u: Vec2) -> Option<Sample> {
-        let u = sanitize_u2(u)?;
-        let p = warp::sample_uniform_disk_concentric(u);
-        Sample::from_disk(p, self.pdf_disk(p))
-    }
-    #[inline]
-    fn pdf_disk(&self, p: Vec2) -> f32 {
-        warp::uniform_disk_pdf(p)
-    }
-    #[inline]
-    fn invert(&self, wo: Vec3) -> Option<Vec2> {
-        let w = warp::upper_hemisphere(wo)?;
-        Some(warp::invert_uniform_disk_concentric(warp::to_disk(w)))
-    }
-}
-
 /// A copy of a sampler's weights handle (`&[f32]`, `Tensor`, …) kept by a prepared state.
 ///
-/// Two constraints of GPU shaders (rust-gpu) shape it:
+/// rust-gpu: two constraints of GPU shaders shape it:
 /// * a prepared state must not point at its sampler: with storage-buffer weights that is a
 ///   pointer to a local variable holding a buffer pointer, which rust-gpu cannot remove and
 ///   Vulkan drivers fail on (lavapipe crashes), so the handle is copied (`W: Copy`);
@@ -237,3 +128,40 @@ impl<W> fmt::Debug for Held<W> {
         f.write_str("Held(..)")
     }
 }
+
+/// The constructors every sampler with one flat parameter array has (`new_unchecked`, `new`,
+/// `params`), for a struct `{ params: W }` with an associated `PARAM_COUNT`.
+macro_rules! params_constructors {
+    () => {
+        /// A sampler over `params` without the length check of [`Self::new`], for GPU shaders
+        /// (`Option<Self>` with a borrowed `W` cannot be tested by rust-gpu). Not `unsafe`:
+        /// reads past the end of a short array give 0.0, so wrong densities but never a panic
+        /// or NaN. Check `params.len() == PARAM_COUNT` on the host.
+        #[inline]
+        #[must_use]
+        pub const fn new_unchecked(params: W) -> Self {
+            Self { params }
+        }
+
+        /// A sampler over the flat parameter array `params` (layout in
+        /// `core/ARCHITECTURES.md`), or `None` when it does not hold exactly
+        /// [`Self::PARAM_COUNT`] values.
+        #[inline]
+        #[must_use]
+        pub fn new(params: W) -> Option<Self> {
+            if params.len() as usize == Self::PARAM_COUNT {
+                Some(Self::new_unchecked(params))
+            } else {
+                None
+            }
+        }
+
+        /// The parameter array.
+        #[inline]
+        #[must_use]
+        pub fn params(&self) -> &W {
+            &self.params
+        }
+    };
+}
+pub(crate) use params_constructors;

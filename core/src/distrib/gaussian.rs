@@ -69,7 +69,7 @@ pub const SOFTMAX_INPUT_BOUND: f32 = 1e30;
 /// ±[`SOFTMAX_INPUT_BOUND`] and NaN counts as −bound; if nothing remains, weights are uniform.
 ///
 /// Inputs more than 80 below the maximum get weight exactly 0. The exponentials are bit for
-/// bit libm's `expf` but computed without branches ([`math::exp_in_range`]), so the loop
+/// bit libm's `expf` but computed without branches (`math::exp_in_range`), so the loop
 /// vectorises; the normalising sum runs in index order.
 #[inline]
 pub fn softmax<const N: usize>(x: &mut [f32; N]) {

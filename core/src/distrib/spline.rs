@@ -44,7 +44,7 @@
 //! Bin search is a fixed-count linear scan over the `K − 1` interior knots (no early exit,
 //! index provably in `0..K`), which rust-gpu compiles as a plain loop.
 
-use crate::gaussian;
+use crate::distrib::gaussian;
 use crate::math;
 
 /// Minimum bin width as a fraction of the interval `2B` (nflows' `DEFAULT_MIN_BIN_WIDTH`).

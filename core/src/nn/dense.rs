@@ -1,7 +1,4 @@
-//! Fixed-size multi-layer perceptrons and the input encodings the samplers use.
-//!
-//! Layer sizes are const generics, so every activation vector is a stack array and nothing
-//! allocates. Parameters live in one flat [`Weights`] array per sampler; a dense layer with
+//! Dense layers. Parameters live in one flat [`Weights`] array per sampler; a dense layer with
 //! `I` inputs and `O` outputs occupies `I·O + O` consecutive elements:
 //!
 //! ```text
@@ -20,7 +17,7 @@ pub const LEAKY_RELU_SLOPE: f32 = 0.01;
 
 /// Element-wise non-linearity applied after a dense layer.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
-#[repr(u32)] // a u8 discriminant needs the Int8 capability on SPIR-V
+#[repr(u32)] // rust-gpu: a u8 discriminant needs the Int8 capability on SPIR-V
 pub enum Activation {
     /// y = x.
     Identity,
@@ -125,39 +122,4 @@ pub fn accumulate_inputs<W: Weights + ?Sized, const P: usize, const O: usize>(
     acc: &mut [f32; O],
 ) {
     w.accumulate(offset, first, x, acc);
-}
-
-/// Number of frequency bands of the condition encoding of `wi.xy` (authors' release: 5).
-pub const CONDITION_BANDS: usize = 5;
-/// Length of a sinusoidal encoding of one scalar with `bands` bands: the value itself plus a
-/// sine and a cosine per band.
-#[inline]
-#[must_use]
-pub const fn encoding_len(bands: usize) -> usize {
-    1 + 2 * bands
-}
-
-/// Sinusoidal positional encoding of one scalar `x` with `B` bands, written to
-/// `out[at .. at + 1 + 2B]` as
-///
-/// ```text
-/// x, sin(πx), cos(πx), sin(2πx), cos(2πx), …, sin(2^(B−1)πx), cos(2^(B−1)πx)
-/// ```
-///
-/// The higher bands use the double-angle recurrences from `sincos(πx)` (one libm call instead
-/// of B); they agree with direct evaluation to a few ulps per band.
-#[inline(always)]
-pub fn encode_scalar<const B: usize, const N: usize>(x: f32, out: &mut [f32; N], at: usize) {
-    out[at] = x;
-    let (mut s, mut c) = math::sin_cos(math::PI * x);
-    let mut k = 0;
-    while k < B {
-        out[at + 1 + 2 * k] = s;
-        out[at + 2 + 2 * k] = c;
-        let s2 = 2.0 * s * c;
-        let c2 = c * c - s * s;
-        s = s2;
-        c = c2;
-        k += 1;
-    }
 }

@@ -1,0 +1,126 @@
+//! The byte layout's vocabulary (`core/BLOB.md`): constants, the header, the tensor
+//! directory entry and the tensor roles.
+
+use serde::{Deserialize, Serialize};
+
+use crate::kind::{DType, Interpolation, SamplerKind};
+
+/// The 8 bytes every blob starts with.
+pub const MAGIC: [u8; 8] = *b"NEUSAMP\0";
+/// The format version this build reads and writes.
+pub const FORMAT_VERSION: u32 = 1;
+/// Bytes before the header: magic, version, total length, header length.
+pub const PREAMBLE_LEN: usize = 20;
+/// Alignment of the data section and of every tensor, relative to the blob start.
+pub const DATA_ALIGN: usize = 16;
+/// Bytes of the trailing checksum.
+pub const CHECKSUM_LEN: usize = 4;
+/// Most tensors a blob may declare.
+pub const MAX_TENSORS: usize = 8;
+/// Longest label accepted, in bytes.
+pub const MAX_LABEL_LEN: usize = 4096;
+
+/// Number of tensor roles.
+pub(crate) const ROLES: usize = 6;
+
+/// What a tensor holds.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum TensorRole {
+    /// The flat network parameter array (layouts in `core/ARCHITECTURES.md`).
+    Params,
+    /// Histogram mixture: per-(basis, level) mass of the training model, K × T.
+    Mass,
+    /// Histogram mixture: normalised densities, K × T × N × N.
+    Table,
+    /// Histogram mixture: running row totals, K × T × N.
+    Marginal,
+    /// Histogram mixture: running sums within rows, K × T × N × N.
+    Conditional,
+    /// Neural material: the feature texture, H × W × 8 (texel-major, channels last).
+    Features,
+}
+
+impl TensorRole {
+    /// The role's stable name.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            TensorRole::Params => "params",
+            TensorRole::Mass => "mass",
+            TensorRole::Table => "table",
+            TensorRole::Marginal => "marginal",
+            TensorRole::Conditional => "conditional",
+            TensorRole::Features => "features",
+        }
+    }
+
+    pub(crate) const fn index(self) -> usize {
+        match self {
+            TensorRole::Params => 0,
+            TensorRole::Mass => 1,
+            TensorRole::Table => 2,
+            TensorRole::Marginal => 3,
+            TensorRole::Conditional => 4,
+            TensorRole::Features => 5,
+        }
+    }
+
+    /// Every role, in directory order.
+    pub const ALL: [TensorRole; ROLES] = [
+        TensorRole::Params,
+        TensorRole::Mass,
+        TensorRole::Table,
+        TensorRole::Marginal,
+        TensorRole::Conditional,
+        TensorRole::Features,
+    ];
+}
+
+/// The blob header (postcard-encoded after the preamble).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Header<'a> {
+    /// The sampler kind.
+    pub kind: SamplerKind,
+    /// Storage type of the network parameters and of the histogram table.
+    pub dtype: DType,
+    /// Length of φ the sampler was trained for (this build: [`FEATURE_DIM`](crate::FEATURE_DIM)).
+    pub feature_dim: u32,
+    /// Number of network parameters ([`SamplerKind::param_count`]).
+    pub param_count: u32,
+    /// Histogram mixture: number of bases K; 0 otherwise.
+    pub basis: u32,
+    /// Histogram mixture: number of latent-code levels T; neural material: texture height
+    /// (texels along v); 0 otherwise.
+    pub t_levels: u32,
+    /// Histogram mixture / direct histogram: grid resolution N; neural material: texture
+    /// width (texels along u); 0 otherwise.
+    pub resolution: u32,
+    /// Histogram mixture: how t is looked up.
+    pub interpolation: Interpolation,
+    /// Free text: material, method, training settings (UTF-8, ≤ [`MAX_LABEL_LEN`] bytes).
+    #[serde(borrow)]
+    pub label: &'a str,
+    /// Number of tensor directory entries that follow the header.
+    pub tensor_count: u32,
+}
+
+/// One entry of the tensor directory.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TensorEntry {
+    /// What the tensor holds.
+    pub role: TensorRole,
+    /// Element type.
+    pub dtype: DType,
+    /// Byte offset from the start of the blob (a multiple of [`DATA_ALIGN`]).
+    pub offset: u32,
+    /// Number of elements.
+    pub count: u32,
+}
+
+/// The little-endian `u32` at byte `at`, or 0 past the end.
+pub(crate) fn u32_at(bytes: &[u8], at: usize) -> u32 {
+    match bytes.get(at..at + 4) {
+        Some(b) => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        None => 0,
+    }
+}

@@ -1,0 +1,34 @@
+//! The blob container: one versioned, checksummed file format for every sampler, and for
+//! the neural materials they sample ([`SamplerKind::NeuralMaterial`](crate::SamplerKind),
+//! [`Blob::neural_material`]).
+//!
+//! The byte layout is specified in `core/BLOB.md`. In short:
+//!
+//! ```text
+//! magic "NEUSAMP\0" | version u32 | total_len u32 | header_len u32 | header (postcard)
+//! | tensor directory (postcard, one entry per tensor) | zero padding to 16
+//! | tensor data, each tensor 16-byte aligned | CRC-32 of everything before it (u32)
+//! ```
+//!
+//! [`Blob::open`] validates everything once — lengths, checksum, header, dimensions against
+//! the architectures compiled into this build, tensor bounds, finiteness, table
+//! normalisation — and returns a typed [`Error`](crate::Error) otherwise. It never panics,
+//! whatever the bytes. After that, the samplers built from the blob read the tensors in place
+//! (zero-copy; f32 tensors are used as `&[f32]` when the blob's buffer is 4-byte aligned).
+//!
+//! `format` names the layout, `read` opens blobs, `validate` holds the checks beyond the
+//! layout and `write` (the `alloc` feature) builds blobs.
+
+mod format;
+mod read;
+mod validate;
+#[cfg(feature = "alloc")]
+mod write;
+
+pub use format::{
+    Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION, MAGIC,
+    MAX_LABEL_LEN, MAX_TENSORS, PREAMBLE_LEN,
+};
+pub use read::Blob;
+#[cfg(feature = "alloc")]
+pub use write::BlobWriter;

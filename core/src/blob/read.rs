@@ -1,0 +1,309 @@
+//! [`Blob`]: a validated blob borrowing its bytes, and the samplers built from it.
+
+use crate::error::{Error, Result};
+use crate::kind::SamplerKind;
+use crate::neural_material::NeuralMaterial;
+use crate::samplers::histogram_mixture;
+use crate::samplers::{
+    AffineFlowSampler, AnalyticMixtureSampler, AnySampler, CosineSampler, DirectHistogramSampler,
+    FlowSampler, HistogramMixtureSampler, ImprovedBaselineSampler,
+};
+use crate::weights::{Tensor, Weights};
+
+use super::format::{
+    u32_at, Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION, MAGIC,
+    MAX_LABEL_LEN, PREAMBLE_LEN, ROLES,
+};
+use super::validate::{check_dims, check_finite, required};
+
+/// A validated blob, borrowing its bytes.
+#[derive(Copy, Clone, Debug)]
+pub struct Blob<'a> {
+    header: Header<'a>,
+    tensors: [Option<(TensorEntry, &'a [u8])>; ROLES],
+}
+
+impl<'a> Blob<'a> {
+    /// Opens and validates a blob. Never panics; every defect is a typed [`Error`].
+    ///
+    /// Checks, in order: preamble (length, magic, version, total length), CRC-32, header,
+    /// dimensions against this build's architectures, the tensor directory (roles, counts,
+    /// types, alignment, bounds), finiteness of every value, and for the histogram mixture
+    /// the normalisation of every table slice and its CDFs.
+    pub fn open(bytes: &'a [u8]) -> Result<Blob<'a>> {
+        let got = bytes.len() as u64;
+        let min = (PREAMBLE_LEN + CHECKSUM_LEN) as u64;
+        if got < 8 {
+            // Too short to tell anything but a prefix of the magic.
+            if bytes == &MAGIC[..bytes.len()] {
+                return Err(Error::Truncated { needed: min, got });
+            }
+            return Err(Error::BadMagic);
+        }
+        // rust-gpu: element-wise, because `[u8] == [u8; N]` lowers to the `raw_eq` intrinsic,
+        // which rust-gpu does not implement (ICE).
+        let mut k = 0;
+        while k < MAGIC.len() {
+            if bytes[k] != MAGIC[k] {
+                return Err(Error::BadMagic);
+            }
+            k += 1;
+        }
+        if got < 12 {
+            return Err(Error::Truncated { needed: min, got });
+        }
+        let version = u32_at(bytes, 8);
+        if version != FORMAT_VERSION {
+            return Err(Error::UnsupportedVersion {
+                found: version,
+                supported: FORMAT_VERSION,
+            });
+        }
+        if got < min {
+            return Err(Error::Truncated { needed: min, got });
+        }
+        let total = u32_at(bytes, 12) as u64;
+        if total < min {
+            return Err(Error::HeaderInvalid);
+        }
+        if got < total {
+            return Err(Error::Truncated { needed: total, got });
+        }
+        if got > total {
+            // Trailing bytes after the checksum: not a blob we wrote.
+            return Err(Error::HeaderInvalid);
+        }
+        let body = bytes.len() - CHECKSUM_LEN;
+        let stored = u32_at(bytes, body);
+        let computed = crc32fast::hash(&bytes[..body]);
+        if stored != computed {
+            return Err(Error::ChecksumMismatch { stored, computed });
+        }
+
+        let header_len = u32_at(bytes, 16) as usize;
+        let header_end = PREAMBLE_LEN
+            .checked_add(header_len)
+            .filter(|&e| e <= body)
+            .ok_or(Error::HeaderInvalid)?;
+        let header_bytes = &bytes[PREAMBLE_LEN..header_end];
+        let (header, mut rest): (Header<'a>, &'a [u8]) =
+            postcard::take_from_bytes(header_bytes).map_err(|_| Error::HeaderDecode)?;
+        if header.label.len() > MAX_LABEL_LEN {
+            return Err(Error::HeaderInvalid);
+        }
+        check_dims(&header)?;
+
+        let (req, req_count) = required(&header);
+        if header.tensor_count as usize != req_count {
+            return Err(Error::HeaderInvalid);
+        }
+        let data_start = header_end.div_ceil(DATA_ALIGN) * DATA_ALIGN;
+        let mut tensors: [Option<(TensorEntry, &'a [u8])>; ROLES] = [None; ROLES];
+        for _ in 0..req_count {
+            let (e, r): (TensorEntry, &'a [u8]) =
+                postcard::take_from_bytes(rest).map_err(|_| Error::HeaderDecode)?;
+            rest = r;
+            let slot = e.role.index();
+            let role = e.role.name();
+            let Some((_, expected, dtype)) = req[slot] else {
+                return Err(Error::TensorMissing { role });
+            };
+            if tensors[slot].is_some() {
+                return Err(Error::TensorMissing { role });
+            }
+            let want_dtype = dtype.unwrap_or(header.dtype);
+            if e.dtype != want_dtype {
+                return Err(Error::TensorDType {
+                    role,
+                    found: e.dtype,
+                });
+            }
+            if e.count as u64 != expected {
+                return Err(Error::TensorShape {
+                    role,
+                    expected: expected.min(u32::MAX as u64) as u32,
+                    found: e.count,
+                });
+            }
+            let start = e.offset as usize;
+            let len = (e.count as usize)
+                .checked_mul(e.dtype.size())
+                .ok_or(Error::TensorBounds { role })?;
+            let end = start.checked_add(len).ok_or(Error::TensorBounds { role })?;
+            if start % DATA_ALIGN != 0 || start < data_start || end > body {
+                return Err(Error::TensorBounds { role });
+            }
+            let data = &bytes[start..end];
+            check_finite(role, e.dtype, data)?;
+            tensors[slot] = Some((e, data));
+        }
+        if !rest.is_empty() {
+            return Err(Error::HeaderInvalid);
+        }
+        for (slot, r) in req.iter().enumerate() {
+            if let Some((role, _, _)) = r {
+                if tensors[slot].is_none() {
+                    return Err(Error::TensorMissing { role: role.name() });
+                }
+            }
+        }
+        let blob = Blob { header, tensors };
+        if header.kind == SamplerKind::HistogramMixture {
+            histogram_mixture::validate_tables(
+                &blob.tensor_or_empty(TensorRole::Mass),
+                &blob.tensor_or_empty(TensorRole::Table),
+                &blob.tensor_or_empty(TensorRole::Marginal),
+                &blob.tensor_or_empty(TensorRole::Conditional),
+                header.basis,
+                header.t_levels,
+                header.resolution,
+            )?;
+        }
+        Ok(blob)
+    }
+
+    /// The header.
+    #[must_use]
+    pub fn header(&self) -> &Header<'a> {
+        &self.header
+    }
+
+    /// The sampler kind.
+    #[must_use]
+    pub fn kind(&self) -> SamplerKind {
+        self.header.kind
+    }
+
+    /// The directory entry of a tensor, if the blob has it.
+    #[must_use]
+    pub fn entry(&self, role: TensorRole) -> Option<TensorEntry> {
+        self.tensors[role.index()].map(|(e, _)| e)
+    }
+
+    /// A tensor, read in place, if the blob has it.
+    #[must_use]
+    pub fn tensor(&self, role: TensorRole) -> Option<Tensor<'a>> {
+        self.tensors[role.index()].map(|(e, d)| Tensor::from_bytes(e.dtype, d))
+    }
+
+    fn tensor_or_empty(&self, role: TensorRole) -> Tensor<'a> {
+        self.tensor(role).unwrap_or(Tensor::F32(&[]))
+    }
+
+    /// Copies a tensor, widened to f32, into `out` (which must have exactly its length):
+    /// how a host fills GPU storage buffers or builds a fast f32 copy of an f16 blob.
+    pub fn widen_into(&self, role: TensorRole, out: &mut [f32]) -> Result<()> {
+        let t = self
+            .tensor(role)
+            .ok_or(Error::TensorMissing { role: role.name() })?;
+        if out.len() != t.len() as usize {
+            return Err(Error::TensorShape {
+                role: role.name(),
+                expected: t.len(),
+                found: out.len() as u32,
+            });
+        }
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = t.at(i as u32);
+        }
+        Ok(())
+    }
+
+    fn expect(&self, kind: SamplerKind) -> Result<()> {
+        if self.header.kind == kind {
+            Ok(())
+        } else {
+            Err(Error::WrongKind {
+                expected: kind,
+                found: self.header.kind,
+            })
+        }
+    }
+
+    fn params(&self) -> Tensor<'a> {
+        self.tensor_or_empty(TensorRole::Params)
+    }
+
+    /// The improved baseline sampler, or [`Error::WrongKind`].
+    pub fn improved_baseline(&self) -> Result<ImprovedBaselineSampler<Tensor<'a>>> {
+        self.expect(SamplerKind::ImprovedBaseline)?;
+        ImprovedBaselineSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+    }
+
+    /// The analytic mixture sampler, or [`Error::WrongKind`].
+    pub fn analytic_mixture(&self) -> Result<AnalyticMixtureSampler<Tensor<'a>>> {
+        self.expect(SamplerKind::AnalyticMixture)?;
+        AnalyticMixtureSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+    }
+
+    /// The RQ-spline flow sampler, or [`Error::WrongKind`].
+    pub fn flow(&self) -> Result<FlowSampler<Tensor<'a>>> {
+        self.expect(SamplerKind::Flow)?;
+        FlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+    }
+
+    /// The affine-coupling flow sampler, or [`Error::WrongKind`].
+    pub fn affine_flow(&self) -> Result<AffineFlowSampler<Tensor<'a>>> {
+        self.expect(SamplerKind::AffineFlow)?;
+        AffineFlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+    }
+
+    /// The direct histogram sampler, or [`Error::WrongKind`].
+    pub fn direct_histogram(&self) -> Result<DirectHistogramSampler<Tensor<'a>>> {
+        self.expect(SamplerKind::DirectHistogram)?;
+        DirectHistogramSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+    }
+
+    /// The histogram mixture sampler, or [`Error::WrongKind`].
+    pub fn histogram_mixture(&self) -> Result<HistogramMixtureSampler<Tensor<'a>>> {
+        self.expect(SamplerKind::HistogramMixture)?;
+        HistogramMixtureSampler::new(
+            self.params(),
+            self.tensor_or_empty(TensorRole::Mass),
+            self.tensor_or_empty(TensorRole::Table),
+            self.tensor_or_empty(TensorRole::Marginal),
+            self.tensor_or_empty(TensorRole::Conditional),
+            self.header.t_levels,
+            self.header.resolution,
+            self.header.interpolation,
+        )
+        .ok_or(Error::HeaderInvalid)
+    }
+
+    /// The neural material (feature texture + decoder, [`crate::neural_material`]), or
+    /// [`Error::WrongKind`]. Its texture is `header().resolution` texels wide and
+    /// `header().t_levels` high.
+    pub fn neural_material(&self) -> Result<NeuralMaterial<Tensor<'a>>> {
+        self.expect(SamplerKind::NeuralMaterial)?;
+        NeuralMaterial::new(
+            self.tensor_or_empty(TensorRole::Features),
+            self.params(),
+            self.header.resolution,
+            self.header.t_levels,
+        )
+        .ok_or(Error::HeaderInvalid)
+    }
+
+    /// Whichever sampler the blob holds. A neural-material blob holds no sampler:
+    /// [`Error::NotASampler`].
+    pub fn sampler(&self) -> Result<AnySampler<'a>> {
+        Ok(match self.header.kind {
+            SamplerKind::Cosine => AnySampler::Cosine(CosineSampler),
+            SamplerKind::ImprovedBaseline => {
+                AnySampler::ImprovedBaseline(self.improved_baseline()?)
+            }
+            SamplerKind::AnalyticMixture => AnySampler::AnalyticMixture(self.analytic_mixture()?),
+            SamplerKind::Flow => AnySampler::Flow(self.flow()?),
+            SamplerKind::AffineFlow => AnySampler::AffineFlow(self.affine_flow()?),
+            SamplerKind::DirectHistogram => AnySampler::DirectHistogram(self.direct_histogram()?),
+            SamplerKind::HistogramMixture => {
+                AnySampler::HistogramMixture(self.histogram_mixture()?)
+            }
+            SamplerKind::NeuralMaterial => {
+                return Err(Error::NotASampler {
+                    found: SamplerKind::NeuralMaterial,
+                })
+            }
+        })
+    }
+}

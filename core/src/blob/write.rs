@@ -1,0 +1,161 @@
+//! [`BlobWriter`]: builds blobs (the `alloc` feature). The trainer and the tests use it; the
+//! runtime only reads.
+
+use crate::kind::{DType, Interpolation, SamplerKind};
+use crate::nn::FEATURE_DIM;
+use crate::samplers::{direct_histogram, histogram_mixture};
+
+use super::format::{
+    Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION, MAGIC, PREAMBLE_LEN,
+};
+
+/// Builds blobs (needs the `alloc` feature). The trainer in `neusample-precompute` and the
+/// tests use it; the runtime only reads.
+#[derive(Clone, Debug)]
+pub struct BlobWriter<'l> {
+    header: Header<'l>,
+    tensors: alloc::vec::Vec<(TensorRole, DType, alloc::vec::Vec<u8>)>,
+}
+
+impl<'l> BlobWriter<'l> {
+    /// A writer for a sampler of `kind` whose parameters (and table) are stored as `dtype`.
+    /// Dimensions are this build's; the histogram mixture also needs
+    /// [`BlobWriter::histogram_dims`].
+    #[must_use]
+    pub fn new(kind: SamplerKind, dtype: DType, label: &'l str) -> Self {
+        let resolution = if kind == SamplerKind::DirectHistogram {
+            direct_histogram::DIRECT_N as u32
+        } else {
+            0
+        };
+        BlobWriter {
+            header: Header {
+                kind,
+                dtype,
+                feature_dim: FEATURE_DIM as u32,
+                param_count: kind.param_count() as u32,
+                basis: if kind == SamplerKind::HistogramMixture {
+                    histogram_mixture::BASES as u32
+                } else {
+                    0
+                },
+                t_levels: 0,
+                resolution,
+                interpolation: Interpolation::Nearest,
+                label,
+                tensor_count: 0,
+            },
+            tensors: alloc::vec::Vec::new(),
+        }
+    }
+
+    /// Sets the histogram mixture's table dimensions and latent-code lookup.
+    #[must_use]
+    pub fn histogram_dims(
+        mut self,
+        t_levels: u32,
+        resolution: u32,
+        interpolation: Interpolation,
+    ) -> Self {
+        self.header.t_levels = t_levels;
+        self.header.resolution = resolution;
+        self.header.interpolation = interpolation;
+        self
+    }
+
+    /// Sets the neural material's texture dimensions (`width × height` texels; stored in the
+    /// header's `resolution` and `t_levels` fields).
+    #[must_use]
+    pub fn texture_dims(mut self, width: u32, height: u32) -> Self {
+        self.header.resolution = width;
+        self.header.t_levels = height;
+        self
+    }
+
+    /// Overrides a header field for tests of the validator (wrong dimensions and the like).
+    #[doc(hidden)]
+    #[must_use]
+    pub fn header_mut(&mut self) -> &mut Header<'l> {
+        &mut self.header
+    }
+
+    /// The element type a role is stored with: the blob's `dtype` for parameters, the
+    /// histogram table and the neural material's features, f32 for masses and CDFs.
+    #[must_use]
+    pub fn dtype_of(&self, role: TensorRole) -> DType {
+        match role {
+            TensorRole::Params | TensorRole::Table | TensorRole::Features => self.header.dtype,
+            TensorRole::Mass | TensorRole::Marginal | TensorRole::Conditional => DType::F32,
+        }
+    }
+
+    /// Adds (or replaces) a tensor, converting to its storage type (f16 rounds to nearest).
+    pub fn tensor(&mut self, role: TensorRole, values: &[f32]) -> &mut Self {
+        let dtype = self.dtype_of(role);
+        let mut bytes = alloc::vec::Vec::with_capacity(values.len() * dtype.size());
+        for &v in values {
+            match dtype {
+                DType::F32 => bytes.extend_from_slice(&v.to_le_bytes()),
+                DType::F16 => bytes.extend_from_slice(&half::f16::from_f32(v).to_le_bytes()),
+            }
+        }
+        self.tensors.retain(|(r, _, _)| *r != role);
+        self.tensors.push((role, dtype, bytes));
+        self
+    }
+
+    /// Serialises the blob. Tensors are written in role order.
+    #[must_use]
+    pub fn to_bytes(&self) -> alloc::vec::Vec<u8> {
+        let mut tensors = self.tensors.clone();
+        tensors.sort_by_key(|(r, _, _)| r.index());
+        let mut header = self.header;
+        header.tensor_count = tensors.len() as u32;
+
+        // Header and directory sizes do not depend on the offsets' values only through
+        // varint lengths, so lay out with a first pass and fix up until stable.
+        let mut offsets = alloc::vec![0u32; tensors.len()];
+        loop {
+            let mut head = postcard::to_allocvec(&header).unwrap_or_default();
+            for (i, (role, dtype, bytes)) in tensors.iter().enumerate() {
+                let e = TensorEntry {
+                    role: *role,
+                    dtype: *dtype,
+                    offset: offsets[i],
+                    count: (bytes.len() / dtype.size()) as u32,
+                };
+                head.extend_from_slice(&postcard::to_allocvec(&e).unwrap_or_default());
+            }
+            let mut at = (PREAMBLE_LEN + head.len()).div_ceil(DATA_ALIGN) * DATA_ALIGN;
+            let mut changed = false;
+            for (i, (_, _, bytes)) in tensors.iter().enumerate() {
+                if offsets[i] != at as u32 {
+                    offsets[i] = at as u32;
+                    changed = true;
+                }
+                at = (at + bytes.len()).div_ceil(DATA_ALIGN) * DATA_ALIGN;
+            }
+            if changed {
+                continue;
+            }
+            let end = tensors
+                .last()
+                .map(|(_, _, b)| offsets[offsets.len() - 1] as usize + b.len())
+                .unwrap_or(PREAMBLE_LEN + head.len());
+            let total = end + CHECKSUM_LEN;
+            let mut out = alloc::vec::Vec::with_capacity(total);
+            out.extend_from_slice(&MAGIC);
+            out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+            out.extend_from_slice(&(total as u32).to_le_bytes());
+            out.extend_from_slice(&(head.len() as u32).to_le_bytes());
+            out.extend_from_slice(&head);
+            for (i, (_, _, bytes)) in tensors.iter().enumerate() {
+                out.resize(offsets[i] as usize, 0);
+                out.extend_from_slice(bytes);
+            }
+            let crc = crc32fast::hash(&out);
+            out.extend_from_slice(&crc.to_le_bytes());
+            return out;
+        }
+    }
+}

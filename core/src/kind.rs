@@ -1,0 +1,111 @@
+//! The names the format and the API share: which sampler a blob holds ([`SamplerKind`]), how
+//! a tensor is stored ([`DType`]) and how the histogram mixture reads its latent axis
+//! ([`Interpolation`]). A leaf: it depends on nothing else in the crate.
+
+use serde::{Deserialize, Serialize};
+
+/// The kind of sampler a blob holds (or the neural material it samples).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum SamplerKind {
+    /// Cosine-hemisphere sampling (no parameters).
+    Cosine,
+    /// Improved baseline: Lambert + isotropic Gaussian (paper Eq. 1).
+    ImprovedBaseline,
+    /// Analytic mixture: Lambert + two anisotropic Gaussians (paper Eq. 2).
+    AnalyticMixture,
+    /// Conditional rational-quadratic spline flow (paper Eq. 3–4).
+    Flow,
+    /// Affine-coupling flow baseline (Xie et al. 2019).
+    AffineFlow,
+    /// Direct histogram baseline (Zhu et al. 2021).
+    DirectHistogram,
+    /// Histogram mixture (paper Eq. 5–6).
+    HistogramMixture,
+    /// Not a sampler: a NeuMIP-style neural material (feature texture + decoder,
+    /// [`crate::neural_material`]), the BRDF the samplers are trained for. Opened with
+    /// [`Blob::neural_material`](crate::Blob::neural_material); [`Blob::sampler`](crate::Blob::sampler) refuses it. Not in [`SamplerKind::ALL`].
+    NeuralMaterial,
+}
+
+impl SamplerKind {
+    /// Every sampler kind, in a stable order ([`SamplerKind::NeuralMaterial`], which is not a
+    /// sampler, is not listed).
+    pub const ALL: [SamplerKind; 7] = [
+        SamplerKind::Cosine,
+        SamplerKind::ImprovedBaseline,
+        SamplerKind::AnalyticMixture,
+        SamplerKind::Flow,
+        SamplerKind::AffineFlow,
+        SamplerKind::DirectHistogram,
+        SamplerKind::HistogramMixture,
+    ];
+
+    /// The kind's stable name (CLI and JSON).
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            SamplerKind::Cosine => "cosine",
+            SamplerKind::ImprovedBaseline => "baseline",
+            SamplerKind::AnalyticMixture => "analytic",
+            SamplerKind::Flow => "flow",
+            SamplerKind::AffineFlow => "affine-flow",
+            SamplerKind::DirectHistogram => "direct-histogram",
+            SamplerKind::HistogramMixture => "histogram-mixture",
+            SamplerKind::NeuralMaterial => "neural-material",
+        }
+    }
+
+    /// Whether the kind is a sampler (every kind but [`SamplerKind::NeuralMaterial`]).
+    #[must_use]
+    pub const fn is_sampler(self) -> bool {
+        !matches!(self, SamplerKind::NeuralMaterial)
+    }
+
+    /// The kind with the given [`SamplerKind::name`] (the neural material included).
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<SamplerKind> {
+        if name.as_bytes() == SamplerKind::NeuralMaterial.name().as_bytes() {
+            return Some(SamplerKind::NeuralMaterial);
+        }
+        let mut i = 0;
+        while i < Self::ALL.len() {
+            if Self::ALL[i].name().as_bytes() == name.as_bytes() {
+                return Some(Self::ALL[i]);
+            }
+            i += 1;
+        }
+        None
+    }
+}
+
+/// Element type of a stored tensor.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum DType {
+    /// IEEE-754 binary32, little-endian.
+    F32,
+    /// IEEE-754 binary16, little-endian, widened to f32 on read.
+    F16,
+}
+
+impl DType {
+    /// Bytes per element.
+    #[inline]
+    #[must_use]
+    pub const fn size(self) -> usize {
+        match self {
+            DType::F32 => 4,
+            DType::F16 => 2,
+        }
+    }
+}
+
+/// How the histogram mixture reads the latent-code axis of its tables.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub enum Interpolation {
+    /// The nearest level `round(t·(T − 1))` (the paper's rounding).
+    #[default]
+    Nearest,
+    /// Linear interpolation between levels `⌊s⌋` and `⌊s⌋ + 1`, `s = t·(T − 1)`; exactly
+    /// normalised because each slice is.
+    Linear,
+}

@@ -1,0 +1,45 @@
+//! Cosine-hemisphere sampling as a [`Sampler`]: the uniform density 1/π on the projected disk.
+
+use glam::{Vec2, Vec3};
+
+use crate::math;
+use crate::nn::{check_condition, FEATURE_DIM};
+use crate::warp;
+
+use super::{Prepared, Sample, Sampler};
+
+/// Cosine-hemisphere sampling as a [`Sampler`]: the density is 1/π on the disk for every
+/// condition. It has no parameters, so it needs no blob.
+#[derive(Copy, Clone, Debug, Default)]
+pub struct CosineSampler;
+
+/// The prepared state of [`CosineSampler`] (nothing).
+#[derive(Copy, Clone, Debug, Default)]
+pub struct CosinePrepared;
+
+impl Sampler for CosineSampler {
+    type Prepared<'s> = CosinePrepared;
+    #[inline]
+    fn prepare(&self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<CosinePrepared> {
+        check_condition(phi, wi)?;
+        Some(CosinePrepared)
+    }
+}
+
+impl Prepared for CosinePrepared {
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        let u = math::sanitize_u2(u)?;
+        let p = warp::sample_uniform_disk_concentric(u);
+        Sample::from_disk(p, self.pdf_disk(p))
+    }
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        warp::uniform_disk_pdf(p)
+    }
+    #[inline]
+    fn invert(&self, wo: Vec3) -> Option<Vec2> {
+        let w = warp::upper_hemisphere(wo)?;
+        Some(warp::invert_uniform_disk_concentric(warp::to_disk(w)))
+    }
+}

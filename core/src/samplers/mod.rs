@@ -1,0 +1,38 @@
+//! The samplers, one file per method, and the two traits a renderer programs against
+//! ([`Sampler`], [`Prepared`]).
+//!
+//! | module | paper | density |
+//! |---|---|---|
+//! | [`cosine`] | — | 1/π on the projected disk |
+//! | [`lobes`] | Eq. 1 (improved baseline), Eq. 2 (analytic mixture) | Lambert + Gaussians |
+//! | [`spline_flow`] | Eq. 3–4 | RQ-spline coupling flow |
+//! | [`affine_flow`] | Xie et al. 2019 | affine coupling flow |
+//! | [`direct_histogram`] | Zhu et al. 2021 | MLP → 16 × 16 histogram |
+//! | [`histogram_mixture`] | Eq. 5–6 | MLP → weights, rotations, latent codes of baked tables |
+//!
+//! Each module also holds its architecture's constants (layer sizes and parameter offsets,
+//! `core/ARCHITECTURES.md`), which the trainer uses to export parameters in the runtime's
+//! layout. [`AnySampler`] dispatches over all of them.
+
+pub mod affine_flow;
+mod any;
+pub mod cosine;
+mod coupling;
+pub mod direct_histogram;
+pub mod histogram_mixture;
+pub mod lobes;
+mod mixture_tables;
+pub mod spline_flow;
+mod traits;
+
+pub use affine_flow::{AffineFlowPrepared, AffineFlowSampler};
+pub use any::{AnyPrepared, AnySampler};
+pub use cosine::{CosinePrepared, CosineSampler};
+pub use direct_histogram::{DirectHistogramPrepared, DirectHistogramSampler};
+pub use histogram_mixture::{HistogramMixturePrepared, HistogramMixtureSampler};
+pub use lobes::{
+    AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,
+    ImprovedBaselineSampler,
+};
+pub use spline_flow::{FlowPrepared, FlowSampler};
+pub use traits::{Prepared, Sample, Sampler};

@@ -1,0 +1,321 @@
+//! The paper's conditional rational-quadratic spline flow ([`FlowSampler`], Eq. 3–4,
+//! `core/ARCHITECTURES.md` §3) on the projected unit disk.
+//!
+//! A flow is a bijection `T` between the disk point `ω⊥ = (x, y)` and a latent point `z`
+//! with a Gaussian base density `p_z`. The density on the **projected disk** (area measure) is
+//!
+//! ```text
+//! p(ω⊥) = p_z(T(ω⊥)) · |det ∂T/∂ω⊥|                                           (Eq. 3)
+//! ```
+//!
+//! computed in the *density direction* `ω⊥ → z` ([`Prepared::pdf_disk`],
+//! [`FlowPrepared::to_latent`]). Sampling runs the *sampling direction* `z → ω⊥`
+//! (Box–Muller, then the inverse couplings), then evaluates the density direction at the
+//! sampled point, reusing the one coupling evaluation both directions share: the pdf a
+//! sample reports is bit for bit [`Prepared::pdf_disk`] at its point. Samples that leave the
+//! open unit disk are refused (`None`); the density is 0 there, so it integrates over the
+//! disk to the probability that a sample lands inside.
+//!
+//! Per shading point, [`Sampler::prepare`] encodes the condition `c` once, runs the base
+//! network, and precomputes the condition's share of every coupling network's first layer;
+//! per sample only the 9 encoded inputs of the other coordinate and the remaining layers run.
+
+use core::marker::PhantomData;
+
+use glam::{Vec2, Vec3};
+
+use crate::distrib::gaussian;
+use crate::distrib::spline::Knots;
+use crate::math;
+use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
+use crate::warp::{self, inside_disk};
+use crate::weights::Weights;
+
+use super::coupling::{all_finite, condition_share, density_from_log, first_layer};
+pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
+use super::traits::{params_constructors, Held};
+use super::{Prepared, Sample, Sampler};
+
+/// Bins of every spline of [`FlowSampler`] (release: 20).
+pub const SPLINE_BINS: usize = 20;
+/// Tail bound `B` of every spline of [`FlowSampler`]: splines act on `[−1, 1]`.
+pub const TAIL_BOUND: f32 = 1.0;
+/// Raw outputs of a spline coupling network: 20 widths, 20 heights, 19 derivatives.
+pub const SPLINE_RAW_LEN: usize = Knots::<SPLINE_BINS>::RAW_LEN;
+/// Outputs of the base network: `[μx, μy, log σx, log σy]`.
+pub const BASE_OUTPUTS: usize = 4;
+
+/// Offset of the base network's `dense(30, 32)` (ReLU).
+pub const FLOW_BASE_L0: usize = 0;
+/// Offset of the base network's `dense(32, 4)`.
+pub const FLOW_BASE_L1: usize = FLOW_BASE_L0 + nn::dense_len(CONDITION_DIM, HIDDEN);
+/// Parameters of the base network (1124).
+pub const FLOW_BASE_LEN: usize = FLOW_BASE_L1 + nn::dense_len(HIDDEN, BASE_OUTPUTS);
+/// Offset of a spline coupling network's `dense(39, 32)` (LeakyReLU), relative to the network.
+pub const SPLINE_NET_L0: usize = 0;
+/// Offset of a spline coupling network's `dense(32, 32)` (LeakyReLU), relative to the network.
+pub const SPLINE_NET_L1: usize = SPLINE_NET_L0 + nn::dense_len(COUPLING_INPUTS, HIDDEN);
+/// Offset of a spline coupling network's `dense(32, 59)`, relative to the network.
+pub const SPLINE_NET_L2: usize = SPLINE_NET_L1 + nn::dense_len(HIDDEN, HIDDEN);
+/// Parameters of one spline coupling network (4283).
+pub const SPLINE_NET_LEN: usize = SPLINE_NET_L2 + nn::dense_len(HIDDEN, SPLINE_RAW_LEN);
+/// Offset of coupling network 0 (transforms x, conditioned on y').
+pub const FLOW_COUPLING0: usize = FLOW_BASE_LEN;
+/// Offset of coupling network 1 (transforms y, conditioned on x).
+pub const FLOW_COUPLING1: usize = FLOW_COUPLING0 + SPLINE_NET_LEN;
+/// Parameters of [`FlowSampler`] (9690).
+pub const FLOW_PARAM_COUNT: usize = FLOW_COUPLING1 + SPLINE_NET_LEN;
+
+/// The spline of a coupling network at `offset`, for the other coordinate `v`.
+#[inline]
+fn spline_knots<W: Weights>(
+    w: &W,
+    offset: u32,
+    share: &[f32; HIDDEN],
+    v: f32,
+) -> Knots<SPLINE_BINS> {
+    let mut h = first_layer(w, offset + SPLINE_NET_L0 as u32, share, v);
+    Activation::LeakyRelu.apply_all(&mut h);
+    let h =
+        nn::dense::<W, HIDDEN, HIDDEN>(w, offset + SPLINE_NET_L1 as u32, &h, Activation::LeakyRelu);
+    let raw = nn::linear::<W, HIDDEN, SPLINE_RAW_LEN>(w, offset + SPLINE_NET_L2 as u32, &h);
+    Knots::from_raw(&raw, TAIL_BOUND)
+}
+
+/// The conditional rational-quadratic spline flow of the paper (Eq. 3–4): a diagonal
+/// Gaussian base predicted from the condition and two spline coupling layers
+/// (`core/ARCHITECTURES.md` §3). Densities are on the projected disk (area measure).
+#[derive(Copy, Clone, Debug)]
+pub struct FlowSampler<W> {
+    params: W,
+}
+
+impl<W: Weights> FlowSampler<W> {
+    /// Length of the flat parameter array: base, coupling 0, coupling 1 (9690).
+    pub const PARAM_COUNT: usize = FLOW_PARAM_COUNT;
+
+    params_constructors!();
+}
+
+/// [`FlowSampler`] prepared for one condition: the base Gaussian and the condition's share
+/// of both coupling networks' first layers.
+#[derive(Debug)]
+pub struct FlowPrepared<'s, W> {
+    /// A copy of the sampler's weights handle (see `Held`).
+    params: Held<W>,
+    _sampler: PhantomData<&'s W>,
+    /// Mean of the base Gaussian.
+    pub mu: Vec2,
+    /// Standard deviations of the base Gaussian (clamped `exp(log σ)`).
+    pub sigma: Vec2,
+    /// Condition's share (bias included) of coupling network 0's and 1's first layer.
+    share: [[f32; HIDDEN]; 2],
+    /// `ln(σx·σy)`, the base density's normalisation (computed once) …
+    ln_sigma: f32,
+    /// … for this `σ` (`sigma` is public: a changed `σ` is not served from the cache).
+    ln_sigma_of: Vec2,
+}
+
+impl<W: Copy> Clone for FlowPrepared<'_, W> {
+    #[inline]
+    fn clone(&self) -> Self {
+        FlowPrepared {
+            params: self.params.clone(),
+            _sampler: PhantomData,
+            mu: self.mu,
+            sigma: self.sigma,
+            share: self.share,
+            ln_sigma: self.ln_sigma,
+            ln_sigma_of: self.ln_sigma_of,
+        }
+    }
+}
+
+impl<W: Weights + Copy> Sampler for FlowSampler<W> {
+    type Prepared<'s>
+        = FlowPrepared<'s, W>
+    where
+        W: 's;
+
+    fn prepare<'s>(&'s self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<FlowPrepared<'s, W>> {
+        let wi = check_condition(phi, wi)?;
+        let c = encode_condition(phi, wi);
+        let w = &self.params;
+        let h = nn::dense::<W, CONDITION_DIM, HIDDEN>(w, FLOW_BASE_L0 as u32, &c, Activation::Relu);
+        let o = nn::linear::<W, HIDDEN, BASE_OUTPUTS>(w, FLOW_BASE_L1 as u32, &h);
+        let share = [
+            condition_share(w, FLOW_COUPLING0 as u32, &c),
+            condition_share(w, FLOW_COUPLING1 as u32, &c),
+        ];
+        if !all_finite(&o) || !all_finite(&share[0]) || !all_finite(&share[1]) {
+            return None;
+        }
+        let sigma = Vec2::new(
+            gaussian::sigma_from_log(o[2]),
+            gaussian::sigma_from_log(o[3]),
+        );
+        Some(FlowPrepared {
+            params: Held::new(self.params),
+            _sampler: PhantomData,
+            mu: Vec2::new(o[0], o[1]),
+            sigma,
+            share,
+            ln_sigma: math::ln(sigma.x * sigma.y),
+            ln_sigma_of: sigma,
+        })
+    }
+}
+
+impl<W: Weights + Copy> FlowPrepared<'_, W> {
+    /// Density direction: the latent point `z = (x', y')` of disk point `p` and
+    /// `ln |det ∂z/∂p|`, or `None` when `p` is not strictly inside the unit disk.
+    ///
+    /// ```text
+    /// y' = RQ(y; coupling1(c, enc4(x))),  x' = RQ(x; coupling0(c, enc4(y')))
+    /// ```
+    #[inline]
+    #[must_use]
+    pub fn to_latent(&self, p: Vec2) -> Option<(Vec2, f32)> {
+        if !inside_disk(p) {
+            return None;
+        }
+        let k1 = spline_knots(
+            &self.params.get(),
+            FLOW_COUPLING1 as u32,
+            &self.share[1],
+            p.x,
+        );
+        Some(self.latent_with_k1(p, &k1))
+    }
+
+    /// [`FlowPrepared::to_latent`] given coupling 1's spline `k1` at `x = p.x`.
+    #[inline(always)]
+    fn latent_with_k1(&self, p: Vec2, k1: &Knots<SPLINE_BINS>) -> (Vec2, f32) {
+        let (yl, ld1) = k1.forward(p.y);
+        let k0 = spline_knots(
+            &self.params.get(),
+            FLOW_COUPLING0 as u32,
+            &self.share[0],
+            yl,
+        );
+        let (xl, ld0) = k0.forward(p.x);
+        (Vec2::new(xl, yl), ld0 + ld1)
+    }
+
+    /// Sampling direction: the disk-plane point `p` of latent point `z` (not necessarily
+    /// inside the disk) and `ln |det ∂p/∂z|`.
+    ///
+    /// ```text
+    /// x = RQ⁻¹(x'; coupling0(c, enc4(y'))),  y = RQ⁻¹(y'; coupling1(c, enc4(x)))
+    /// ```
+    #[inline]
+    #[must_use]
+    pub fn from_latent(&self, z: Vec2) -> (Vec2, f32) {
+        let (p, k0, k1) = self.point_and_knots(z);
+        // The log-dets of the same two inverses (not needed by `sample`, so not computed there).
+        (p, k0.inverse(z.x).1 + k1.inverse(z.y).1)
+    }
+
+    /// [`FlowPrepared::from_latent`]'s point, with the splines it built: coupling 0's at
+    /// `y' = z.y` and coupling 1's at `x`.
+    #[inline(always)]
+    fn point_and_knots(&self, z: Vec2) -> (Vec2, Knots<SPLINE_BINS>, Knots<SPLINE_BINS>) {
+        let k0 = spline_knots(
+            &self.params.get(),
+            FLOW_COUPLING0 as u32,
+            &self.share[0],
+            z.y,
+        );
+        let x = k0.inverse_point(z.x);
+        let k1 = spline_knots(&self.params.get(), FLOW_COUPLING1 as u32, &self.share[1], x);
+        let y = k1.inverse_point(z.y);
+        (Vec2::new(x, y), k0, k1)
+    }
+
+    /// `ln N(z; μ, diag σ²) + ld`, NaN → −∞. `gaussian::log_normal_pdf` with its
+    /// `ln(σx·σy)` taken from `prepare`.
+    #[inline(always)]
+    fn log_density(&self, z: Vec2, ld: f32) -> f32 {
+        let dx = (z.x - self.mu.x) / self.sigma.x;
+        let dy = (z.y - self.mu.y) / self.sigma.y;
+        let cached = self.sigma.x.to_bits() == self.ln_sigma_of.x.to_bits()
+            && self.sigma.y.to_bits() == self.ln_sigma_of.y.to_bits();
+        let ln_sigma = if cached {
+            self.ln_sigma
+        } else {
+            math::ln(self.sigma.x * self.sigma.y)
+        };
+        let l = -0.5 * (dx * dx + dy * dy) - math::LN_TWO_PI - ln_sigma + ld;
+        if l.is_nan() {
+            f32::NEG_INFINITY
+        } else {
+            l
+        }
+    }
+
+    /// `ln p(p)` on the projected disk (area measure): `ln N(z; μ, diag σ²) + ln |det ∂z/∂p|`
+    /// (Eq. 3). `−∞` outside the open unit disk; never NaN.
+    #[inline]
+    #[must_use]
+    pub fn log_pdf_disk(&self, p: Vec2) -> f32 {
+        match self.to_latent(p) {
+            Some((z, ld)) => self.log_density(z, ld),
+            None => f32::NEG_INFINITY,
+        }
+    }
+}
+
+impl<W: Weights + Copy> Prepared for FlowPrepared<'_, W> {
+    /// Box–Muller from `u`, `z = μ + σ ⊙ n`, then the inverse couplings.
+    ///
+    /// The reported pdf (solid angle; disk area in [`Sample::pdf_disk`]) is the density
+    /// direction's at the sampled point, reusing coupling 1's spline (its input `x` is the
+    /// same in both directions), so it equals [`Prepared::pdf_disk`] bit for bit. The
+    /// sampling direction's own log-det is the same number only up to f32 rounding, which
+    /// steep splines amplify to the percent level: one extra coupling network
+    /// per sample buys exact agreement with `pdf` for MIS. That network's input is
+    /// `y' = RQ(y)`, and when this round trip gives back `z.y` bit for bit (about half the
+    /// samples) its spline is the one the sampling direction already built, so it is reused.
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        let u = math::sanitize_u2(u)?;
+        let z = self.mu + self.sigma * gaussian::box_muller(u);
+        let (p, k0, k1) = self.point_and_knots(z);
+        if !inside_disk(p) {
+            return None;
+        }
+        // `latent_with_k1`, with coupling 0's spline reused when its input is unchanged.
+        let (yl, ld1) = k1.forward(p.y);
+        let k0 = if yl.to_bits() == z.y.to_bits() {
+            k0
+        } else {
+            spline_knots(
+                &self.params.get(),
+                FLOW_COUPLING0 as u32,
+                &self.share[0],
+                yl,
+            )
+        };
+        let (xl, ld0) = k0.forward(p.x);
+        let log_p = self.log_density(Vec2::new(xl, yl), ld0 + ld1);
+        Sample::from_disk(p, density_from_log(log_p))
+    }
+
+    /// Density on the projected disk (area measure), Eq. 3; 0 outside the open unit disk.
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        density_from_log(self.log_pdf_disk(p))
+    }
+
+    /// The density direction, then the exact inverse of Box–Muller.
+    #[inline]
+    fn invert(&self, wo: Vec3) -> Option<Vec2> {
+        let w = warp::upper_hemisphere(wo)?;
+        let (z, _) = self.to_latent(warp::to_disk(w))?;
+        let n = (z - self.mu) / self.sigma;
+        if !math::is_finite(n.x) || !math::is_finite(n.y) {
+            return None;
+        }
+        Some(gaussian::invert_box_muller(n))
+    }
+}
