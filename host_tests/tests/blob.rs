@@ -58,8 +58,8 @@ fn every_kind_round_trips_in_f32_and_f16() {
             for (i, &p) in params.iter().enumerate() {
                 use neusample::Weights;
                 let expect = match dtype {
-                    DType::F32 => p,
                     DType::F16 => half::f16::from_f32(p).to_f32(),
+                    _ => p,
                 };
                 assert_eq!(t.at(i as u32), expect);
                 assert_eq!(widened[i], expect);

@@ -6,14 +6,14 @@
 //! agree to [`F32_TOLERANCE`] relative; f16 blobs are reported, with a looser bound.
 
 use anyhow::{bail, Context, Result};
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 use neusample::{Blob, BlobWriter, SamplerKind, TensorRole};
 use neusample::{DType, Prepared, Sampler};
 use rand::{RngExt, SeedableRng};
 
 use crate::groundtruth;
 use crate::materials::Material;
-use crate::train::{model_pdf_disk, Method, Trained};
+use crate::train::{model_pdf_disk, Trained};
 
 /// Largest relative difference allowed between an f32 blob and the trained model.
 pub const F32_TOLERANCE: f64 = 1e-3;
@@ -21,34 +21,19 @@ pub const F32_TOLERANCE: f64 = 1e-3;
 /// weights carry 11 significant bits; errors compound through the layers).
 pub const F16_TOLERANCE: f64 = 0.25;
 
-/// The runtime kind of a training method.
-#[must_use]
-pub fn kind_of(method: Method) -> SamplerKind {
-    match method {
-        Method::Baseline => SamplerKind::ImprovedBaseline,
-        Method::Analytic => SamplerKind::AnalyticMixture,
-        Method::Flow => SamplerKind::Flow,
-        Method::AffineFlow => SamplerKind::AffineFlow,
-        Method::DirectHistogram => SamplerKind::DirectHistogram,
-        Method::HistogramMixture => SamplerKind::HistogramMixture,
-    }
-}
-
 /// Serialises a trained model as a blob with the given storage type.
 pub fn blob_bytes(trained: &Trained, dtype: DType, label: &str) -> Result<Vec<u8>> {
-    let kind = kind_of(trained.method);
-    let mut w = BlobWriter::new(kind, dtype, label);
+    let mut w = BlobWriter::new(trained.method, dtype, label);
     if let Some(t) = &trained.tables {
         let baked = t.rebake(dtype)?;
         let n = baked.resolution;
         let levels = baked.t_levels;
-        let interp = t.interpolation;
-        w = w.histogram_dims(levels, n, interp);
+        w = w.histogram_dims(levels, n, t.interpolation);
         w.tensor(TensorRole::Mass, &baked.mass)
             .tensor(TensorRole::Table, &baked.table)
             .tensor(TensorRole::Marginal, &baked.marginal)
             .tensor(TensorRole::Conditional, &baked.conditional);
-    } else if trained.method == Method::HistogramMixture {
+    } else if trained.method == SamplerKind::HistogramMixture {
         bail!("the histogram mixture has no baked tables");
     }
     w.tensor(TensorRole::Params, &trained.params);
@@ -56,7 +41,7 @@ pub fn blob_bytes(trained: &Trained, dtype: DType, label: &str) -> Result<Vec<u8
 }
 
 /// Outcome of [`verify`].
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Verification {
     /// Points compared.
     pub points: usize,
@@ -79,8 +64,9 @@ pub fn verify(
     let blob = Blob::open(bytes).context("the written blob does not open")?;
     let sampler = blob.sampler()?;
     let tolerance = match blob.header().dtype {
-        DType::F32 => F32_TOLERANCE,
         DType::F16 => F16_TOLERANCE,
+        // U16 is never a header dtype (the blob would not have opened).
+        DType::F32 | DType::U16 => F32_TOLERANCE,
     };
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
     let mut max_rel = 0f64;
@@ -137,14 +123,4 @@ pub fn verify(
         );
     }
     Ok(v)
-}
-
-/// A unit direction from spherical angles (helper for reports and tests).
-#[must_use]
-pub fn direction(theta: f32, phi: f32) -> Vec3 {
-    Vec3::new(
-        theta.sin() * phi.cos(),
-        theta.sin() * phi.sin(),
-        theta.cos(),
-    )
 }

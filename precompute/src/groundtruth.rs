@@ -38,12 +38,13 @@
 //! [`TargetPdf::kl_from`], but `sample` and `invert` return `None`.
 
 use glam::{Vec2, Vec3};
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use rayon::prelude::*;
 
 use neusample::Table2D;
 
 use crate::materials::{luminance, Material, FEATURE_DIM};
+use crate::util::rng::indexed_rng;
 
 /// The release's grazing cut-off: `f = 0` where `|ω⊥|² >` this value.
 pub const GRAZING_CUTOFF: f32 = 0.98;
@@ -129,6 +130,41 @@ pub struct TargetPdf {
     degenerate: bool,
 }
 
+/// The sum of `Y(f(φ, wi, ω(p)))` over the `s × s` stratified points `p` of cell
+/// `(row, col)` of an `res × res` grid over `[−1, 1]²` (module docs), skipping the points
+/// whose `|p|²` fails `keep` (and values that are not positive and finite). The caller divides
+/// by `s²`; [`TargetPdf`] and the tabulated oracle of `crate::eval` share it.
+#[must_use]
+pub fn cell_luminance_sum(
+    m: &dyn Material,
+    phi: &[f32; FEATURE_DIM],
+    wi: Vec3,
+    res: usize,
+    (row, col): (usize, usize),
+    s: usize,
+    keep: impl Fn(f32) -> bool,
+) -> f32 {
+    let h = 2.0 / res as f32;
+    let hs = h / s as f32;
+    let mut acc = 0.0f32;
+    for i in 0..s {
+        let y = -1.0 + row as f32 * h + (i as f32 + 0.5) * hs;
+        for j in 0..s {
+            let x = -1.0 + col as f32 * h + (j as f32 + 0.5) * hs;
+            let r2 = x * x + y * y;
+            if !keep(r2) {
+                continue;
+            }
+            let wo = Vec3::new(x, y, (1.0 - r2).max(0.0).sqrt());
+            let l = luminance(m.eval(phi, wi, wo));
+            if l > 0.0 && l.is_finite() {
+                acc += l;
+            }
+        }
+    }
+    acc
+}
+
 /// Whether cell `(r, c)` of an `res × res` grid lies entirely inside the closed unit disk.
 #[inline]
 #[must_use]
@@ -165,8 +201,6 @@ impl TargetPdf {
     ) -> TargetPdf {
         let res = res.max(1);
         let s = opts.supersample.max(1);
-        let h = 2.0 / res as f32;
-        let hs = h / s as f32;
         let inv_ss = 1.0 / (s * s) as f32;
         let mut values = vec![0f32; res * res];
         for r in 0..res {
@@ -174,22 +208,9 @@ impl TargetPdf {
                 if !cell_inside_disk(res, r, col) {
                     continue;
                 }
-                let mut acc = 0.0f32;
-                for i in 0..s {
-                    let y = -1.0 + r as f32 * h + (i as f32 + 0.5) * hs;
-                    for j in 0..s {
-                        let x = -1.0 + col as f32 * h + (j as f32 + 0.5) * hs;
-                        let r2 = x * x + y * y;
-                        if r2 > opts.grazing_cutoff {
-                            continue;
-                        }
-                        let wo = Vec3::new(x, y, (1.0 - r2).max(0.0).sqrt());
-                        let l = luminance(m.eval(&c.phi, c.wi, wo));
-                        if l > 0.0 && l.is_finite() {
-                            acc += l;
-                        }
-                    }
-                }
+                let acc = cell_luminance_sum(m, &c.phi, c.wi, res, (r, col), s, |r2| {
+                    !(r2 > opts.grazing_cutoff)
+                });
                 values[r * res + col] = acc * inv_ss;
             }
         }
@@ -388,29 +409,14 @@ impl neusample::Prepared for TargetPdf {
     }
 }
 
-/// SplitMix64 finaliser (seed mixing).
-#[inline]
-#[must_use]
-pub fn splitmix64(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
-
-/// The RNG of condition `index` of a batch with `seed`: independent of thread count and of
-/// the batch size (a batch of n is a prefix of a batch of m > n with the same seed).
-#[must_use]
-pub fn condition_rng(seed: u64, index: usize) -> rand_pcg::Pcg64Mcg {
-    rand_pcg::Pcg64Mcg::seed_from_u64(splitmix64(seed ^ splitmix64(index as u64)))
-}
-
-/// `n_conditions` random conditions (see [`condition_rng`]), without target densities.
+/// `n_conditions` random conditions, without target densities; condition `i` draws from
+/// [`indexed_rng`]`(seed, i)`, so the result does not depend on the thread count and a batch of
+/// n is a prefix of a batch of m > n with the same seed.
 #[must_use]
 pub fn conditions(m: &dyn Material, n_conditions: usize, seed: u64) -> Vec<Condition> {
     (0..n_conditions)
         .into_par_iter()
-        .map(|i| random_condition(m, &mut condition_rng(seed, i)))
+        .map(|i| random_condition(m, &mut indexed_rng(seed, i)))
         .collect()
 }
 
@@ -426,7 +432,7 @@ pub fn batch(
     (0..n_conditions)
         .into_par_iter()
         .map(|i| {
-            let c = random_condition(m, &mut condition_rng(seed, i));
+            let c = random_condition(m, &mut indexed_rng(seed, i));
             let t = TargetPdf::new(m, &c, res);
             (c, t)
         })

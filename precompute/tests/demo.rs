@@ -1,44 +1,59 @@
 //! `neusample demo --quick --use-fixtures` end to end (on the committed neural materials, the
-//! demo's default setting): the report, its required fields, the fit against the source
-//! materials, the images and plots.
+//! demo's default setting): the report, read back into its typed schema, its required fields
+//! and the relations between them, the fit against the source materials, the images and
+//! plots.
 
-use neusample_precompute::demo::{self, DemoArgs};
+use neusample_precompute::demo::{self, DemoConfig, Report, BASELINE, COSINE, ORACLE};
+
+/// The oracle tabulates p* on its own grid (`oracle_res²`, coarser than the `eval_res²` grid
+/// of the KL measure), so its KL carries a discretisation error of its own: it must be the
+/// smallest up to this many nats.
+const ORACLE_KL_TOLERANCE: f64 = 0.05;
+
+/// Masses in the disk are midpoint sums over the evaluation grid: at most 1 up to this.
+const MASS_TOLERANCE: f64 = 0.01;
+
+/// Relative tolerance of values the report copies or derives from others.
+const COPY_TOLERANCE: f64 = 1e-12;
+
+fn read_report(dir: &std::path::Path) -> Report {
+    let text = std::fs::read_to_string(dir.join("report.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= COPY_TOLERANCE * a.abs().max(b.abs()).max(1.0)
+}
 
 #[test]
 fn quick_demo_with_fixtures_writes_a_complete_report() {
     let dir = tempfile::tempdir().unwrap();
-    let mut a = DemoArgs::new(dir.path());
+    let mut a = DemoConfig::new(dir.path());
     a.quick = true;
     a.use_fixtures = true;
     demo::run(&a).unwrap();
 
-    let text = std::fs::read_to_string(dir.path().join("report.json")).unwrap();
-    let r: serde_json::Value = serde_json::from_str(&text).unwrap();
-    assert_eq!(r["schema"], demo::REPORT_SCHEMA);
-    let mats = r["materials"].as_array().unwrap();
-    assert_eq!(mats.len(), demo::DEFAULT_MATERIALS.len());
-    let finite = |v: &serde_json::Value, what: &str| -> f64 {
-        let x = v
-            .as_f64()
-            .unwrap_or_else(|| panic!("{what} is not a number: {v}"));
+    let r = read_report(dir.path());
+    assert_eq!(r.schema, demo::REPORT_SCHEMA);
+    assert!(r.quick && r.fixtures && r.steps_scale.is_none());
+    let setup = r.render.as_ref().expect("rendered");
+    let max_spp = setup.settings.max_spp;
+    assert_eq!(r.materials.len(), demo::DEFAULT_MATERIALS.len());
+    let finite = |x: f64, what: &str| -> f64 {
         assert!(x.is_finite(), "{what} = {x}");
         x
     };
-    for (m, source) in mats.iter().zip(demo::DEFAULT_MATERIALS) {
-        let name = m["material"].as_str().unwrap();
-        assert_eq!(name, format!("{source}{}", demo::NEURAL_SUFFIX));
+    for (m, source) in r.materials.iter().zip(demo::DEFAULT_MATERIALS) {
+        let name = &m.material;
+        assert_eq!(*name, format!("{source}{}", demo::NEURAL_SUFFIX));
         // The neural material is measured against its source.
-        let n = &m["neural"];
-        assert_eq!(n["source"], source);
-        let kl = finite(&n["fit"]["kl_pstar"], "neural kl_pstar");
-        let kl_cos = finite(&n["fit"]["kl_pstar_vs_cosine"], "kl_pstar_vs_cosine");
+        let n = m.neural.as_ref().expect("neural report");
+        assert_eq!(n.source, source);
+        let kl = finite(n.fit.kl_pstar, "neural kl_pstar");
+        let kl_cos = finite(n.fit.kl_pstar_vs_cosine, "kl_pstar_vs_cosine");
         assert!(kl >= 0.0 && kl < kl_cos, "{name}: {kl} vs cosine {kl_cos}");
-        assert!(finite(&n["cost"]["eval_ns"], "eval_ns") > 0.0);
-        let methods = m["methods"].as_array().unwrap();
-        let names: Vec<&str> = methods
-            .iter()
-            .map(|x| x["method"].as_str().unwrap())
-            .collect();
+        assert!(finite(n.cost.eval_ns, "eval_ns") > 0.0);
+        let names: Vec<&str> = m.methods.iter().map(|x| x.method.as_str()).collect();
         assert_eq!(
             names,
             [
@@ -52,55 +67,110 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
                 "oracle"
             ]
         );
-        for x in methods {
-            let what = format!("{name}/{}", x["method"]);
-            for field in [
-                "speedup_vs_baseline",
-                "mse_equal_spp",
-                "mse_equal_time",
-                "ns_per_sample",
-                "kl_divergence",
-                "cost_vs_material_eval",
+        let base = m.methods.iter().find(|x| x.method == BASELINE).unwrap();
+        let oracle = m.methods.iter().find(|x| x.method == ORACLE).unwrap();
+        let cosine = m.methods.iter().find(|x| x.method == COSINE).unwrap();
+        for x in &m.methods {
+            let what = format!("{name}/{}", x.method);
+            let rr = x.render.as_ref().expect("render report");
+            for (field, v) in [
+                (
+                    "speedup_vs_baseline",
+                    x.speedup_vs_baseline.unwrap_or(f64::NAN),
+                ),
+                ("mse_equal_spp", x.mse_equal_spp.unwrap_or(f64::NAN)),
+                ("mse_equal_time", x.mse_equal_time.unwrap_or(f64::NAN)),
+                ("ns_per_sample", x.ns_per_sample),
+                ("kl_divergence", x.kl_divergence),
+                ("cost_vs_material_eval", x.cost_vs_material_eval),
             ] {
-                let v = finite(&x[field], &format!("{what}.{field}"));
+                let v = finite(v, &format!("{what}.{field}"));
                 assert!(v >= 0.0, "{what}.{field} = {v}");
             }
-            assert!(finite(&x["kl_vs_source"], &format!("{what}.kl_vs_source")) >= 0.0);
-            let rr = &x["render"];
-            for field in [
-                "ns_per_sample",
-                "mse_equal_spp",
-                "mse_equal_time",
-                "speedup_vs_baseline",
+            assert!(
+                finite(
+                    x.kl_vs_source.unwrap_or(f64::NAN),
+                    &format!("{what}.kl_vs_source")
+                ) >= 0.0
+            );
+            for (field, v) in [
+                ("ns_per_sample", rr.ns_per_sample),
+                ("mse_equal_spp", rr.mse_equal_spp),
+                ("mse_equal_time", rr.mse_equal_time),
+                ("speedup_vs_baseline", rr.speedup_vs_baseline),
             ] {
-                assert!(finite(&rr[field], &format!("{what}.render.{field}")) > 0.0);
+                assert!(finite(v, &format!("{what}.render.{field}")) > 0.0);
             }
-            assert!(rr["equal_time_spp"].as_u64().unwrap() >= 1);
-            let conv = rr["convergence"].as_array().unwrap();
+            assert!(rr.equal_time_spp >= 1);
             assert_eq!(
-                conv.iter()
-                    .map(|c| c["spp"].as_u64().unwrap())
-                    .collect::<Vec<_>>(),
+                rr.convergence.iter().map(|c| c.spp).collect::<Vec<_>>(),
                 [1, 2, 4, 8]
             );
-            for f in ["equal_time_png", "equal_time_exr", "equal_spp_png"] {
-                let p = dir.path().join(rr[f].as_str().unwrap());
+            for f in [&rr.equal_time_png, &rr.equal_time_exr, &rr.equal_spp_png] {
+                let p = dir.path().join(f);
                 assert!(
                     std::fs::metadata(&p).unwrap().len() > 100,
                     "{}",
                     p.display()
                 );
             }
+
+            // Relations between the fields.
+            assert!(
+                x.mass_in_disk <= 1.0 + MASS_TOLERANCE,
+                "{what}: mass in the disk {}",
+                x.mass_in_disk
+            );
+            assert!(
+                oracle.kl_divergence <= x.kl_divergence + ORACLE_KL_TOLERANCE,
+                "{what}: KL {} below the oracle's {}",
+                x.kl_divergence,
+                oracle.kl_divergence
+            );
+            assert!(close(x.ns_per_sample, x.cost.total_ns), "{what}");
+            assert!(
+                close(
+                    x.cost_vs_material_eval,
+                    x.cost.total_ns / x.cost.material_eval_ns.max(1e-9)
+                ),
+                "{what}"
+            );
+            assert_eq!(
+                x.speedup_vs_baseline,
+                Some(rr.speedup_vs_baseline),
+                "{what}"
+            );
+            assert_eq!(x.mse_equal_spp, Some(rr.mse_equal_spp), "{what}");
+            assert_eq!(x.mse_equal_time, Some(rr.mse_equal_time), "{what}");
+            assert_eq!(rr.equal_spp, max_spp, "{what}");
+            let cosine_ns = cosine.render.as_ref().unwrap().ns_per_sample;
+            assert!(
+                close(rr.time_vs_cosine, rr.ns_per_sample / cosine_ns),
+                "{what}"
+            );
+            assert!(rr.equal_time_spp <= 64 * max_spp, "{what}");
         }
-        let base = methods.iter().find(|x| x["method"] == "baseline").unwrap();
-        assert!((finite(&base["speedup_vs_baseline"], "baseline") - 1.0).abs() < 1e-12);
+        let b = base.render.as_ref().unwrap();
+        assert!((base.speedup_vs_baseline.unwrap() - 1.0).abs() < 1e-12);
+        assert!((b.speedup_measured_mse - 1.0).abs() < 1e-12);
+        assert!((b.mse_ratio_equal_spp - 1.0).abs() < 1e-12);
+        assert_eq!(b.equal_time_spp, max_spp);
+        assert!((cosine.render.as_ref().unwrap().time_vs_cosine - 1.0).abs() < 1e-12);
         // Every image of the figures exists and is a PNG.
-        for f in ["equal_time", "equal_spp", "convergence", "pdfs"] {
-            let p = dir.path().join(m["figures"][f].as_str().unwrap());
+        let figures = m.figures.as_ref().expect("figures");
+        for f in [
+            &figures.equal_time,
+            &figures.equal_spp,
+            &figures.convergence,
+            &figures.pdfs,
+        ] {
+            let p = dir.path().join(f);
             let bytes = std::fs::read(&p).unwrap();
             assert_eq!(&bytes[1..4], b"PNG", "{}", p.display());
         }
-        assert!(finite(&m["reference"]["noise"], "noise") >= 0.0);
+        let reference = m.reference.as_ref().expect("reference");
+        assert!(finite(reference.noise, "noise") >= 0.0);
+        assert_eq!(reference.spp, setup.settings.ref_spp);
     }
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(md.contains("Table 2") && md.contains("![equal time]"));
@@ -109,26 +179,27 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
 #[test]
 fn procedural_demo_uses_the_source_materials() {
     let dir = tempfile::tempdir().unwrap();
-    let mut a = DemoArgs::new(dir.path());
+    let mut a = DemoConfig::new(dir.path());
     a.quick = true;
     a.use_fixtures = true;
     a.procedural = true;
     a.no_render = true;
     demo::run(&a).unwrap();
-    let r: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
-            .unwrap();
-    let names: Vec<&str> = r["materials"]
-        .as_array()
-        .unwrap()
+    let r = read_report(dir.path());
+    assert!(r.render.is_none());
+    let names: Vec<&str> = r
+        .materials
         .iter()
         .map(|m| {
-            assert!(m["neural"].is_null());
-            for x in m["methods"].as_array().unwrap() {
-                assert!(x["kl_vs_source"].is_null());
-                assert!(x["kl_divergence"].as_f64().unwrap().is_finite());
+            assert!(m.neural.is_none());
+            assert!(m.reference.is_none() && m.figures.is_none());
+            for x in &m.methods {
+                assert!(x.kl_vs_source.is_none());
+                assert!(x.kl_divergence.is_finite());
+                assert!(x.render.is_none() && x.speedup_vs_baseline.is_none());
+                assert!(x.mass_in_disk <= 1.0 + MASS_TOLERANCE);
             }
-            m["material"].as_str().unwrap()
+            m.material.as_str()
         })
         .collect();
     assert_eq!(names, demo::DEFAULT_MATERIALS);

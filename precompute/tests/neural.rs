@@ -5,14 +5,16 @@
 
 use neusample::neural_material::{NeuralMaterial, DECODER_PARAM_COUNT};
 use neusample::DType;
+use neusample::SamplerKind;
 use neusample::{Vec2, Vec3};
+use neusample_precompute::eval::fit_report;
+use neusample_precompute::materials::neural::safetensors::{self as st, ExportDtype};
+use neusample_precompute::materials::neural::{NeuralMaterialModel, NeuralParts, DECODER_SIZES};
 use neusample_precompute::materials::{self, Material};
-use neusample_precompute::neural::safetensors::{self as st, ExportDtype};
-use neusample_precompute::neural::train::{
-    self as nt, graph_eval, verify_blob, NeuralTrainConfig, DECODER_SIZES,
+use neusample_precompute::train::neural_material::{
+    self as nt, graph_eval, verify_blob, NeuralTrainConfig,
 };
-use neusample_precompute::neural::{NeuralMaterialModel, NeuralParts};
-use neusample_precompute::train::{self, Method, TrainConfig};
+use neusample_precompute::train::{self, TrainConfig};
 use rand::{RngExt, SeedableRng};
 use safetensors::tensor::{Dtype, TensorView};
 
@@ -289,12 +291,17 @@ fn short_training_reduces_the_loss_and_loads_as_a_material() {
     );
 
     // The fit measures run and are finite.
-    let fit = nt::fit_report(source.as_ref(), m.as_ref(), 2000, 8, 32, cfg.epsilon, 3);
+    let fit = fit_report(source.as_ref(), m.as_ref(), 2000, 8, 32, cfg.epsilon, 3);
     eprintln!("quick fit: {fit:?}");
     assert!(fit.relative_rgb_error.is_finite() && fit.kl_pstar.is_finite() && fit.kl_pstar >= 0.0);
 
     // A sampler trains on the neural material unchanged (ground truth from the decoder).
-    let s = train::train(m.as_ref(), Method::Baseline, &TrainConfig::quick()).unwrap();
+    let s = train::train(
+        m.as_ref(),
+        SamplerKind::ImprovedBaseline,
+        &TrainConfig::quick(),
+    )
+    .unwrap();
     let sh = &s.loss_history;
     assert!(sh.iter().all(|v| v.is_finite()));
     eprintln!(

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use neusample_precompute::io::{atomic_write, atomic_write_with, read_blob};
+use neusample_precompute::util::io::{atomic_write, atomic_write_with, read_blob};
 
 const CHILD_ENV: &str = "NEUSAMPLE_SAFE_WRITE_CHILD";
 

@@ -8,13 +8,14 @@
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
-use neusample::{
-    AffineFlowSampler, AnalyticMixtureSampler, DirectHistogramSampler, FlowSampler,
-    HistogramMixtureSampler, ImprovedBaselineSampler, Prepared, Sampler, Vec2, Vec3,
-};
+use neusample::SamplerKind;
+use neusample::{AffineFlowSampler, FlowSampler};
+use neusample::{AnalyticMixtureSampler, ImprovedBaselineSampler};
+use neusample::{DirectHistogramSampler, HistogramMixtureSampler};
+use neusample::{Prepared, Sampler, Vec2, Vec3};
 use neusample_precompute::train::{
-    self, graph_log_pdf, model_pdf_disk, train_with, Method, SyntheticSource, TargetSource,
-    TrainConfig, Trained,
+    self, graph_log_pdf, model_pdf_disk, parse_method, train_with, SyntheticSource, TargetSource,
+    TrainConfig, Trained, METHODS,
 };
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
@@ -23,8 +24,8 @@ use rand_pcg::Pcg64;
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 /// Quick-trained models on the synthetic target, shared between tests.
-fn quick(method: Method) -> Trained {
-    static CACHE: OnceLock<Mutex<HashMap<Method, Trained>>> = OnceLock::new();
+fn quick(method: SamplerKind) -> Trained {
+    static CACHE: OnceLock<Mutex<HashMap<SamplerKind, Trained>>> = OnceLock::new();
     let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
     if let Some(t) = cache.lock().unwrap().get(&method) {
         return t.clone();
@@ -42,27 +43,27 @@ fn mean(v: &[f32]) -> f64 {
 fn core_pdf(t: &Trained, phi: &[f32; 8], wi: Vec3, p: Vec2) -> f32 {
     let w: &[f32] = &t.params;
     match t.method {
-        Method::Baseline => ImprovedBaselineSampler::new(w)
+        SamplerKind::ImprovedBaseline => ImprovedBaselineSampler::new(w)
             .expect("baseline parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
-        Method::Analytic => AnalyticMixtureSampler::new(w)
+        SamplerKind::AnalyticMixture => AnalyticMixtureSampler::new(w)
             .expect("analytic parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
-        Method::Flow => FlowSampler::new(w)
+        SamplerKind::Flow => FlowSampler::new(w)
             .expect("flow parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
-        Method::AffineFlow => AffineFlowSampler::new(w)
+        SamplerKind::AffineFlow => AffineFlowSampler::new(w)
             .expect("affine parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
-        Method::DirectHistogram => DirectHistogramSampler::new(w)
+        SamplerKind::DirectHistogram => DirectHistogramSampler::new(w)
             .expect("direct histogram parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
-        Method::HistogramMixture => {
+        SamplerKind::HistogramMixture => {
             let tables = t.tables.as_ref().expect("histogram mixture has tables");
             let b = &tables.baked;
             HistogramMixtureSampler::new(
@@ -79,17 +80,19 @@ fn core_pdf(t: &Trained, phi: &[f32; 8], wi: Vec3, p: Vec2) -> f32 {
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p))
         }
+        SamplerKind::Cosine | SamplerKind::NeuralMaterial => unreachable!("not trained"),
     }
 }
 
-fn expected_len(m: Method) -> usize {
+fn expected_len(m: SamplerKind) -> usize {
     match m {
-        Method::Baseline => ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT,
-        Method::Analytic => AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT,
-        Method::Flow => FlowSampler::<&[f32]>::PARAM_COUNT,
-        Method::AffineFlow => AffineFlowSampler::<&[f32]>::PARAM_COUNT,
-        Method::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
-        Method::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::ImprovedBaseline => ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::AnalyticMixture => AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::Flow => FlowSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::AffineFlow => AffineFlowSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::Cosine | SamplerKind::NeuralMaterial => unreachable!("not trained"),
     }
 }
 
@@ -120,12 +123,13 @@ fn rel_err(a: f64, b: f64) -> f64 {
 }
 
 /// The shared checks for one method.
-fn check(method: Method) {
-    let t = quick(method);
-    assert_eq!(t.method, method);
+fn check(kind: SamplerKind) {
+    let method = kind.name();
+    let t = quick(kind);
+    assert_eq!(t.method, kind);
     assert_eq!(
         t.params.len(),
-        expected_len(method),
+        expected_len(kind),
         "{method}: parameter count"
     );
     assert!(
@@ -135,14 +139,14 @@ fn check(method: Method) {
 
     // The loss falls.
     let h = &t.loss_history;
-    assert_eq!(h.len(), TrainConfig::quick().steps);
+    assert_eq!(h.len(), TrainConfig::quick().schedule(kind).unwrap().steps);
     let k = 20;
     let (first, last) = (mean(&h[..k]), mean(&h[h.len() - k..]));
     eprintln!(
         "{method}: loss {first:.4} → {last:.4} in {:.2} s",
         t.seconds
     );
-    if method == Method::HistogramMixture {
+    if kind == SamplerKind::HistogramMixture {
         assert!(last < 0.8 * first, "{method}: loss {first} → {last}");
     } else {
         assert!(last < first - 0.1, "{method}: loss {first} → {last}");
@@ -154,7 +158,7 @@ fn check(method: Method) {
     let (mut worst_core, mut worst_graph, mut n) = (0.0f64, 0.0f64, 0);
     for g in &gts {
         let pts = test_points(&g.target, &mut rng);
-        let graph = graph_log_pdf(method, &t.params, &g.phi, g.wi, &pts);
+        let graph = graph_log_pdf(kind, &t.params, &g.phi, g.wi, &pts);
         for (i, &p) in pts.iter().enumerate() {
             let model = f64::from(model_pdf_disk(&t, &g.phi, g.wi, p));
             let core = f64::from(core_pdf(&t, &g.phi, g.wi, p));
@@ -183,40 +187,44 @@ fn check(method: Method) {
 
 #[test]
 fn baseline_learns_and_matches_runtime() {
-    check(Method::Baseline);
+    check(SamplerKind::ImprovedBaseline);
 }
 
 #[test]
 fn analytic_learns_and_matches_runtime() {
-    check(Method::Analytic);
+    check(SamplerKind::AnalyticMixture);
 }
 
 #[test]
 fn flow_learns_and_matches_runtime() {
-    check(Method::Flow);
+    check(SamplerKind::Flow);
 }
 
 #[test]
 fn affine_flow_learns_and_matches_runtime() {
-    check(Method::AffineFlow);
+    check(SamplerKind::AffineFlow);
 }
 
 #[test]
 fn direct_histogram_learns_and_matches_runtime() {
-    check(Method::DirectHistogram);
+    check(SamplerKind::DirectHistogram);
 }
 
 #[test]
 fn histogram_mixture_learns_and_matches_runtime() {
-    check(Method::HistogramMixture);
-    let t = quick(Method::HistogramMixture);
+    check(SamplerKind::HistogramMixture);
+    let t = quick(SamplerKind::HistogramMixture);
     let tables = t.tables.as_ref().unwrap();
     tables.baked.validate().expect("baked tables validate");
     let cfg = TrainConfig::quick();
     let b = &tables.baked;
     assert_eq!(
         (b.bases, b.t_levels, b.resolution),
-        (10, cfg.hist_t_levels as u32, cfg.hist_res as u32)
+        (
+            10,
+            cfg.histogram_mixture.t_levels as u32,
+            cfg.histogram_mixture.res as u32
+        )
     );
     // The baked density integrates to ≤ 1 on the disk (boundary cells lose their part outside
     // the disk: ~10 % at N = 16) and close to 1.
@@ -241,26 +249,26 @@ fn histogram_mixture_learns_and_matches_runtime() {
 
 #[test]
 fn names_round_trip() {
-    for m in Method::ALL {
-        assert_eq!(m.to_string().parse::<Method>().unwrap(), m);
+    for m in METHODS {
+        assert_eq!(parse_method(m.name()).unwrap(), m);
     }
-    assert!("histogram".parse::<Method>().is_err());
+    assert!(parse_method("histogram").is_err());
 }
 
 #[test]
 fn training_is_reproducible() {
     let mut cfg = TrainConfig::quick();
-    cfg.steps = 30;
-    let a = train_with(&SyntheticSource, Method::Flow, &cfg).unwrap();
-    let b = train_with(&SyntheticSource, Method::Flow, &cfg).unwrap();
+    cfg.flow.schedule.steps = 30;
+    let a = train_with(&SyntheticSource, SamplerKind::Flow, &cfg).unwrap();
+    let b = train_with(&SyntheticSource, SamplerKind::Flow, &cfg).unwrap();
     assert!(a
         .params
         .iter()
         .zip(&b.params)
         .all(|(x, y)| x.to_bits() == y.to_bits()));
     assert_eq!(a.loss_history, b.loss_history);
-    cfg.seed = 2;
-    let c = train_with(&SyntheticSource, Method::Flow, &cfg).unwrap();
+    cfg.common.seed = 2;
+    let c = train_with(&SyntheticSource, SamplerKind::Flow, &cfg).unwrap();
     assert!(a.params != c.params);
 }
 
@@ -271,9 +279,9 @@ fn default_training_kl() {
     if !neusample_host_tests::full_tests() {
         return;
     }
-    let methods: Vec<Method> = match std::env::var("NEUSAMPLE_TRAIN_METHODS") {
-        Ok(s) => s.split(',').map(|m| m.parse().unwrap()).collect(),
-        Err(_) => Method::ALL.to_vec(),
+    let methods: Vec<SamplerKind> = match std::env::var("NEUSAMPLE_TRAIN_METHODS") {
+        Ok(s) => s.split(',').map(|m| parse_method(m).unwrap()).collect(),
+        Err(_) => METHODS.to_vec(),
     };
     let materials: Vec<String> = match std::env::var("NEUSAMPLE_TRAIN_MATERIALS") {
         Ok(s) => s.split(',').map(str::to_string).collect(),
@@ -287,16 +295,18 @@ fn default_training_kl() {
             None => Box::new(SyntheticSource),
         };
         for &m in &methods {
-            let mut cfg = TrainConfig::default_for(m);
+            let mut cfg = TrainConfig::default();
             if let Ok(s) = std::env::var("NEUSAMPLE_TRAIN_STEPS") {
-                cfg.steps = s.parse().unwrap();
+                cfg.schedule_mut(m).unwrap().steps = s.parse().unwrap();
             }
+            let steps = cfg.schedule(m).unwrap().steps;
             let t = train_with(source.as_ref(), m, &cfg).unwrap();
             let kl = train::mean_kl(&t, source.as_ref(), 64, 64, 12345).unwrap();
-            let ms = 1000.0 * t.seconds / cfg.steps as f64;
+            let ms = 1000.0 * t.seconds / steps as f64;
+            let m = m.name();
             eprintln!(
                 "{name:>16} {m:>18}: {} steps in {:.1} s ({ms:.1} ms/step incl. data), final loss {:.4}, KL {kl:.4}",
-                cfg.steps,
+                steps,
                 t.seconds,
                 mean(&t.loss_history[t.loss_history.len() - 50..])
             );
@@ -312,71 +322,67 @@ fn default_training_kl() {
 #[ignore]
 fn histogram_mixture_diagnostics() {
     use neusample::Interpolation;
-    use neusample_precompute::train::histogram_mixture::{bake, network_mean_kl};
+    use neusample_precompute::train::histogram_mixture::bake;
+    use neusample_precompute::train::network_mean_kl;
     let env = |k: &str| std::env::var(k).ok();
     let materials: Vec<String> = env("HM_MATERIALS")
         .unwrap_or_else(|| "goat_leather".into())
         .split(',')
         .map(str::to_string)
         .collect();
-    let mut cfg = TrainConfig::default_for(Method::HistogramMixture);
+    let mut cfg = TrainConfig::default();
+    let hm = &mut cfg.histogram_mixture;
     if let Some(v) = env("HM_STEPS") {
-        cfg.steps = v.parse().unwrap();
+        hm.schedule.steps = v.parse().unwrap();
     }
     if let Some(v) = env("HM_NLL") {
-        cfg.hist_nll_weight = v.parse().unwrap();
+        hm.nll_weight = v.parse().unwrap();
     }
     if let Some(v) = env("HM_LR") {
-        cfg.lr = v.parse().unwrap();
+        hm.schedule.lr = v.parse().unwrap();
     }
     if let Some(v) = env("HM_BATCH") {
-        cfg.hist_batch_conditions = v.parse().unwrap();
+        hm.batch_conditions = v.parse().unwrap();
     }
     if let Some(v) = env("HM_POINTS") {
-        cfg.hist_points_per_condition = v.parse().unwrap();
+        hm.points_per_condition = v.parse().unwrap();
     }
     if let Some(v) = env("HM_QUANT") {
-        cfg.hist_quant_weight = v.parse().unwrap();
+        hm.quant_weight = v.parse().unwrap();
     }
     if let Some(v) = env("HM_T") {
-        cfg.hist_t_levels = v.parse().unwrap();
+        hm.t_levels = v.parse().unwrap();
     }
     if let Some(v) = env("HM_N") {
-        cfg.hist_res = v.parse().unwrap();
+        hm.res = v.parse().unwrap();
     }
     if let Some(v) = env("HM_SS") {
-        cfg.hist_supersample = v.parse().unwrap();
+        hm.supersample = v.parse().unwrap();
     }
     if let Some(v) = env("HM_POOL") {
-        cfg.pool_conditions = v.parse().unwrap();
+        cfg.common.pool_conditions = v.parse().unwrap();
     }
     if let Some(v) = env("HM_GTRES") {
-        cfg.gt_res = v.parse().unwrap();
+        cfg.common.gt_res = v.parse().unwrap();
     }
     eprintln!("{cfg:?}");
     for name in &materials {
         let m = neusample_precompute::materials::builtin(name).unwrap();
         let source = train::MaterialSource::new(m.as_ref());
         let t0 = std::time::Instant::now();
-        let pool_only = train_with(
-            &source,
-            Method::Baseline,
-            &TrainConfig {
-                steps: 1,
-                ..cfg.clone()
-            },
-        )
-        .unwrap();
+        let mut one_step = cfg.clone();
+        one_step.baseline.schedule.steps = 1;
+        let pool_only = train_with(&source, SamplerKind::ImprovedBaseline, &one_step).unwrap();
         let t_pool = t0.elapsed().as_secs_f64();
         drop(pool_only);
-        let t = train_with(&source, Method::HistogramMixture, &cfg).unwrap();
+        let t = train_with(&source, SamplerKind::HistogramMixture, &cfg).unwrap();
         let tb = std::time::Instant::now();
         let tables = t.tables.as_ref().unwrap();
         let _ = bake(
             &tables.basis_params,
-            cfg.hist_t_levels,
-            cfg.hist_res,
-            cfg.hist_supersample,
+            cfg.histogram_mixture.t_levels,
+            cfg.histogram_mixture.res,
+            cfg.histogram_mixture.supersample,
             Interpolation::Linear,
         )
         .unwrap();

@@ -26,11 +26,10 @@ use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
 use super::check;
-use super::leather::clamp_tilt;
-use super::microfacet::{alpha_from_roughness, half_angle, ShadingFrame};
+use super::microfacet::{alpha_from_roughness, clamp_tilt, half_angle, ShadingFrame};
+use super::model::FEATURE_DIM;
 use super::noise::{fbm, gradient_of, smoothstep, unit as hunit, worley};
 use super::surface::{lerp3, signed, unit, Surface, SurfaceModel};
-use super::{File, FEATURE_DIM};
 
 /// Tangent-field pattern.
 #[derive(Copy, Clone, Debug, Deserialize, PartialEq, Eq)]
@@ -71,7 +70,6 @@ pub struct Params {
 /// An `anisotropic` material.
 #[derive(Clone, Debug)]
 pub struct Anisotropic {
-    name: String,
     p: Params,
 }
 
@@ -84,8 +82,7 @@ impl Anisotropic {
 impl SurfaceModel for Anisotropic {
     type Params = Params;
 
-    fn from_file(file: File<Params>) -> anyhow::Result<Self> {
-        let p = &file.params;
+    fn from_params(p: Params) -> anyhow::Result<Self> {
         check::count("freq", p.freq, 1, 256)?;
         check::interval("roughness_along", p.roughness_along, 0.0, 1.0)?;
         check::interval("roughness_across", p.roughness_across, 0.0, 1.0)?;
@@ -93,14 +90,7 @@ impl SurfaceModel for Anisotropic {
         check::range_n("color_b", &p.color_b, 0.0, 1.0)?;
         check::range("metallic", p.metallic, 0.0, 1.0)?;
         check::range("bump", p.bump, 0.0, 3.0)?;
-        Ok(Anisotropic {
-            name: file.name,
-            p: file.params,
-        })
-    }
-
-    fn name(&self) -> &str {
-        &self.name
+        Ok(Anisotropic { p })
     }
 
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {

@@ -27,13 +27,14 @@ use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
 use super::check;
-use super::leather::clamp_tilt;
+use super::format::File;
 use super::microfacet::{
-    alpha_from_roughness, fresnel_dielectric, ggx_dg, normalize_pair, refract_up, ShadingFrame,
+    alpha_from_roughness, clamp_tilt, fresnel_dielectric, ggx_dg, normalize_pair, refract_up,
+    ShadingFrame,
 };
-use super::noise::{fbm, hash, unit as hunit, worley};
+use super::model::{Material, FEATURE_DIM};
+use super::noise::{fbm, hash, unit as hunit, worley, wrap_uv};
 use super::surface::{lerp3, sanitize, signed, unit, Surface};
-use super::{File, Material, FEATURE_DIM};
 
 /// `[params]` of a `clearcoat` material.
 #[derive(Clone, Debug, Deserialize)]
@@ -101,7 +102,7 @@ impl Material for ClearCoat {
 
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {
         let p = &self.p;
-        let uv = super::noise::wrap_uv(uv);
+        let uv = wrap_uv(uv);
         let pat = (0.5 + 1.2 * fbm(uv, p.pattern_freq, 3, 0.5, p.seed)).clamp(0.0, 1.0);
         let wear =
             (0.5 + 1.5 * fbm(uv, p.pattern_freq * 2, 2, 0.5, p.seed ^ 0xc0a7)).clamp(0.0, 1.0);

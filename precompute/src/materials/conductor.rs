@@ -16,8 +16,8 @@ use serde::Deserialize;
 
 use super::check;
 use super::microfacet::{alpha_from_roughness, half_angle, ShadingFrame};
+use super::model::FEATURE_DIM;
 use super::surface::{signed, unit, Surface, SurfaceModel};
-use super::{File, FEATURE_DIM};
 
 /// `[params]` of a `conductor` material.
 #[derive(Clone, Debug, Deserialize)]
@@ -38,15 +38,13 @@ pub struct Params {
 /// A `conductor` material.
 #[derive(Clone, Debug)]
 pub struct Conductor {
-    name: String,
     phi: [f32; FEATURE_DIM],
 }
 
 impl SurfaceModel for Conductor {
     type Params = Params;
 
-    fn from_file(file: File<Params>) -> anyhow::Result<Self> {
-        let p = &file.params;
+    fn from_params(p: Params) -> anyhow::Result<Self> {
         check::range("roughness_x", p.roughness_x, 0.0, 1.0)?;
         let ry = p.roughness_y.unwrap_or(p.roughness_x);
         check::range("roughness_y", ry, 0.0, 1.0)?;
@@ -54,14 +52,7 @@ impl SurfaceModel for Conductor {
         check::range("tangent_deg", p.tangent_deg, -360.0, 360.0)?;
         let (s2, c2) = (2.0 * p.tangent_deg.to_radians()).sin_cos();
         let phi = [p.roughness_x, ry, p.f0[0], p.f0[1], p.f0[2], c2, s2, 0.0];
-        Ok(Conductor {
-            name: file.name,
-            phi,
-        })
-    }
-
-    fn name(&self) -> &str {
-        &self.name
+        Ok(Conductor { phi })
     }
 
     fn features(&self, _uv: Vec2) -> [f32; FEATURE_DIM] {

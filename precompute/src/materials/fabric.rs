@@ -29,13 +29,14 @@ use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
 use super::check;
+use super::format::File;
 use super::microfacet::{
     alpha_from_roughness, charlie_d, ggx_d, ggx_dg, ggx_g2, half_angle, normalize_pair, schlick1,
     sheen_visibility, ShadingFrame, LAMBERT,
 };
-use super::noise::{fbm, hash, smoothstep, unit as hunit};
+use super::model::{Material, FEATURE_DIM};
+use super::noise::{fbm, hash, smoothstep, unit as hunit, wrap_uv};
 use super::surface::{sanitize, signed, unit};
-use super::{File, Material, FEATURE_DIM};
 
 /// Weave pattern.
 #[derive(Copy, Clone, Debug, Deserialize, PartialEq, Eq)]
@@ -160,7 +161,7 @@ impl Material for Fabric {
 
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {
         let p = &self.p;
-        let uv = super::noise::wrap_uv(uv);
+        let uv = wrap_uv(uv);
         let q = uv * p.threads as f32;
         let cell = q.floor();
         let l = q - cell;

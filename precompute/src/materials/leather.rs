@@ -20,10 +20,10 @@ use glam::Vec2;
 use serde::Deserialize;
 
 use super::check;
-use super::microfacet::{alpha_from_roughness, ShadingFrame};
-use super::noise::{fbm, gradient_of, smoothstep, worley};
+use super::microfacet::{alpha_from_roughness, clamp_tilt, ShadingFrame};
+use super::model::FEATURE_DIM;
+use super::noise::{fbm, gradient_of, smoothstep, unit as hunit, worley};
 use super::surface::{lerp3, signed, unit, Surface, SurfaceModel};
-use super::{File, FEATURE_DIM};
 
 /// `[params]` of a `normal_mapped` material.
 #[derive(Clone, Debug, Deserialize)]
@@ -59,7 +59,6 @@ pub struct Params {
 /// A `normal_mapped` material.
 #[derive(Clone, Debug)]
 pub struct Leather {
-    name: String,
     p: Params,
 }
 
@@ -78,8 +77,7 @@ impl Leather {
 impl SurfaceModel for Leather {
     type Params = Params;
 
-    fn from_file(file: File<Params>) -> anyhow::Result<Self> {
-        let p = &file.params;
+    fn from_params(p: Params) -> anyhow::Result<Self> {
         check::count("grain_cells", p.grain_cells, 1, 256)?;
         check::range("grain_depth", p.grain_depth, 0.0, 3.0)?;
         check::count("wrinkle_freq", p.wrinkle_freq, 1, 256)?;
@@ -91,14 +89,7 @@ impl SurfaceModel for Leather {
         check::range("roughness_top", p.roughness_top, 0.0, 1.0)?;
         check::range("roughness_crease", p.roughness_crease, 0.0, 1.0)?;
         check::range("specular", p.specular, 0.0, 1.0)?;
-        Ok(Leather {
-            name: file.name,
-            p: file.params,
-        })
-    }
-
-    fn name(&self) -> &str {
-        &self.name
+        Ok(Leather { p })
     }
 
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {
@@ -108,7 +99,7 @@ impl SurfaceModel for Leather {
         let n = glam::Vec3::new(-g.x, -g.y, 1.0).normalize();
         let w = worley(uv, p.grain_cells, 0.9, p.seed);
         let crease = 1.0 - smoothstep(0.0, 0.35, w.f2 - w.f1);
-        let jitter = 1.0 + p.color_jitter * (super::noise::unit(w.id) - 0.5);
+        let jitter = 1.0 + p.color_jitter * (hunit(w.id) - 0.5);
         let albedo =
             lerp3(p.color_top, p.color_crease, crease).map(|c| (c * jitter).clamp(0.0, 1.0));
         let r = p.roughness_top + (p.roughness_crease - p.roughness_top) * crease;
@@ -126,18 +117,5 @@ impl SurfaceModel for Leather {
         s.frame = ShadingFrame::new(signed(phi[0]), signed(phi[1]), 1.0, 0.0);
         s.scale = unit(phi[7]);
         s
-    }
-}
-
-/// Clamps a normal's `(x, y)` to length [`super::microfacet::MAX_TILT_XY`] (so φ holds exactly
-/// what the decoder uses).
-#[must_use]
-pub fn clamp_tilt(x: f32, y: f32) -> (f32, f32) {
-    let m = super::microfacet::MAX_TILT_XY;
-    let l = (x * x + y * y).sqrt();
-    if l > m {
-        (x * m / l, y * m / l)
-    } else {
-        (x, y)
     }
 }

@@ -19,11 +19,10 @@ use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
 use super::check;
-use super::leather::clamp_tilt;
-use super::microfacet::{alpha_from_roughness, ShadingFrame};
+use super::microfacet::{alpha_from_roughness, clamp_tilt, ShadingFrame};
+use super::model::FEATURE_DIM;
 use super::noise::{fbm, gradient_of, smoothstep, turbulence};
 use super::surface::{lerp3, signed, unit, Surface, SurfaceModel};
-use super::{File, FEATURE_DIM};
 
 /// `[params]` of a `marble` material.
 #[derive(Clone, Debug, Deserialize)]
@@ -60,7 +59,6 @@ pub struct Params {
 /// A `marble` material.
 #[derive(Clone, Debug)]
 pub struct Marble {
-    name: String,
     p: Params,
 }
 
@@ -78,8 +76,7 @@ impl Marble {
 impl SurfaceModel for Marble {
     type Params = Params;
 
-    fn from_file(file: File<Params>) -> anyhow::Result<Self> {
-        let p = &file.params;
+    fn from_params(p: Params) -> anyhow::Result<Self> {
         check::count("vein_freq", p.vein_freq, 1, 64)?;
         check::count("turbulence_freq", p.turbulence_freq, 1, 64)?;
         check::range("turbulence", p.turbulence, 0.0, 8.0)?;
@@ -92,14 +89,7 @@ impl SurfaceModel for Marble {
         check::range("haze_vein", p.haze_vein, 0.0, 1.0)?;
         check::range("specular", p.specular, 0.0, 1.0)?;
         check::range("bump", p.bump, 0.0, 1.0)?;
-        Ok(Marble {
-            name: file.name,
-            p: file.params,
-        })
-    }
-
-    fn name(&self) -> &str {
-        &self.name
+        Ok(Marble { p })
     }
 
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {

@@ -255,6 +255,19 @@ impl ShadingFrame {
 /// Largest `|(nx, ny)|` of a shading normal (tilt ≈ 64°).
 pub const MAX_TILT_XY: f32 = 0.9;
 
+/// Clamps a normal's `(x, y)` to length [`MAX_TILT_XY`] (so φ holds exactly what the
+/// decoder uses; the models write their normal maps into φ through it).
+#[must_use]
+pub fn clamp_tilt(x: f32, y: f32) -> (f32, f32) {
+    let m = MAX_TILT_XY;
+    let l = (x * x + y * y).sqrt();
+    if l > m {
+        (x * m / l, y * m / l)
+    } else {
+        (x, y)
+    }
+}
+
 /// Unit vectors for `wi`, `wo`, or `None` when either is at or below the horizon or not finite.
 #[inline]
 #[must_use]

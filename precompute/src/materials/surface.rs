@@ -17,18 +17,23 @@
 //! stays ≤ 1 for `ρ_d ≤ 1` (checked numerically in `tests/materials.rs`).
 //!
 //! A model is a [`SurfaceModel`]: a procedural feature texture plus a decoder from φ to a
-//! [`Surface`]; [`Textured`] turns it into a [`super::Material`].
+//! [`Surface`]; [`Textured`] turns it into a [`Material`].
 
 use glam::{Vec2, Vec3};
 use serde::de::DeserializeOwned;
 
-use super::microfacet::{ggx_dg, normalize_pair, schlick, schlick1, ShadingFrame, LAMBERT};
+use super::format::File;
+use super::microfacet::{
+    alpha_from_roughness, ggx_dg, normalize_pair, schlick, schlick1, ShadingFrame, ALPHA_MIN,
+    LAMBERT,
+};
+use super::model::{Material, FEATURE_DIM};
+use super::noise::wrap_uv;
 
 /// Floor β of the diffuse normal-mapping factor `d(w) = β + (1 − β)·max(cos_s θ, 0)/M`, so
 /// that a texel whose shading normal faces away from `wi` is dark but never black (a
 /// normal-mapped texel with `f ≡ 0` would have no target density).
 pub const DIFFUSE_FLOOR: f32 = 0.1;
-use super::{File, Material, FEATURE_DIM};
 
 /// A decoded texel of the standard surface.
 #[derive(Copy, Clone, Debug)]
@@ -122,12 +127,9 @@ impl Surface {
 #[inline]
 #[must_use]
 pub fn aniso_alphas(roughness: f32, anisotropy: f32) -> (f32, f32) {
-    let a = super::microfacet::alpha_from_roughness(roughness);
+    let a = alpha_from_roughness(roughness);
     let aspect = (1.0 - 0.9 * anisotropy.clamp(0.0, 1.0)).sqrt();
-    (
-        (a * aspect).max(super::microfacet::ALPHA_MIN),
-        (a / aspect).min(1.0),
-    )
+    ((a * aspect).max(ALPHA_MIN), (a / aspect).min(1.0))
 }
 
 /// `x` clamped to `[0, 1]` (NaN → 0).
@@ -167,24 +169,34 @@ pub fn lerp3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
 pub trait SurfaceModel: Sized + Send + Sync {
     /// The `[params]` table of the model's material files.
     type Params: DeserializeOwned;
-    /// Validates a parsed file (errors name `params.<field>`).
-    fn from_file(file: File<Self::Params>) -> anyhow::Result<Self>;
-    /// Material name.
-    fn name(&self) -> &str;
+    /// Validates the parameters (errors name `params.<field>`).
+    fn from_params(params: Self::Params) -> anyhow::Result<Self>;
     /// φ(uv), `uv` already wrapped into `[0, 1)²`.
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM];
     /// The surface a φ describes (must accept any finite φ; clamps out-of-range values).
     fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface;
 }
 
-/// A [`SurfaceModel`] as a [`Material`].
+/// A named [`SurfaceModel`] as a [`Material`].
 #[derive(Clone, Debug)]
-pub struct Textured<M>(pub M);
+pub struct Textured<M> {
+    name: String,
+    model: M,
+}
 
 impl<M: SurfaceModel> Textured<M> {
     /// Builds the material from a parsed file.
     pub fn new(file: File<M::Params>) -> anyhow::Result<Self> {
-        Ok(Textured(M::from_file(file)?))
+        Ok(Textured {
+            name: file.name,
+            model: M::from_params(file.params)?,
+        })
+    }
+
+    /// The model.
+    #[must_use]
+    pub fn model(&self) -> &M {
+        &self.model
     }
 }
 
@@ -198,12 +210,12 @@ pub fn sanitize(rgb: [f32; 3]) -> [f32; 3] {
 
 impl<M: SurfaceModel> Material for Textured<M> {
     fn name(&self) -> &str {
-        self.0.name()
+        &self.name
     }
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {
-        self.0.features(super::noise::wrap_uv(uv))
+        self.model.features(wrap_uv(uv))
     }
     fn eval(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> [f32; 3] {
-        sanitize(self.0.decode(phi).eval(wi, wo))
+        sanitize(self.model.decode(phi).eval(wi, wo))
     }
 }

@@ -37,10 +37,11 @@ use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
 use super::check;
+use super::format::{File, SideFiles};
 use super::microfacet::normalize_pair;
-use super::noise::fbm;
+use super::model::{luminance, Material, FEATURE_DIM};
+use super::noise::{fbm, wrap_uv};
 use super::surface::{sanitize, unit};
-use super::{File, Material, SideFiles, FEATURE_DIM};
 
 /// Magic bytes of a `.nstab` file.
 pub const MAGIC: [u8; 8] = *b"NSTAB\x01\0\0";
@@ -93,7 +94,7 @@ impl Table {
                         [0.0; 3]
                     };
                     if channels == 1 {
-                        values.push(super::luminance(v));
+                        values.push(luminance(v));
                     } else {
                         values.extend_from_slice(&v);
                     }
@@ -269,7 +270,7 @@ impl Material for Tabulated {
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {
         let [g0, g1] = self.p.gain;
         let g = if g1 > g0 {
-            let uv = super::noise::wrap_uv(uv);
+            let uv = wrap_uv(uv);
             let t = (0.5 + 1.5 * fbm(uv, 4, 4, 0.5, self.p.seed)).clamp(0.0, 1.0);
             g0 + (g1 - g0) * t
         } else {

@@ -21,11 +21,10 @@ use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
 use super::check;
-use super::leather::clamp_tilt;
-use super::microfacet::ShadingFrame;
+use super::microfacet::{clamp_tilt, ShadingFrame};
+use super::model::FEATURE_DIM;
 use super::noise::{fbm, hash, smoothstep};
 use super::surface::{aniso_alphas, lerp3, signed, unit, Surface, SurfaceModel};
-use super::{File, FEATURE_DIM};
 
 /// One tile material.
 #[derive(Clone, Debug, Deserialize)]
@@ -68,7 +67,6 @@ pub struct Params {
 /// A `tiles` material.
 #[derive(Clone, Debug)]
 pub struct Tiles {
-    name: String,
     p: Params,
 }
 
@@ -85,8 +83,7 @@ fn check_kind(field: &str, k: &Kind) -> anyhow::Result<()> {
 impl SurfaceModel for Tiles {
     type Params = Params;
 
-    fn from_file(file: File<Params>) -> anyhow::Result<Self> {
-        let p = &file.params;
+    fn from_params(p: Params) -> anyhow::Result<Self> {
         check::count("tiles", p.tiles, 1, 64)?;
         check::range("grout_width", p.grout_width, 0.0, 0.3)?;
         check::range("bevel_width", p.bevel_width, 0.0, 0.3)?;
@@ -96,14 +93,7 @@ impl SurfaceModel for Tiles {
         for (i, k) in p.kinds.iter().enumerate() {
             check_kind(&format!("kinds[{i}]"), k)?;
         }
-        Ok(Tiles {
-            name: file.name,
-            p: file.params,
-        })
-    }
-
-    fn name(&self) -> &str {
-        &self.name
+        Ok(Tiles { p })
     }
 
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {

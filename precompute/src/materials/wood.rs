@@ -18,9 +18,9 @@ use serde::Deserialize;
 
 use super::check;
 use super::microfacet::{half_angle, ShadingFrame};
+use super::model::FEATURE_DIM;
 use super::noise::{fbm, gradient, gradient_of, smoothstep};
 use super::surface::{aniso_alphas, lerp3, signed, unit, Surface, SurfaceModel};
-use super::{File, FEATURE_DIM};
 
 /// `[params]` of a `wood` material.
 #[derive(Clone, Debug, Deserialize)]
@@ -47,7 +47,6 @@ pub struct Params {
 /// A `wood` material.
 #[derive(Clone, Debug)]
 pub struct Wood {
-    name: String,
     p: Params,
 }
 
@@ -63,8 +62,7 @@ impl Wood {
 impl SurfaceModel for Wood {
     type Params = Params;
 
-    fn from_file(file: File<Params>) -> anyhow::Result<Self> {
-        let p = &file.params;
+    fn from_params(p: Params) -> anyhow::Result<Self> {
         check::count("rings", p.rings, 1, 128)?;
         check::range("distortion", p.distortion, 0.0, 8.0)?;
         check::range_n("color_early", &p.color_early, 0.0, 1.0)?;
@@ -72,14 +70,7 @@ impl SurfaceModel for Wood {
         check::interval("roughness", p.roughness, 0.0, 1.0)?;
         check::range("anisotropy", p.anisotropy, 0.0, 1.0)?;
         check::range("specular", p.specular, 0.0, 1.0)?;
-        Ok(Wood {
-            name: file.name,
-            p: file.params,
-        })
-    }
-
-    fn name(&self) -> &str {
-        &self.name
+        Ok(Wood { p })
     }
 
     fn features(&self, uv: Vec2) -> [f32; FEATURE_DIM] {

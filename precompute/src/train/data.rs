@@ -1,150 +1,24 @@
-//! Training data: conditions with their ground-truth target densities p*(ω⊥ | φ, wi), a
-//! pool of them refreshed during training, and the per-step batches drawn from the pool.
-//!
-//! The trainer draws conditions through [`TargetSource`], so that it runs on a material
-//! ([`super::MaterialSource`], through `crate::groundtruth`) and on the synthetic target of
-//! this module ([`SyntheticSource`], a closed-form conditional mixture tabulated the same
-//! way, used by the tests and for quick experiments).
+//! Training data: a pool of ground-truth conditions refreshed during training, the per-step
+//! batches drawn from it, and the loop that feeds them to the optimiser.
 //!
 //! Every random number is drawn from a PCG stream seeded by `(seed, step, index)`, so a batch
 //! does not depend on how rayon schedules its construction.
 
+use burn::module::Module;
+use burn::tensor::{Device, Tensor};
 use glam::{Vec2, Vec3};
 use neusample::nn::{check_condition, encode_condition, raw_condition};
 use neusample::nn::{CONDITION_DIM, RAW_CONDITION_DIM};
 use neusample::FEATURE_DIM;
-use rand::{RngExt, SeedableRng};
+use rand::RngExt;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
+use super::config::{Common, Schedule};
+use super::source::{GtCondition, TargetSource};
 use crate::groundtruth::TargetPdf;
-
-/// One training condition (φ, wi) with its target density.
-pub struct GtCondition {
-    /// Material features φ at the condition's texel.
-    pub phi: [f32; FEATURE_DIM],
-    /// Incoming direction (local frame, unit length, above the horizon).
-    pub wi: Vec3,
-    /// p*(ω⊥ | φ, wi), tabulated.
-    pub target: TargetPdf,
-}
-
-/// A source of training conditions, deterministic in its seed.
-pub trait TargetSource: Sync {
-    /// `n` random conditions with their targets tabulated at `res × res`, a pure function
-    /// of `(n, res, seed)`.
-    fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>>;
-}
-
-/// SplitMix64 finaliser: decorrelates seeds built from small integers.
-#[must_use]
-pub fn mix_seed(a: u64, b: u64) -> u64 {
-    let mut z = a
-        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        .wrapping_add(b)
-        .wrapping_add(0x632B_E59B_D9B4_E019);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// A PCG stream for `(seed, a, b)`.
-#[must_use]
-pub fn rng_for(seed: u64, a: u64, b: u64) -> Pcg64 {
-    Pcg64::seed_from_u64(mix_seed(mix_seed(seed, a), b))
-}
-
-// ---------------------------------------------------------------------------------------
-// Synthetic conditional target
-// ---------------------------------------------------------------------------------------
-
-/// A closed-form conditional target for tests: a Lambert floor plus two anisotropic
-/// Gaussian lobes on the disk whose centres, widths and weights depend smoothly on φ and wi
-/// (the main lobe follows the mirror direction `−wi⊥`, shifted by φ like a normal map).
-///
-/// φ is uniform in `[−1, 1]⁸`; wi is cosine-distributed with `|wi⊥| < 0.9`.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct SyntheticSource;
-
-fn sigmoid(x: f32) -> f32 {
-    1.0 / (1.0 + (-x).exp())
-}
-
-impl SyntheticSource {
-    /// The unnormalised target f(p | φ, wi).
-    #[must_use]
-    pub fn density(phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f32 {
-        let m1 = Vec2::new(-wi.x, -wi.y) + 0.3 * Vec2::new(phi[0], phi[1]);
-        let s1 = Vec2::new(
-            0.04 + 0.2 * sigmoid(2.0 * phi[2]),
-            0.04 + 0.2 * sigmoid(2.0 * phi[3]),
-        );
-        let m2 = 0.5 * Vec2::new(phi[5], phi[6]);
-        let s2 = 0.15 + 0.1 * sigmoid(phi[7]);
-        let w2 = 0.4 * sigmoid(3.0 * phi[4]);
-        let floor = 0.05 + 0.1 * sigmoid(2.0 * phi[7]);
-        let g = |m: Vec2, s: Vec2| {
-            let d = (p - m) / s;
-            (-0.5 * d.length_squared()).exp() / (std::f32::consts::TAU * s.x * s.y)
-        };
-        floor / std::f32::consts::PI + g(m1, s1) + w2 * g(m2, Vec2::splat(s2))
-    }
-
-    /// One random condition from `rng`.
-    pub fn condition(rng: &mut Pcg64) -> ([f32; FEATURE_DIM], Vec3) {
-        let mut phi = [0.0f32; FEATURE_DIM];
-        for v in &mut phi {
-            *v = rng.random_range(-1.0f32..1.0);
-        }
-        let wi = loop {
-            let x = rng.random_range(-1.0f32..1.0);
-            let y = rng.random_range(-1.0f32..1.0);
-            let r2 = x * x + y * y;
-            if r2 < 0.81 {
-                break Vec3::new(x, y, (1.0 - r2).sqrt());
-            }
-        };
-        (phi, wi)
-    }
-}
-
-impl TargetSource for SyntheticSource {
-    fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>> {
-        Ok((0..n)
-            .into_par_iter()
-            .map(|i| {
-                let mut rng = rng_for(seed, 0x5e17, i as u64);
-                let (phi, wi) = Self::condition(&mut rng);
-                let h = 2.0 / res as f32;
-                let mut values = vec![0.0f32; res * res];
-                for r in 0..res {
-                    for c in 0..res {
-                        let mut acc = 0.0;
-                        for i in 0..2 {
-                            for j in 0..2 {
-                                let p = Vec2::new(
-                                    -1.0 + h * (c as f32 + 0.25 + 0.5 * j as f32),
-                                    -1.0 + h * (r as f32 + 0.25 + 0.5 * i as f32),
-                                );
-                                acc += 0.25 * Self::density(&phi, wi, p);
-                            }
-                        }
-                        values[r * res + c] = acc;
-                    }
-                }
-                GtCondition {
-                    phi,
-                    wi,
-                    target: TargetPdf::from_values(res, values),
-                }
-            })
-            .collect())
-    }
-}
-
-// ---------------------------------------------------------------------------------------
-// Pool and batches
-// ---------------------------------------------------------------------------------------
+use crate::nn::{optimise, tensor2, train_device, OptimSettings};
+use crate::util::rng::{mix_seed, rng_for};
 
 /// The conditions training draws its batches from. A quarter of the pool is replaced by
 /// fresh conditions every `refresh_every` steps, so long runs see many more conditions than
@@ -242,6 +116,42 @@ pub struct HostBatch {
     pub target: Vec<f32>,
 }
 
+impl HostBatch {
+    /// One condition `(φ, wi)` (`wi` already checked) with `points` and no targets: the
+    /// training graph evaluated at chosen points.
+    #[must_use]
+    pub fn single(phi: &[f32; FEATURE_DIM], wi: Vec3, points: &[Vec2]) -> HostBatch {
+        HostBatch {
+            b: 1,
+            s: points.len(),
+            cond: encode_condition(phi, wi).to_vec(),
+            raw: raw_condition(phi, wi).to_vec(),
+            x: points.iter().map(|p| p.x).collect(),
+            y: points.iter().map(|p| p.y).collect(),
+            target: Vec::new(),
+        }
+    }
+}
+
+/// The encoded condition of the lobe, flow and direct-histogram networks in f64 (for the
+/// f64 mirrors of trained models).
+#[must_use]
+pub fn encoded_condition_f64(phi: &[f32; FEATURE_DIM], wi: Vec3) -> Vec<f64> {
+    encode_condition(phi, wi)
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect()
+}
+
+/// The raw condition of the histogram networks in f64.
+#[must_use]
+pub fn raw_condition_f64(phi: &[f32; FEATURE_DIM], wi: Vec3) -> Vec<f64> {
+    raw_condition(phi, wi)
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect()
+}
+
 /// A uniform point on the open unit disk.
 fn uniform_disk(rng: &mut Pcg64) -> Vec2 {
     loop {
@@ -324,4 +234,80 @@ pub fn make_batch(
         out.target.extend(ts);
     }
     out
+}
+
+/// A batch on the training device.
+pub struct Batch {
+    /// Number of conditions.
+    pub b: usize,
+    /// Points per condition.
+    pub s: usize,
+    /// Encoded conditions `[b, 30]`.
+    pub cond: Tensor<2>,
+    /// Raw conditions `[b, 10]`.
+    pub raw: Tensor<2>,
+    /// Point coordinates `[b, s]`.
+    pub x: Tensor<2>,
+    /// Point coordinates `[b, s]`.
+    pub y: Tensor<2>,
+    /// p* at the points `[b, s]` (regression batches only).
+    pub target: Option<Tensor<2>>,
+    /// The host copy (for index computations done on the CPU).
+    pub host: HostBatch,
+}
+
+impl Batch {
+    /// Uploads a host batch to `device`.
+    pub fn upload(host: HostBatch, device: &Device) -> Self {
+        let (b, s) = (host.b, host.s);
+        let cond = tensor2(host.cond.clone(), b, CONDITION_DIM, device);
+        let raw = tensor2(host.raw.clone(), b, RAW_CONDITION_DIM, device);
+        let x = tensor2(host.x.clone(), b, s, device);
+        let y = tensor2(host.y.clone(), b, s, device);
+        let target = if host.target.is_empty() {
+            None
+        } else {
+            Some(tensor2(host.target.clone(), b, s, device))
+        };
+        Batch {
+            b,
+            s,
+            cond,
+            raw,
+            x,
+            y,
+            target,
+            host,
+        }
+    }
+}
+
+/// Minimises `loss` over the schedule's steps with the optimiser of [`crate::nn::optimise`];
+/// step `s` trains on the batch of step `s` (`batch.0` pool conditions × `batch.1` points of
+/// `kind`), refreshing the pool first when due. Returns the model and the loss of every step.
+pub fn fit<M: Module>(
+    model: M,
+    name: &str,
+    common: &Common,
+    schedule: &Schedule,
+    pool: &mut Pool<'_>,
+    kind: PointKind,
+    batch: (usize, usize),
+    loss: impl Fn(&M, &Batch) -> Tensor<1>,
+) -> anyhow::Result<(M, Vec<f32>)> {
+    let device = train_device();
+    let settings = OptimSettings {
+        name: name.to_string(),
+        steps: schedule.steps,
+        lr: schedule.lr,
+        weight_decay: common.weight_decay,
+        grad_clip: common.grad_clip,
+        progress: common.progress,
+        report_every: 10,
+    };
+    optimise(model, &settings, |m, step| {
+        pool.maybe_refresh(step)?;
+        let host = make_batch(pool, batch.0, batch.1, kind, common.seed, step);
+        Ok(loss(m, &Batch::upload(host, &device)))
+    })
 }

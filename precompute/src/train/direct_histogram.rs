@@ -11,13 +11,14 @@ use burn::tensor::activation;
 use burn::tensor::{Int, Tensor, TensorData};
 use glam::{Vec2, Vec3};
 use neusample::distrib::table2d::cell_outside_disk;
-use neusample::nn::{encode_condition, CONDITION_DIM};
+use neusample::nn::CONDITION_DIM;
 use neusample::samplers::direct_histogram::DIRECT_N;
 use neusample::FEATURE_DIM;
 
-use super::data::{mix_seed, rng_for, PointKind, Pool};
-use super::nn::{self, fit, mlp_f64, softmax_f64, tensor2, Act, Batch, Mlp};
-use super::TrainConfig;
+use super::config::{Common, MaxLikelihood};
+use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
+use crate::nn::{mlp_f64, softmax_f64, tensor2, train_device, Activation, Mlp};
+use crate::util::rng::{mix_seed, rng_for};
 
 /// Grid resolution (cells per side).
 pub const GRID: usize = DIRECT_N;
@@ -60,7 +61,7 @@ fn log_pdf(net: &Mlp, batch: &Batch) -> Tensor<2> {
         .collect();
     let mask = tensor2(mask, 1, GRID * GRID, &device);
     let ln_area = (2.0f32 / GRID as f32).powi(2).ln();
-    let logits = net.forward(batch.cond.clone(), Act::Relu) + mask;
+    let logits = net.forward(batch.cond.clone(), Activation::Relu) + mask;
     let logp = activation::log_softmax(logits, 1);
     let idx: Vec<i64> = batch
         .host
@@ -79,16 +80,21 @@ pub fn graph_log_pdf(params: &[f32], batch: &Batch) -> Tensor<2> {
 }
 
 /// Trains the direct histogram; returns `(params, loss history)`.
-pub fn train(pool: &mut Pool<'_>, cfg: &TrainConfig) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
-    let device = nn::train_device();
-    let mut rng = rng_for(mix_seed(cfg.seed, 0xd1e), 0, 0);
+pub fn train(
+    pool: &mut Pool<'_>,
+    common: &Common,
+    cfg: &MaxLikelihood,
+) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+    let device = train_device();
+    let mut rng = rng_for(mix_seed(common.seed, 0xd1e), 0, 0);
     let model = DirectHistogram {
         net: Mlp::new(&SIZES, 0.1, &mut rng, &device),
     };
     let (model, history) = fit(
         model,
         "direct-histogram",
-        cfg,
+        common,
+        &cfg.schedule,
         pool,
         PointKind::FromTarget,
         (cfg.batch_conditions, cfg.samples_per_condition),
@@ -106,12 +112,9 @@ pub fn pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let c: Vec<f64> = encode_condition(phi, wi)
-        .iter()
-        .map(|&v| f64::from(v))
-        .collect();
+    let c = encoded_condition_f64(phi, wi);
     let mut at = 0;
-    let o = mlp_f64(params, &mut at, &SIZES, Act::Relu, &c);
+    let o = mlp_f64(params, &mut at, &SIZES, Activation::Relu, &c);
     let open: Vec<usize> = (0..GRID * GRID)
         .filter(|&i| !masked(i / GRID, i % GRID))
         .collect();

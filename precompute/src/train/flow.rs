@@ -15,7 +15,7 @@ use burn::module::Module;
 use burn::tensor::Tensor;
 use glam::{Vec2, Vec3};
 use neusample::distrib::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
-use neusample::nn::{encode_condition, CONDITION_DIM};
+use neusample::nn::CONDITION_DIM;
 use neusample::samplers::affine_flow::{
     AFFINE_LAYERS, AFFINE_NET_LEN, AFFINE_OUTPUTS, AFFINE_SCALE_BOUND,
 };
@@ -25,10 +25,11 @@ use neusample::samplers::spline_flow::{
 };
 use neusample::FEATURE_DIM;
 
-use super::data::{mix_seed, rng_for, PointKind, Pool};
-use super::nn::{self, encode, encode_f64, fit, mlp_f64, Act, Batch, Mlp};
+use super::config::{Common, MaxLikelihood};
+use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
 use super::spline::{rq_forward, rq_forward_f64};
-use super::TrainConfig;
+use crate::nn::{self, encode, encode_f64, mlp_f64, train_device, Activation, Mlp};
+use crate::util::rng::{mix_seed, rng_for};
 
 const LN_TWO_PI: f32 = 1.837_877_1;
 
@@ -49,7 +50,7 @@ const _: () = {
 /// Runs a coupling network on `[b·s]` points: the condition part of the first layer from
 /// `cond` `[b, 30]`, broadcast over the `s` points, plus the encoded other coordinate
 /// `other` `[b, s]`. Returns the raw outputs `[b·s, O]`.
-fn coupling(net: &Mlp, cond: &Tensor<2>, other: Tensor<2>, act: Act) -> Tensor<2> {
+fn coupling(net: &Mlp, cond: &Tensor<2>, other: Tensor<2>, act: Activation) -> Tensor<2> {
     let [b, s] = other.dims();
     let share = cond.clone().matmul(net.first_weight_rows(0, CONDITION_DIM)) + net.first_bias();
     let e = encode(other.reshape([b * s, 1]), OTHER_BANDS);
@@ -83,7 +84,12 @@ impl SplineFlow {
     /// Per-point log density `[b, s]`.
     pub fn log_pdf(&self, batch: &Batch) -> Tensor<2> {
         let (b, s) = (batch.b, batch.s);
-        let raw1 = coupling(&self.c1, &batch.cond, batch.x.clone(), Act::Leaky);
+        let raw1 = coupling(
+            &self.c1,
+            &batch.cond,
+            batch.x.clone(),
+            Activation::LeakyRelu,
+        );
         let (yl, ld1) = rq_forward(
             batch.y.clone().reshape([b * s, 1]),
             raw1,
@@ -91,7 +97,7 @@ impl SplineFlow {
             TAIL_BOUND,
         );
         let yl = yl.reshape([b, s]);
-        let raw0 = coupling(&self.c0, &batch.cond, yl.clone(), Act::Leaky);
+        let raw0 = coupling(&self.c0, &batch.cond, yl.clone(), Activation::LeakyRelu);
         let (xl, ld0) = rq_forward(
             batch.x.clone().reshape([b * s, 1]),
             raw0,
@@ -99,7 +105,7 @@ impl SplineFlow {
             TAIL_BOUND,
         );
         let xl = xl.reshape([b, s]);
-        let o = self.base.forward(batch.cond.clone(), Act::Relu);
+        let o = self.base.forward(batch.cond.clone(), Activation::Relu);
         let mx = o.clone().narrow(1, 0, 1);
         let my = o.clone().narrow(1, 1, 1);
         let lsx = nn::clamp_log_sigma(o.clone().narrow(1, 2, 1));
@@ -136,7 +142,7 @@ impl AffineFlow {
         let mut ld: Option<Tensor<2>> = None;
         for (l, net) in self.nets.iter().enumerate() {
             let other = if l % 2 == 0 { y.clone() } else { x.clone() };
-            let o = coupling(net, &batch.cond, other, Act::Relu);
+            let o = coupling(net, &batch.cond, other, Activation::Relu);
             let sc = (o.clone().narrow(1, 0, 1) / AFFINE_SCALE_BOUND).tanh() * AFFINE_SCALE_BOUND;
             let sc = sc.reshape([b, s]);
             let t = o.narrow(1, 1, 1).reshape([b, s]);
@@ -161,10 +167,11 @@ impl AffineFlow {
 /// Trains the RQ-spline flow; returns `(params, loss history)`.
 pub fn train_spline(
     pool: &mut Pool<'_>,
-    cfg: &TrainConfig,
+    common: &Common,
+    cfg: &MaxLikelihood,
 ) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
-    let device = nn::train_device();
-    let mut rng = rng_for(mix_seed(cfg.seed, 0xf10e), 0, 0);
+    let device = train_device();
+    let mut rng = rng_for(mix_seed(common.seed, 0xf10e), 0, 0);
     // Small output layers start the couplings near a uniform spline and the base near N(0, I).
     let model = SplineFlow {
         base: Mlp::new(&BASE_SIZES, 0.1, &mut rng, &device),
@@ -174,7 +181,8 @@ pub fn train_spline(
     let (model, history) = fit(
         model,
         "flow",
-        cfg,
+        common,
+        &cfg.schedule,
         pool,
         PointKind::FromTarget,
         (cfg.batch_conditions, cfg.samples_per_condition),
@@ -190,10 +198,11 @@ pub fn train_spline(
 /// Trains the affine-coupling flow; returns `(params, loss history)`.
 pub fn train_affine(
     pool: &mut Pool<'_>,
-    cfg: &TrainConfig,
+    common: &Common,
+    cfg: &MaxLikelihood,
 ) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
-    let device = nn::train_device();
-    let mut rng = rng_for(mix_seed(cfg.seed, 0xaff1), 0, 0);
+    let device = train_device();
+    let mut rng = rng_for(mix_seed(common.seed, 0xaff1), 0, 0);
     let model = AffineFlow {
         nets: (0..AFFINE_LAYERS)
             .map(|_| Mlp::new(&AFFINE_NET_SIZES, 0.1, &mut rng, &device))
@@ -202,7 +211,8 @@ pub fn train_affine(
     let (model, history) = fit(
         model,
         "affine-flow",
-        cfg,
+        common,
+        &cfg.schedule,
         pool,
         PointKind::FromTarget,
         (cfg.batch_conditions, cfg.samples_per_condition),
@@ -215,23 +225,16 @@ pub fn train_affine(
     Ok((params, history))
 }
 
-fn coupling_f64(params: &[f32], offset: usize, c: &[f64], other: f64, act: Act) -> Vec<f64> {
+fn coupling_f64(params: &[f32], offset: usize, c: &[f64], other: f64, act: Activation) -> Vec<f64> {
     let mut input = c.to_vec();
     encode_f64(other, OTHER_BANDS, &mut input);
     let mut at = offset;
-    let sizes = if act == Act::Leaky {
+    let sizes = if act == Activation::LeakyRelu {
         &SPLINE_NET_SIZES
     } else {
         &AFFINE_NET_SIZES
     };
     mlp_f64(params, &mut at, sizes, act, &input)
-}
-
-fn condition_f64(phi: &[f32; FEATURE_DIM], wi: Vec3) -> Vec<f64> {
-    encode_condition(phi, wi)
-        .iter()
-        .map(|&v| f64::from(v))
-        .collect()
 }
 
 /// Density (projected-disk area measure) of a trained RQ-spline flow at `p`, in f64 from the
@@ -241,15 +244,15 @@ pub fn spline_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let c = condition_f64(phi, wi);
+    let c = encoded_condition_f64(phi, wi);
     let (x, y) = (f64::from(p.x), f64::from(p.y));
     let bound = f64::from(TAIL_BOUND);
-    let raw1 = coupling_f64(params, FLOW_COUPLING1, &c, x, Act::Leaky);
+    let raw1 = coupling_f64(params, FLOW_COUPLING1, &c, x, Activation::LeakyRelu);
     let (yl, ld1) = rq_forward_f64(y, &raw1, SPLINE_BINS, bound);
-    let raw0 = coupling_f64(params, FLOW_COUPLING0, &c, yl, Act::Leaky);
+    let raw0 = coupling_f64(params, FLOW_COUPLING0, &c, yl, Activation::LeakyRelu);
     let (xl, ld0) = rq_forward_f64(x, &raw0, SPLINE_BINS, bound);
     let mut at = 0;
-    let o = mlp_f64(params, &mut at, &BASE_SIZES, Act::Relu, &c);
+    let o = mlp_f64(params, &mut at, &BASE_SIZES, Activation::Relu, &c);
     let clamp = |v: f64| v.clamp(f64::from(LOG_SIGMA_MIN), f64::from(LOG_SIGMA_MAX));
     let (lsx, lsy) = (clamp(o[2]), clamp(o[3]));
     let dx = (xl - o[0]) / lsx.exp();
@@ -265,13 +268,13 @@ pub fn affine_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let c = condition_f64(phi, wi);
+    let c = encoded_condition_f64(phi, wi);
     let (mut x, mut y) = (f64::from(p.x), f64::from(p.y));
     let mut ld = 0.0;
     let bound = f64::from(AFFINE_SCALE_BOUND);
     for l in 0..AFFINE_LAYERS {
         let other = if l % 2 == 0 { y } else { x };
-        let o = coupling_f64(params, l * AFFINE_NET_LEN, &c, other, Act::Relu);
+        let o = coupling_f64(params, l * AFFINE_NET_LEN, &c, other, Activation::Relu);
         let s = bound * (o[0] / bound).tanh();
         if l % 2 == 0 {
             x = x * s.exp() + o[1];

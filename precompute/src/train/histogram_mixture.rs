@@ -12,23 +12,21 @@
 //! fitted with the L2 loss of Eq. 7 at random points (half uniform on the disk, half drawn
 //! from p*), divided by the batch's mean p*² so the scale does not depend on how peaked the
 //! material is, plus the quantisation term `λ ‖t − round(t·(T−1))/(T−1)‖²`, plus a
-//! self-normalised NLL term ([`super::TrainConfig::hist_nll_weight`], default 1; 0 = the
+//! self-normalised NLL term ([`super::HistogramMixture::nll_weight`], default 1; 0 = the
 //! paper's objective).
 //!
-//! Why the NLL term (measured with [`network_mean_kl`], KL(p* ‖ p) over 24 conditions): with
-//! the paper's L2 objective alone the *un-baked* network is already poor (goat_leather 0.340,
-//! baked 0.370; brushed_metal 1.187 / 1.200), so baking (T, N, interpolation, supersampling:
-//! re-bakes at T = 100 or 4 × 4 points per cell change the KL by < 0.002) is not what limits
-//! the model: the L2 loss is dominated by the peak of p* and leaves the tails, where KL(p* ‖ p)
-//! is decided, unfitted. With the NLL term (weight 1, 2000 steps instead of 3000, normaliser
-//! by the balance heuristic, see `self_normalised_nll`): goat_leather 0.169 (network 0.152),
-//! brushed_metal 0.580 (0.573), gold 0.035 (0.026; L2 only 0.121).
+//! Why the NLL term: with the paper's L2 objective alone the *un-baked* network is already
+//! poor ([`super::network_mean_kl`] measures it), so baking (T, N, interpolation,
+//! supersampling) is not what limits the model: the L2 loss is dominated by the peak of p*
+//! and leaves the tails, where KL(p* ‖ p) is decided, unfitted. The NLL term (normaliser by
+//! the balance heuristic, see `self_normalised_nll`) fits them; README.md gives the measured
+//! KL with and without it.
 //!
 //! Training aids that leave the model unchanged: the basis output is `S·softplus(z)` with a
-//! constant S ([`super::TrainConfig::hist_output_scale`]; the baked tables are normalised, so
-//! S cancels), the basis network starts at the uniform density, and the condition network
+//! constant S ([`super::HistogramMixture::output_scale`]; the baked tables are normalised,
+//! so S cancels), the basis network starts at the uniform density, and the condition network
 //! can start with every basis aligned to the mirror direction
-//! ([`super::TrainConfig::hist_aligned_init`]).
+//! ([`super::HistogramMixture::aligned_init`]).
 //!
 //! Baking evaluates `H(·, t_j, k)` on every `(k, level j)` slice of an `N × N` grid (the mean
 //! over `ss × ss` points per cell; cells entirely outside the disk are 0), records the slice
@@ -41,14 +39,17 @@ use burn::tensor::activation;
 use burn::tensor::{Tensor, TensorData};
 use glam::{Vec2, Vec3};
 use neusample::distrib::table2d::cell_outside_disk;
-use neusample::nn::{raw_condition, RAW_CONDITION_DIM};
+use neusample::nn::RAW_CONDITION_DIM;
 use neusample::samplers::histogram_mixture::{self as histogram, BASES};
 use neusample::Interpolation;
 use neusample::{DType, FEATURE_DIM};
 
-use super::data::{mix_seed, rng_for, PointKind, Pool};
-use super::nn::{self, encode, fit, mlp_f64, softmax_f64, tensor2, to_host, Act, Batch, Mlp};
-use super::TrainConfig;
+use super::config::{Common, HistogramMixture as Config};
+use super::data::{fit, raw_condition_f64, Batch, HostBatch, PointKind, Pool};
+use crate::nn::{
+    encode, infer_device, mlp_f64, softmax_f64, tensor2, to_host, train_device, Activation, Mlp,
+};
+use crate::util::rng::{mix_seed, rng_for};
 
 /// Layer sizes of the condition network (the runtime's).
 pub const COND_SIZES: [usize; 5] = [RAW_CONDITION_DIM, 32, 32, 32, 4 * BASES];
@@ -133,8 +134,8 @@ fn basis_q_part(basis: &Mlp, qx: Tensor<2>, qy: Tensor<2>) -> Tensor<2> {
 /// Layers after the first, from the first layer's pre-activation `[r, hidden]`, with the
 /// scaled softplus output `scale · softplus(z)`: `[r, 1]`.
 fn basis_rest(basis: &Mlp, pre: Tensor<2>, scale: f32) -> Tensor<2> {
-    let h = Mlp::hidden_act(pre, Act::Relu);
-    activation::softplus(basis.forward_from(1, h, Act::Relu), 1.0) * scale
+    let h = Mlp::hidden_act(pre, Activation::Relu);
+    activation::softplus(basis.forward_from(1, h, Activation::Relu), 1.0) * scale
 }
 
 struct Heads {
@@ -148,7 +149,7 @@ struct Heads {
 
 fn heads(cond: &Mlp, raw: Tensor<2>) -> Heads {
     let b = raw.dims()[0];
-    let o = cond.forward(raw, Act::Relu).reshape([b, BASES, 4]);
+    let o = cond.forward(raw, Activation::Relu).reshape([b, BASES, 4]);
     let get = |j: usize| o.clone().narrow(2, j, 1).reshape([b, BASES]);
     let (rx, ry) = (get(1), get(2));
     let inv = (rx.clone().powi_scalar(2) + ry.clone().powi_scalar(2) + 1e-30)
@@ -203,22 +204,13 @@ pub fn network_density(
     wi: Vec3,
     points: &[Vec2],
 ) -> Vec<f32> {
-    let device = nn::infer_device();
+    let device = infer_device();
     let model = HistogramMixture {
         cond: Mlp::from_flat(&COND_SIZES, params, &device),
         basis: Mlp::from_flat(&BASIS_SIZES, basis_params, &device),
     };
     let wi = neusample::nn::check_condition(phi, wi).unwrap_or(Vec3::Z);
-    let host = super::data::HostBatch {
-        b: 1,
-        s: points.len(),
-        cond: neusample::nn::encode_condition(phi, wi).to_vec(),
-        raw: raw_condition(phi, wi).to_vec(),
-        x: points.iter().map(|p| p.x).collect(),
-        y: points.iter().map(|p| p.y).collect(),
-        target: Vec::new(),
-    };
-    let batch = Batch::upload(host, &device);
+    let batch = Batch::upload(HostBatch::single(phi, wi, points), &device);
     to_host(model.density(&batch, 1.0).0)
 }
 
@@ -283,8 +275,8 @@ fn aligned_condition_init(rng: &mut rand_pcg::Pcg64, device: &burn::tensor::Devi
 /// The normaliser is estimated per condition from *all* points with the balance heuristic of
 /// the two point densities, `Ẑ = mean p(ω) / (½/π + ½ p*(ω))`. (An estimate from the uniform
 /// points alone, `π · mean p(ω_uniform)`, misses a narrow peak of p and rewards the model for
-/// making one: on `gold` training drove that estimate down while the true KL rose to 2–5.)
-/// Optional addition to Eq. 7 ([`TrainConfig::hist_nll_weight`]).
+/// making one: training then drives that estimate down while the true KL rises.)
+/// Optional addition to Eq. 7 ([`super::HistogramMixture::nll_weight`]).
 fn self_normalised_nll(p: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
     let [b, s] = p.dims();
     let q = target * 0.5 + 0.5 * std::f32::consts::FRAC_1_PI;
@@ -296,43 +288,45 @@ fn self_normalised_nll(p: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
 /// Trains the histogram mixture and bakes its tables; returns `(params, tables, history)`.
 pub fn train(
     pool: &mut Pool<'_>,
-    cfg: &TrainConfig,
+    common: &Common,
+    cfg: &Config,
 ) -> anyhow::Result<(Vec<f32>, BakedTables, Vec<f32>)> {
-    anyhow::ensure!(cfg.hist_t_levels >= 2, "hist_t_levels must be at least 2");
-    anyhow::ensure!(cfg.hist_res >= 1, "hist_res must be at least 1");
+    anyhow::ensure!(cfg.t_levels >= 2, "t_levels must be at least 2");
+    anyhow::ensure!(cfg.res >= 1, "res must be at least 1");
     anyhow::ensure!(
-        cfg.hist_points_per_condition >= 2 && cfg.hist_points_per_condition % 2 == 0,
-        "hist_points_per_condition must be even (half uniform, half from p*)"
+        cfg.points_per_condition >= 2 && cfg.points_per_condition % 2 == 0,
+        "points_per_condition must be even (half uniform, half from p*)"
     );
-    let device = nn::train_device();
-    let mut rng = rng_for(mix_seed(cfg.seed, 0x4157), 0, 0);
+    let device = train_device();
+    let mut rng = rng_for(mix_seed(common.seed, 0x4157), 0, 0);
     let mut basis = Mlp::new(&BASIS_SIZES, 1.0, &mut rng, &device);
     // Start every basis near the uniform density 1/π: S·softplus(b) = 1/π.
-    let level = f64::from(std::f32::consts::FRAC_1_PI / cfg.hist_output_scale);
+    let level = f64::from(std::f32::consts::FRAC_1_PI / cfg.output_scale);
     let b0 = level.exp_m1().ln() as f32;
     if let Some(last) = basis.layers.last_mut() {
         let bias = Tensor::<1>::from_data(TensorData::new(vec![b0], [1]), &device);
         last.bias = Some(burn::module::Param::from_tensor(bias));
     }
-    let cond = if cfg.hist_aligned_init {
+    let cond = if cfg.aligned_init {
         aligned_condition_init(&mut rng, &device)
     } else {
         Mlp::new(&COND_SIZES, 1.0, &mut rng, &device)
     };
     let model = HistogramMixture { cond, basis };
-    let levels = (cfg.hist_t_levels - 1) as f32;
-    let lambda = cfg.hist_quant_weight;
-    let nll_weight = cfg.hist_nll_weight;
+    let levels = (cfg.t_levels - 1) as f32;
+    let lambda = cfg.quant_weight;
+    let nll_weight = cfg.nll_weight;
     let (model, history) = fit(
         model,
         "histogram-mixture",
-        cfg,
+        common,
+        &cfg.schedule,
         pool,
         PointKind::Regression,
-        (cfg.hist_batch_conditions, cfg.hist_points_per_condition),
+        (cfg.batch_conditions, cfg.points_per_condition),
         |m: &HistogramMixture, batch: &Batch| {
             let target = batch.target.clone().expect("regression batches carry p*");
-            let (p, t) = m.density(batch, cfg.hist_output_scale);
+            let (p, t) = m.density(batch, cfg.output_scale);
             let scale = target.clone().powi_scalar(2).mean().detach() + 1e-12;
             let l2 = (p.clone() - target.clone()).powi_scalar(2).mean() / scale;
             let tq = (t.clone().detach() * levels).round() / levels;
@@ -355,9 +349,9 @@ pub fn train(
     };
     let tables = bake(
         &basis_params,
-        cfg.hist_t_levels,
-        cfg.hist_res,
-        cfg.hist_supersample.max(1),
+        cfg.t_levels,
+        cfg.res,
+        cfg.supersample.max(1),
         interpolation,
     )?;
     Ok((params, tables, history))
@@ -372,7 +366,7 @@ pub fn bake(
     supersample: usize,
     interpolation: Interpolation,
 ) -> anyhow::Result<BakedTables> {
-    let device = nn::infer_device();
+    let device = infer_device();
     let basis = Mlp::from_flat(&BASIS_SIZES, basis_params, &device);
     let ss = supersample.max(1);
     let cell = 2.0 / res as f32;
@@ -455,12 +449,9 @@ pub fn pdf_f64(
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let r: Vec<f64> = raw_condition(phi, wi)
-        .iter()
-        .map(|&v| f64::from(v))
-        .collect();
+    let r = raw_condition_f64(phi, wi);
     let mut at = 0;
-    let o = mlp_f64(params, &mut at, &COND_SIZES, Act::Relu, &r);
+    let o = mlp_f64(params, &mut at, &COND_SIZES, Activation::Relu, &r);
     let a: Vec<f64> = (0..BASES).map(|k| o[4 * k]).collect();
     let sm = softmax_f64(&a);
     let b = &tables.baked;
@@ -513,50 +504,4 @@ pub fn pdf_f64(
     } else {
         0.0
     }
-}
-
-/// Mean KL(p* ‖ p_net) in nats of the *un-baked* training model of `trained` (condition
-/// network + basis network, normalised numerically over the disk on the target grid) over
-/// `conditions` fresh conditions of `source` at resolution `res`: the part of the baked
-/// model's KL that is not due to baking (tables, T, N). Diagnostics; slow-ish (one basis
-/// network evaluation per grid point and basis).
-pub fn network_mean_kl(
-    trained: &super::Trained,
-    source: &dyn super::TargetSource,
-    conditions: usize,
-    res: usize,
-    seed: u64,
-) -> anyhow::Result<f64> {
-    let tables = trained
-        .tables
-        .as_ref()
-        .ok_or_else(|| anyhow::anyhow!("not a histogram mixture"))?;
-    let gts = source.draw(conditions, res, seed)?;
-    let h = 2.0 / res as f32;
-    let points: Vec<Vec2> = (0..res * res)
-        .map(|i| {
-            Vec2::new(
-                -1.0 + h * ((i % res) as f32 + 0.5),
-                -1.0 + h * ((i / res) as f32 + 0.5),
-            )
-        })
-        .collect();
-    let mut total = 0.0;
-    for g in &gts {
-        let mut d = network_density(&trained.params, &tables.basis_params, &g.phi, g.wi, &points);
-        let mut z = 0.0f64;
-        for (v, p) in d.iter_mut().zip(&points) {
-            if p.length_squared() >= 1.0 {
-                *v = 0.0;
-            }
-            z += f64::from(*v) * f64::from(h * h);
-        }
-        let z = z.max(1e-30);
-        total += g.target.kl_from(|p| {
-            let c = (((p.x + 1.0) / h).floor().max(0.0) as usize).min(res - 1);
-            let r = (((p.y + 1.0) / h).floor().max(0.0) as usize).min(res - 1);
-            (f64::from(d[r * res + c]) / z) as f32
-        });
-    }
-    Ok(total / gts.len().max(1) as f64)
 }

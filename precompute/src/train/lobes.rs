@@ -15,12 +15,13 @@ use burn::tensor::activation;
 use burn::tensor::Tensor;
 use glam::{Vec2, Vec3};
 use neusample::distrib::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
-use neusample::nn::{encode_condition, CONDITION_DIM};
+use neusample::nn::CONDITION_DIM;
 use neusample::FEATURE_DIM;
 
-use super::data::{mix_seed, rng_for, PointKind, Pool};
-use super::nn::{self, fit, log_sum_exp_last, mlp_f64, softmax_f64, Act, Batch, Mlp};
-use super::TrainConfig;
+use super::config::{Common, MaxLikelihood};
+use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
+use crate::nn::{self, log_sum_exp_last, mlp_f64, softmax_f64, train_device, Activation, Mlp};
+use crate::util::rng::{mix_seed, rng_for};
 
 const LN_PI: f32 = 1.144_729_9;
 const LN_TWO_PI: f32 = 1.837_877_1;
@@ -104,11 +105,12 @@ fn analytic_log_pdf(o: Tensor<2>, batch: &Batch) -> Tensor<2> {
 /// Trains the improved baseline (`analytic == false`) or the analytic mixture.
 pub fn train(
     pool: &mut Pool<'_>,
-    cfg: &TrainConfig,
+    common: &Common,
+    cfg: &MaxLikelihood,
     analytic: bool,
 ) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
-    let device = nn::train_device();
-    let mut rng = rng_for(mix_seed(cfg.seed, 0x10be), 0, 0);
+    let device = train_device();
+    let mut rng = rng_for(mix_seed(common.seed, 0x10be), 0, 0);
     let sizes: &[usize] = if analytic {
         &ANALYTIC_SIZES
     } else {
@@ -128,12 +130,13 @@ pub fn train(
     let (model, history) = fit(
         model,
         name,
-        cfg,
+        common,
+        &cfg.schedule,
         pool,
         PointKind::FromTarget,
         (cfg.batch_conditions, cfg.samples_per_condition),
         |m: &LobeModel, batch: &Batch| {
-            let o = m.net.forward(batch.cond.clone(), Act::Relu);
+            let o = m.net.forward(batch.cond.clone(), Activation::Relu);
             let lp = if analytic {
                 analytic_log_pdf(o, batch)
             } else {
@@ -156,7 +159,7 @@ pub fn graph_log_pdf(params: &[f32], analytic: bool, batch: &Batch) -> Tensor<2>
     } else {
         &BASELINE_SIZES
     };
-    let o = Mlp::from_flat(sizes, params, &device).forward(batch.cond.clone(), Act::Relu);
+    let o = Mlp::from_flat(sizes, params, &device).forward(batch.cond.clone(), Activation::Relu);
     if analytic {
         analytic_log_pdf(o, batch)
     } else {
@@ -182,20 +185,17 @@ pub fn pdf_f64(params: &[f32], analytic: bool, phi: &[f32; FEATURE_DIM], wi: Vec
     if !(p.length_squared() < 1.0) {
         return 0.0;
     }
-    let c: Vec<f64> = encode_condition(phi, wi)
-        .iter()
-        .map(|&v| f64::from(v))
-        .collect();
+    let c = encoded_condition_f64(phi, wi);
     let mut at = 0;
     let inv_pi = std::f64::consts::FRAC_1_PI;
     if analytic {
-        let o = mlp_f64(params, &mut at, &ANALYTIC_SIZES, Act::Relu, &c);
+        let o = mlp_f64(params, &mut at, &ANALYTIC_SIZES, Activation::Relu, &c);
         let w = softmax_f64(&o[8..11]);
         w[0] * inv_pi
             + w[1] * normal_f64(p, o[0], o[1], sigma_f64(o[4]), sigma_f64(o[5]))
             + w[2] * normal_f64(p, o[2], o[3], sigma_f64(o[6]), sigma_f64(o[7]))
     } else {
-        let o = mlp_f64(params, &mut at, &BASELINE_SIZES, Act::Relu, &c);
+        let o = mlp_f64(params, &mut at, &BASELINE_SIZES, Activation::Relu, &c);
         let w = softmax_f64(&o[3..5]);
         let s = sigma_f64(o[2]);
         w[0] * inv_pi + w[1] * normal_f64(p, o[0], o[1], s, s)

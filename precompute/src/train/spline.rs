@@ -10,7 +10,7 @@ use burn::tensor::activation;
 use burn::tensor::{Int, Tensor};
 use neusample::distrib::spline::{MIN_BIN_HEIGHT, MIN_BIN_WIDTH, MIN_DERIVATIVE};
 
-use super::nn::softplus_f64;
+use crate::nn::{softmax_f64, softplus_f64};
 
 /// Knots `[n, K + 1]` from raw sizes `[n, K]`: `−B`, the scaled running sums, `+B`.
 fn knots(raw: Tensor<2>, min_size: f32, bound: f32) -> Tensor<2> {
@@ -83,7 +83,7 @@ pub fn rq_forward(v: Tensor<2>, raw: Tensor<2>, bins: usize, bound: f32) -> (Ten
 /// f64 knots `[K]` (the last knot, `+B`, is implicit) as in `neusample::distrib::spline`.
 fn knots_f64(raw: &[f64], min_size: f64, bound: f64) -> Vec<f64> {
     let k = raw.len();
-    let sm = super::nn::softmax_f64(raw);
+    let sm = softmax_f64(raw);
     let scale = 1.0 - min_size * k as f64;
     let mut out = vec![-bound; k];
     let mut cum = 0.0;

@@ -1,0 +1,91 @@
+//! # neusample-render — a small path tracer over neusample's public API
+//!
+//! The evaluation renderer of *NeuSample* (paper §4: Figs. 1, 8, 9 and Tables 1–2). It links
+//! the runtime `neusample` and nothing of the training stack, and uses the runtime exactly as
+//! a user's renderer would: per shading point `sampler.prepare(φ, wi)`, then
+//! `prepared.sample(u)` for BSDF sampling and `prepared.pdf(wo)` (solid angle) for multiple
+//! importance sampling.
+//!
+//! ```text
+//! image ─┐
+//! geometry (Ray, Camera, Shape, Object) ─┐
+//! sky, envmap → environment (lighting + its sampling) ─┴→ scene (Scene, demo_scene)
+//! material (Material, Surface) ─────────────────────────→ integrator (render) → timing
+//! rng (per-item streams) ───────────────────────────────┘
+//! ```
+//!
+//! # Scene
+//!
+//! World space is z-up. A [`Scene`] is a pinhole [`Camera`], a few [`Object`]s (a square
+//! planar patch and a sphere: [`Shape`]) each naming a [`Surface`] (a [`Material`] and its
+//! [`neusample::Sampler`]), and an [`Environment`]: a procedural sky with a sun ([`Sky`]; the
+//! small, very bright sun is what makes sampling quality matter) or an equirectangular map
+//! ([`EnvMap`]), plus the sun.
+//!
+//! Texture coordinates: the patch maps its square to `[0, 1)²` times its tiling scale; the
+//! sphere uses `u = φ/2π` (times twice the scale, so texels stay square at the equator) and
+//! `v = θ/π`. The **shading frame is the geometric one** (normal and `∂P/∂u` tangent): the
+//! material applies its own normal map through φ, as a NeuMIP material does.
+//!
+//! # Estimators
+//!
+//! [`Estimator::Bsdf`] (the paper's main mode) or [`Estimator::Mis`] (BSDF and environment
+//! sampling, power heuristic; the environment is sampled from a tabulated lat-long sky mixed
+//! with uniform sampling of the sun's cone). By default direct lighting: a direction occluded
+//! by another object contributes nothing. With [`RenderOptions::max_bounces`] `> 1`, global
+//! illumination: a BSDF sample that hits the other object continues the path there (the
+//! sampler prepared again at that vertex, throughput `f · cos θo / pdf`).
+//!
+//! # Example
+//!
+//! ```
+//! use neusample::CosineSampler;
+//! use neusample_render::{demo_scene, render, Material, RenderOptions, SceneParams, Surface};
+//! use neusample_render::glam::{Vec2, Vec3};
+//!
+//! /// A white Lambertian material (φ unused).
+//! struct White;
+//! impl Material for White {
+//!     fn features(&self, _uv: Vec2) -> [f32; 8] {
+//!         [0.0; 8]
+//!     }
+//!     fn eval(&self, _phi: &[f32; 8], wi: Vec3, wo: Vec3) -> [f32; 3] {
+//!         let lit = wi.z > 0.0 && wo.z > 0.0;
+//!         [if lit { std::f32::consts::FRAC_1_PI } else { 0.0 }; 3]
+//!     }
+//! }
+//!
+//! let scene = demo_scene(&SceneParams { width: 16, height: 12, ..SceneParams::default() });
+//! let image = render(&scene, &[Surface::new(&White, CosineSampler)], &RenderOptions::new(4, 1));
+//! assert!(image.image.data.iter().all(|c| c.iter().all(|v| v.is_finite())));
+//! ```
+//!
+//! # Determinism
+//!
+//! Rows are rendered in parallel (rayon); every pixel draws from its own random stream
+//! ([`rng::indexed_rng`] of the seed and the pixel index) and accumulates its samples in
+//! order, so an image is bit-identical for any number of threads.
+
+mod environment;
+mod envmap;
+mod error;
+mod geometry;
+mod image;
+mod integrator;
+mod material;
+pub mod rng;
+mod scene;
+mod sky;
+pub mod timing;
+
+pub use environment::Environment;
+pub use envmap::EnvMap;
+pub use error::Error;
+pub use geometry::{Camera, Hit, Object, Ray, Shape};
+pub use glam;
+pub use image::Image;
+pub use integrator::{powers_of_two, render, Estimator, Render, RenderOptions};
+pub use material::{luminance, Material, Surface};
+pub use scene::{demo_scene, Scene, SceneParams};
+pub use sky::Sky;
+pub use timing::time_per_sample;

@@ -1,0 +1,56 @@
+//! `neusample bench`: arguments of the runtime cost benchmark.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use neusample_precompute::jobs::bench::{self, BenchConfig};
+
+use crate::output::print_json;
+
+/// The runtime's cost per shading point: every sampler and the neural material, scalar and
+/// batched, with the dense layers' throughput against the CPU's peak.
+#[derive(Args)]
+pub struct BenchArgs {
+    /// A folder of sampler blobs (`<method>.nsb`) with its `conditions.txt`; default: the
+    /// committed goat-leather fixtures.
+    #[arg(long)]
+    blobs: Option<PathBuf>,
+    /// The neural material (`.nsb`); default: the committed goat leather.
+    #[arg(long)]
+    material: Option<PathBuf>,
+    /// Fewer lanes and passes (a smoke run; noisier figures).
+    #[arg(long)]
+    quick: bool,
+    /// Machine-readable output (`BenchReport` in `precompute/src/jobs/bench.rs`).
+    #[arg(long)]
+    json: bool,
+}
+
+impl From<&BenchArgs> for BenchConfig {
+    fn from(a: &BenchArgs) -> Self {
+        let mut c = Self::fixtures();
+        if let Some(b) = &a.blobs {
+            c.blobs = b.clone();
+        }
+        if let Some(m) = &a.material {
+            c.material = m.clone();
+        }
+        if a.quick {
+            c.lanes_per_pass = 1 << 11;
+            c.passes = 3;
+        }
+        c
+    }
+}
+
+/// Runs the benchmark and prints its report.
+pub fn run(a: &BenchArgs) -> Result<()> {
+    let report = bench::run(&a.into())?;
+    if a.json {
+        print_json(&report)
+    } else {
+        print!("{}", bench::text(&report));
+        Ok(())
+    }
+}

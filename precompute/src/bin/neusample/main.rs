@@ -1,0 +1,106 @@
+//! The `neusample` command-line tool: materials → ground truth → training → baking →
+//! evaluation. Every subcommand parses its arguments into the typed settings of the library
+//! (`neusample_precompute::jobs`, `neusample_precompute::demo`) and prints what it returns.
+
+mod bench;
+mod demo;
+mod material;
+mod output;
+mod train;
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+use neusample_precompute::jobs::inspect::inspect;
+use neusample_precompute::materials;
+use output::print_json;
+
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
+#[derive(Parser)]
+#[command(
+    name = "neusample",
+    version,
+    about = "Learned importance sampling for neural materials: train, bake, inspect, evaluate."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// List the built-in materials.
+    Materials {
+        /// Machine-readable output.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Train a sampler for a material and write its blob (verified against the model).
+    Train(train::TrainArgs),
+    /// Describe a blob: kind, dimensions, tensors, checksum status.
+    Inspect {
+        /// The blob file.
+        blob: PathBuf,
+        /// Machine-readable output (schema in README.md).
+        #[arg(long)]
+        json: bool,
+    },
+    /// Regenerate the committed fixture blobs (deterministic).
+    Fixtures(demo::FixturesArgs),
+    /// The main job: train every method on the default materials, evaluate, report.
+    Demo(demo::DemoArgs),
+    /// Fit a neural material (feature texture + decoder) to a material (NEURAL.md).
+    TrainMaterial(material::TrainMaterialArgs),
+    /// Import a neural material from safetensors (NEURAL.md).
+    ImportMaterial(material::ImportMaterialArgs),
+    /// Single-thread cost of a material's eval and features (Table 1 ratio).
+    MaterialCost(material::MaterialCostArgs),
+    /// The runtime's cost per shading point: every sampler and the neural material, scalar
+    /// and batched, and the dense layers' throughput against the CPU's peak.
+    Bench(bench::BenchArgs),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Err(e) = run(cli) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Materials { json } => list_materials(json),
+        Command::Train(a) => train::run(&a),
+        Command::Inspect { blob, json } => {
+            let info = inspect(&blob)?;
+            if json {
+                print_json(&info)
+            } else {
+                print!("{}", info.text());
+                Ok(())
+            }
+        }
+        Command::Fixtures(a) => demo::fixtures(&a),
+        Command::Demo(a) => neusample_precompute::demo::run(&a.into()),
+        Command::TrainMaterial(a) => material::train_material(&a),
+        Command::ImportMaterial(a) => material::import_material(&a),
+        Command::MaterialCost(a) => material::material_cost(&a),
+        Command::Bench(a) => bench::run(&a),
+    }
+}
+
+fn list_materials(json: bool) -> Result<()> {
+    let names = materials::builtin_names();
+    if json {
+        print_json(&names)?;
+    } else {
+        for n in names {
+            println!("{n}");
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,231 @@
+//! The demo's settings: the default materials and report names, the typed configuration,
+//! the sizes of a run (`Preset`), and the materials it evaluates.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use neusample::SamplerKind;
+use neusample_render::{EnvMap, Estimator, SceneParams};
+
+use crate::eval::metrics::RenderSettings;
+use crate::materials::neural::{is_blob_file, label_field, NeuralParts};
+use crate::materials::{self, Material};
+use crate::util::io;
+
+/// The built-in materials the demo and the fixtures use: an isotropic highlight under strong
+/// normal mapping, an anisotropic highlight with varying tangents, and a multi-lobe fabric.
+pub const DEFAULT_MATERIALS: [&str; 3] = ["goat_leather", "brushed_metal", "victorian_fabric"];
+
+/// Suffix of a neural material's name: `goat_leather_neural` is the neural version of
+/// `goat_leather` (`fixtures/materials/neural/goat_leather_neural.nsb`).
+pub const NEURAL_SUFFIX: &str = "_neural";
+
+/// Name of cosine sampling in reports.
+pub const COSINE: &str = SamplerKind::Cosine.name();
+
+/// Name of the improved baseline in reports (the reference of the speed-ups).
+pub const BASELINE: &str = SamplerKind::ImprovedBaseline.name();
+
+/// Name of the tabulated oracle in reports.
+pub const ORACLE: &str = "oracle";
+
+/// What `neusample demo` runs (the command line's options, typed).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DemoConfig {
+    /// CI-sized run: short training, fewer evaluation conditions, a small image.
+    pub quick: bool,
+    /// Output folder (created; files are replaced atomically).
+    pub out: PathBuf,
+    /// Use the committed fixture blobs instead of training.
+    pub use_fixtures: bool,
+    /// Materials (built-in names or files, `.nsb` neural materials included); default: the
+    /// neural versions of the three demo materials (or the procedural ones with
+    /// `procedural`).
+    pub materials: Vec<String>,
+    /// Use the procedural source materials of the defaults instead of their neural versions
+    /// (the paper's setting is neural materials).
+    pub procedural: bool,
+    /// Seed of training and evaluation.
+    pub seed: u64,
+    /// Multiplies every method's default training steps (1 = the defaults of `neusample
+    /// train`; the demo's 0.5 keeps the full run within ten minutes on 2 cores, at some cost in
+    /// fit: 1 gives the better samplers of `neusample train`). Not used with `quick` or
+    /// `use_fixtures`.
+    pub steps_scale: f64,
+    /// Image width in pixels (height = 3/4 of it); default 160, 64 with `quick`.
+    pub width: Option<usize>,
+    /// Equal-spp sample count N (convergence up to it; the baseline's equal-time budget);
+    /// default 32, 8 with `quick`.
+    pub spp: Option<u32>,
+    /// Radiance of the sun disc (0: sky only).
+    pub sun_radiance: f32,
+    /// Angular radius of the sun, degrees.
+    pub sun_size: f32,
+    /// An equirectangular OpenEXR environment map (z-up, see `render::EnvMap`) instead of the
+    /// procedural sky; the sun is added unless --sun-radiance is 0.
+    pub envmap: Option<PathBuf>,
+    /// Uniform white lighting instead of the sky (no sun): the render variance then measures
+    /// the BSDF sampler alone (the paper's uniformly lit scenes).
+    pub uniform_light: bool,
+    /// Combine BSDF sampling with environment sampling (MIS, power heuristic) instead of
+    /// BSDF sampling alone.
+    pub mis: bool,
+    /// Skip the rendering evaluation (fit and cost only).
+    pub no_render: bool,
+}
+
+impl DemoConfig {
+    /// The defaults of the command line, writing to `out`.
+    #[must_use]
+    pub fn new(out: impl Into<PathBuf>) -> Self {
+        DemoConfig {
+            quick: false,
+            out: out.into(),
+            use_fixtures: false,
+            materials: Vec::new(),
+            procedural: false,
+            seed: 1,
+            steps_scale: 0.5,
+            width: None,
+            spp: None,
+            sun_radiance: 60.0,
+            sun_size: 4.0,
+            envmap: None,
+            uniform_light: false,
+            mis: false,
+            no_render: false,
+        }
+    }
+}
+
+/// The committed neural version of a built-in material (`neusample fixtures` writes it).
+#[must_use]
+pub fn neural_fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/materials/neural")
+        .join(format!("{name}{NEURAL_SUFFIX}.nsb"))
+}
+
+/// A material of the demo and, for a neural material, the source it approximates (the
+/// reference of its fit).
+pub struct DemoMaterial {
+    /// What is rendered and sampled.
+    pub material: Box<dyn Material>,
+    /// The source of a neural material, when it is known (a built-in name or a file in its
+    /// label's `source=` field).
+    pub source: Option<Box<dyn Material>>,
+}
+
+/// Resolves a `--materials` entry (or, with `neural`, the neural version of a built-in
+/// name), with the source of a neural material.
+pub fn resolve_demo_material(spec: &str, neural: bool) -> Result<DemoMaterial> {
+    if neural {
+        let path = neural_fixture(spec);
+        anyhow::ensure!(
+            path.exists(),
+            "no neural version of `{spec}` in fixtures ({}); make one with \
+             `neusample train-material --material {spec} --out FILE` and pass the file",
+            path.display()
+        );
+        return resolve_demo_material(&path.to_string_lossy(), false);
+    }
+    let material = materials::resolve(spec)?;
+    let p = Path::new(spec);
+    let source = if p.exists() && is_blob_file(p) {
+        let bytes = io::read_blob(p)?;
+        let (_, label) = NeuralParts::from_blob(&bytes)?;
+        match label_field(&label, "source") {
+            Some(src) => match materials::resolve(src) {
+                Ok(m) => Some(m),
+                Err(e) => {
+                    eprintln!(
+                        "note: source `{src}` of {} not found ({e:#}); fit against the source skipped",
+                        p.display()
+                    );
+                    None
+                }
+            },
+            None => None,
+        }
+    } else {
+        None
+    };
+    Ok(DemoMaterial { material, source })
+}
+
+/// Sizes of a demo run.
+pub(crate) struct Preset {
+    pub(crate) eval_conditions: usize,
+    pub(crate) eval_res: usize,
+    pub(crate) cost_n: usize,
+    pub(crate) cost_passes: usize,
+    /// The oracle's `prepare` tabulates the material: measured on far fewer conditions.
+    pub(crate) oracle_cost_n: usize,
+    pub(crate) scene: SceneParams,
+    pub(crate) settings: RenderSettings,
+    pub(crate) pdf_conditions: usize,
+    pub(crate) pdf_res: usize,
+    pub(crate) pdf_size: usize,
+}
+
+pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
+    let width = a.width.unwrap_or(if a.quick { 64 } else { 160 });
+    anyhow::ensure!(
+        (8..=4096).contains(&width),
+        "--width must be in 8..=4096, got {width}"
+    );
+    anyhow::ensure!(
+        a.steps_scale > 0.0 && a.steps_scale.is_finite(),
+        "--steps-scale must be positive, got {}",
+        a.steps_scale
+    );
+    let spp = a.spp.unwrap_or(if a.quick { 8 } else { 32 });
+    anyhow::ensure!((1..=65536).contains(&spp), "--spp must be in 1..=65536");
+    anyhow::ensure!(
+        a.sun_radiance.is_finite() && a.sun_radiance >= 0.0,
+        "--sun-radiance must be finite and ≥ 0"
+    );
+    anyhow::ensure!(
+        a.sun_size.is_finite() && a.sun_size > 0.0 && a.sun_size < 90.0,
+        "--sun-size must be in (0, 90) degrees"
+    );
+    let env_map = match &a.envmap {
+        Some(p) => Some(EnvMap::load_exr(p)?),
+        None => None,
+    };
+    let q = a.quick;
+    Ok(Preset {
+        eval_conditions: if q { 24 } else { 128 },
+        eval_res: if q { 64 } else { 96 },
+        cost_n: if q { 2000 } else { 10000 },
+        cost_passes: if q { 3 } else { 5 },
+        oracle_cost_n: if q { 20 } else { 100 },
+        scene: SceneParams {
+            width,
+            height: (width * 3 / 4).max(1),
+            sun_radiance: a.sun_radiance,
+            sun_radius_deg: a.sun_size,
+            env_map,
+            uniform_light: a.uniform_light,
+            ..SceneParams::default()
+        },
+        settings: RenderSettings {
+            max_spp: spp,
+            ref_spp: if q { 128 } else { 256 },
+            ref_res: if q { 32 } else { 40 },
+            oracle_res: if q { 24 } else { 32 },
+            timing_spp: 1,
+            timing_passes: 3,
+            max_equal_time_spp: 64 * spp,
+            estimator: if a.mis {
+                Estimator::Mis
+            } else {
+                Estimator::Bsdf
+            },
+            seed: a.seed,
+        },
+        pdf_conditions: if q { 2 } else { 4 },
+        pdf_res: 64,
+        pdf_size: if q { 64 } else { 96 },
+    })
+}

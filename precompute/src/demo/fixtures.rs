@@ -1,0 +1,147 @@
+//! The committed fixtures (`neusample fixtures`): every method trained with fixed seeds on the
+//! default materials, and the neural versions of those materials. Deterministic: a run
+//! reproduces the committed blobs byte for byte on the same machine.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use neusample::DType;
+use neusample::{BlobWriter, SamplerKind};
+
+use super::config::{DEFAULT_MATERIALS, NEURAL_SUFFIX};
+use crate::bake;
+use crate::groundtruth;
+use crate::jobs::material::{train_material, TrainMaterialJob};
+use crate::materials::neural::NeuralMaterialModel;
+use crate::materials::{self, Material};
+use crate::train::neural_material::NeuralTrainConfig;
+use crate::train::{self, TrainConfig, METHODS};
+use crate::util::io;
+use crate::util::progress::stages_bar;
+
+/// The training settings of the committed fixtures: the default run with smaller histogram
+/// tables (T = 8, N = 32), seed 1.
+fn fixture_config() -> TrainConfig {
+    let mut c = TrainConfig::default();
+    c.histogram_mixture.t_levels = 8;
+    c.histogram_mixture.res = 32;
+    c
+}
+
+/// `<dir>/<material>/<method>.nsb`.
+pub(crate) fn fixture_path(dir: &Path, material: &str, method: &str) -> PathBuf {
+    dir.join(material).join(format!("{method}.nsb"))
+}
+
+/// The folder of the committed fixture blobs.
+#[must_use]
+pub fn fixtures_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/blobs")
+}
+
+/// Which fixtures `neusample fixtures` regenerates.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum FixtureSet {
+    /// Samplers on the procedural default materials.
+    Procedural,
+    /// The neural versions of the default materials and the samplers trained on them.
+    Neural,
+    /// Both.
+    All,
+}
+
+impl FixtureSet {
+    /// Every set with its command-line name.
+    pub const NAMES: [(&'static str, FixtureSet); 3] = [
+        ("procedural", FixtureSet::Procedural),
+        ("neural", FixtureSet::Neural),
+        ("all", FixtureSet::All),
+    ];
+}
+
+impl std::str::FromStr for FixtureSet {
+    type Err = anyhow::Error;
+    fn from_str(s: &str) -> Result<FixtureSet> {
+        FixtureSet::NAMES
+            .iter()
+            .find(|(n, _)| *n == s)
+            .map(|&(_, set)| set)
+            .ok_or_else(|| anyhow::anyhow!("unknown fixture set `{s}` (procedural, neural, all)"))
+    }
+}
+
+/// `neusample fixtures`: trains every method on the default materials with fixed seeds and
+/// writes `<out>/<material>/<method>.nsb` (f32, histogram tables T = 8, N = 32) plus
+/// `<out>/cosine.nsb`; for the neural set, first fits the neural version of each default
+/// material (`train-material` defaults, seed 1, f32) into `<materials>/<name>_neural.nsb`
+/// and then trains the samplers on it into `<out>/<name>_neural/`.
+pub fn regenerate_fixtures(
+    out: &Path,
+    materials_out: &Path,
+    set: FixtureSet,
+    quick: bool,
+) -> Result<()> {
+    io::atomic_write(
+        &out.join("cosine.nsb"),
+        &BlobWriter::new(SamplerKind::Cosine, DType::F32, "cosine").to_bytes(),
+    )?;
+    if set != FixtureSet::Neural {
+        for name in DEFAULT_MATERIALS {
+            fixture_samplers(out, materials::builtin(name)?.as_ref(), quick)?;
+        }
+    }
+    if set != FixtureSet::Procedural {
+        for name in DEFAULT_MATERIALS {
+            let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
+            let mut job = TrainMaterialJob::new(name, path.clone());
+            if quick {
+                job.training = NeuralTrainConfig::quick();
+            }
+            job.training.progress = true;
+            train_material(&job).with_context(|| format!("neural fixture of {name}"))?;
+            let m = NeuralMaterialModel::load(&path)?;
+            fixture_samplers(out, &m, quick)?;
+        }
+    }
+    eprintln!("fixtures written to {}", out.display());
+    Ok(())
+}
+
+/// Every method trained on `m` into `<out>/<m.name()>/`, plus the conditions file.
+fn fixture_samplers(out: &Path, m: &dyn Material, quick: bool) -> Result<()> {
+    let name = io::slug(m.name());
+    let pb = stages_bar(METHODS.len() as u64, &format!("fixtures {name}"));
+    // Conditions drawn from the material, for the runtime's statistical tests (which do not
+    // link the materials): one "φ0 … φ7 wi.x wi.y wi.z" line each.
+    let conds = groundtruth::conditions(m, 256, 0xC0DE);
+    let mut text = String::from("# phi0..phi7 wi.x wi.y wi.z (local frame), from the material\n");
+    for c in &conds {
+        for v in c.phi {
+            text.push_str(&format!("{v:e} "));
+        }
+        text.push_str(&format!("{:e} {:e} {:e}\n", c.wi.x, c.wi.y, c.wi.z));
+    }
+    io::atomic_write(&out.join(&name).join("conditions.txt"), text.as_bytes())?;
+    for method in METHODS {
+        let method_name = method.name();
+        pb.set_message(format!("{name}/{method_name}"));
+        let mut cfg = if quick {
+            TrainConfig::quick()
+        } else {
+            fixture_config()
+        };
+        cfg.common.seed = 1;
+        let trained = train::train(m, method, &cfg)?;
+        let label = format!(
+            "fixture material={name} method={method_name} steps={} seed=1",
+            cfg.schedule(method).map_or(0, |s| s.steps)
+        );
+        let bytes = bake::blob_bytes(&trained, DType::F32, &label)?;
+        bake::verify(&trained, &bytes, m, 8, 7)
+            .with_context(|| format!("fixture {name}/{method_name}"))?;
+        io::atomic_write(&fixture_path(out, &name, method_name), &bytes)?;
+        pb.inc(1);
+    }
+    pb.finish_with_message(format!("{name} done"));
+    Ok(())
+}

@@ -1,0 +1,499 @@
+//! The demo run (`neusample demo`): every method trained on the demo materials (or loaded
+//! from the fixtures), baked, verified, and evaluated through the runtime's public API — pdf
+//! fit, cost, and rendering with the tabulated oracle beside them — into `report.json`,
+//! `report.md`, images and plots.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use indicatif::ProgressBar;
+use neusample::{AnySampler, Blob};
+use neusample::{CosineSampler, DType, Prepared, Sampler};
+use neusample_render::{demo_scene, Estimator};
+
+use super::config::{
+    preset, resolve_demo_material, DemoConfig, DemoMaterial, Preset, BASELINE, COSINE,
+    DEFAULT_MATERIALS, ORACLE,
+};
+use super::figures::{self, Rgb8};
+use super::fixtures::{fixture_path, fixtures_dir};
+use super::markdown::markdown;
+use super::report::{
+    method_report, FigureReport, MaterialReport, MethodReport, NeuralReport, ReferenceReport,
+    RenderReport, RenderSetup, Report, REPORT_SCHEMA,
+};
+use crate::bake;
+use crate::eval::metrics::{self, Technique};
+use crate::eval::{self, Fit, OracleSampler};
+use crate::groundtruth::{self, TargetPdf};
+use crate::materials::Material;
+use crate::train::neural_material::NeuralTrainConfig;
+use crate::train::{self, TrainConfig, METHODS};
+use crate::util::io::{self, slug};
+use crate::util::progress::stages_bar;
+
+/// `neusample demo`.
+pub fn run(a: &DemoConfig) -> Result<()> {
+    let started = Instant::now();
+    let (names, neural_defaults): (Vec<String>, bool) = if a.materials.is_empty() {
+        (
+            DEFAULT_MATERIALS.iter().map(|s| s.to_string()).collect(),
+            !a.procedural,
+        )
+    } else {
+        anyhow::ensure!(
+            !a.procedural,
+            "--procedural selects the procedural default materials; with --materials name them directly"
+        );
+        (a.materials.clone(), false)
+    };
+    let p = preset(a)?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create output folder {}", a.out.display()))?;
+    let out = a.out.canonicalize()?;
+    eprintln!("neusample demo: writing to {}", out.display());
+
+    let techniques = METHODS.len() + 2; // + cosine + oracle
+    let per_material = techniques
+        + if a.no_render {
+            0
+        } else {
+            1 + 3 * techniques + 2
+        };
+    let pb = stages_bar((names.len() * per_material) as u64, "demo");
+    let mut report = Report {
+        schema: REPORT_SCHEMA,
+        quick: a.quick,
+        fixtures: a.use_fixtures,
+        seed: a.seed,
+        steps_scale: (!a.quick && !a.use_fixtures).then_some(a.steps_scale),
+        eval_conditions: p.eval_conditions,
+        eval_res: p.eval_res,
+        render: (!a.no_render).then(|| RenderSetup {
+            width: p.scene.width,
+            height: p.scene.height,
+            sun_radiance: p.scene.sun_radiance,
+            sun_radius_deg: p.scene.sun_radius_deg,
+            env_map: a.envmap.as_ref().map(|e| e.display().to_string()),
+            uniform_light: a.uniform_light,
+            settings: p.settings.clone(),
+        }),
+        seconds: 0.0,
+        materials: Vec::new(),
+    };
+    for name in &names {
+        let DemoMaterial {
+            material: m,
+            source,
+        } = resolve_demo_material(name, neural_defaults)?;
+        let mname = m.name().to_string();
+        let neural = source.as_ref().map(|src| {
+            pb.set_message(format!("{mname}: fit to {}", src.name()));
+            NeuralReport {
+                source: src.name().to_string(),
+                fit: eval::fit_report(
+                    src.as_ref(),
+                    m.as_ref(),
+                    if a.quick { 2000 } else { 20000 },
+                    p.eval_conditions,
+                    p.eval_res,
+                    NeuralTrainConfig::default_run().epsilon,
+                    a.seed + 100,
+                ),
+                cost: eval::eval_cost(m.as_ref(), p.cost_n, p.cost_passes),
+                source_cost: eval::eval_cost(src.as_ref(), p.cost_n, p.cost_passes),
+            }
+        });
+        let src = source.as_deref();
+        let mut methods = Vec::new();
+        let mut blobs: Vec<(String, Vec<u8>)> = Vec::new();
+
+        pb.set_message(format!("{mname}/{COSINE}"));
+        let (fit, kl_src) = fits(&CosineSampler, m.as_ref(), src, &p, a.seed);
+        let cost = eval::cost(&CosineSampler, m.as_ref(), p.cost_n, p.cost_passes);
+        methods.push(method_report(COSINE, 0.0, None, 0, None, fit, cost));
+        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+        pb.inc(1);
+
+        for method in METHODS {
+            let method_name = method.name();
+            pb.set_message(format!("{mname}/{method_name}"));
+            let (bytes, secs, loss, check) = if a.use_fixtures {
+                let path = fixture_path(&fixtures_dir(), &slug(&mname), method_name);
+                (io::read_blob(&path)?, 0.0, None, None)
+            } else {
+                let mut cfg = if a.quick {
+                    TrainConfig::quick()
+                } else {
+                    TrainConfig::default().with_steps_scaled(a.steps_scale)
+                };
+                cfg.common.seed = a.seed;
+                let trained = train::train(m.as_ref(), method, &cfg)
+                    .with_context(|| format!("training {method_name} on {mname}"))?;
+                let label = format!(
+                    "demo material={mname} method={method_name} steps={}",
+                    cfg.schedule(method).map_or(0, |s| s.steps)
+                );
+                let bytes = bake::blob_bytes(&trained, DType::F32, &label)?;
+                let v = bake::verify(&trained, &bytes, m.as_ref(), 8, a.seed + 7)?;
+                (
+                    bytes,
+                    trained.seconds,
+                    trained.loss_history.last().copied(),
+                    Some(v.max_relative),
+                )
+            };
+            io::atomic_write(
+                &out.join("blobs")
+                    .join(slug(&mname))
+                    .join(format!("{method_name}.nsb")),
+                &bytes,
+            )?;
+            let blob = Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+            let sampler = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
+            let (fit, kl_src) = fits(&sampler, m.as_ref(), src, &p, a.seed);
+            let cost = eval::cost(&sampler, m.as_ref(), p.cost_n, p.cost_passes);
+            methods.push(method_report(
+                method_name,
+                secs,
+                loss,
+                bytes.len(),
+                check,
+                fit,
+                cost,
+            ));
+            methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+            blobs.push((method_name.to_string(), bytes));
+            pb.inc(1);
+        }
+
+        pb.set_message(format!("{mname}/{ORACLE}"));
+        let oracle = OracleSampler::new(m.as_ref(), p.settings.oracle_res);
+        let (fit, kl_src) = fits(&oracle, m.as_ref(), src, &p, a.seed);
+        let cost = eval::cost(&oracle, m.as_ref(), p.oracle_cost_n, p.cost_passes.min(3));
+        methods.push(method_report(ORACLE, 0.0, None, 0, None, fit, cost));
+        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+        pb.inc(1);
+
+        let (reference, figures, budget) = if a.no_render {
+            (None, None, None)
+        } else {
+            let (r, f, b) = render_material(&out, m.as_ref(), &blobs, &p, &pb, &mut methods)?;
+            (Some(r), Some(f), Some(b))
+        };
+        report.materials.push(MaterialReport {
+            material: mname,
+            neural,
+            methods,
+            reference,
+            figures,
+            equal_time_budget_seconds: budget,
+        });
+    }
+    pb.finish_with_message("done");
+    report.seconds = started.elapsed().as_secs_f64();
+
+    let json = serde_json::to_string_pretty(&report)?;
+    io::atomic_write(&out.join("report.json"), json.as_bytes())?;
+    io::atomic_write(&out.join("report.md"), markdown(&report).as_bytes())?;
+    eprintln!(
+        "neusample demo finished in {:.0} s: {}",
+        report.seconds,
+        out.join("report.md").display()
+    );
+    eprintln!("output folder: {}", out.display());
+    Ok(())
+}
+
+/// Renders one material with every technique, writes its images and plots, and fills the
+/// `render` part of its method reports.
+fn render_material(
+    out: &Path,
+    m: &dyn Material,
+    blobs: &[(String, Vec<u8>)],
+    p: &Preset,
+    pb: &ProgressBar,
+    methods: &mut [MethodReport],
+) -> Result<(ReferenceReport, FigureReport, f64)> {
+    let mname = m.name().to_string();
+    let dir = format!("images/{}", slug(&mname));
+    let opened = blobs
+        .iter()
+        .map(|(n, b)| {
+            Ok((
+                n.clone(),
+                Blob::open(b).map_err(|e| anyhow::anyhow!("{e}"))?,
+            ))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut techniques: Vec<(String, Technique<'_>)> = vec![(
+        COSINE.to_string(),
+        Technique::Blob(AnySampler::Cosine(CosineSampler)),
+    )];
+    for (n, blob) in &opened {
+        let s = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
+        techniques.push((n.clone(), Technique::Blob(s)));
+    }
+    techniques.push((
+        ORACLE.to_string(),
+        Technique::Oracle(OracleSampler::new(m, p.settings.oracle_res)),
+    ));
+
+    let scene = demo_scene(&p.scene);
+    pb.set_message(format!("{mname}/reference"));
+    let reference = metrics::reference(&scene, m, &p.settings);
+    pb.inc(1);
+    let evals = metrics::evaluate(
+        &scene,
+        m,
+        &techniques,
+        &reference,
+        BASELINE,
+        &p.settings,
+        &|msg| {
+            pb.set_message(format!("{mname}/{msg}"));
+            pb.inc(1);
+        },
+    )?;
+
+    // Images.
+    pb.set_message(format!("{mname}/figures"));
+    let rr = &reference.render;
+    let exposure = figures::auto_exposure(&rr.image, &rr.mask);
+    let ref_png = format!("{dir}/reference.png");
+    let ref_exr = format!("{dir}/reference.exr");
+    let ref_tm = figures::tonemap(&rr.image, exposure);
+    figures::write_png(&out.join(&ref_png), &ref_tm)?;
+    figures::write_exr(&out.join(&ref_exr), &rr.image)?;
+    let ref_caption = [
+        "reference".to_string(),
+        format!("oracle + MIS, {} spp", rr.spp),
+    ];
+    let mut time_tiles: Vec<(Rgb8, [String; 2])> = vec![(ref_tm.clone(), ref_caption.clone())];
+    let mut spp_tiles: Vec<(Rgb8, [String; 2])> = vec![(ref_tm, ref_caption)];
+    let base = evals
+        .iter()
+        .position(|e| e.name == BASELINE)
+        .context("no baseline technique")?;
+    let cosine_ns = evals
+        .iter()
+        .find(|e| e.name == COSINE)
+        .map_or(f64::NAN, |e| e.ns_per_sample);
+    for e in &evals {
+        let stem = format!("{dir}/{}", e.name);
+        let et_png = format!("{stem}.equal_time.png");
+        let et_exr = format!("{stem}.equal_time.exr");
+        let es_png = format!("{stem}.equal_spp.png");
+        let t_img = figures::tonemap(&e.equal_time.image, exposure);
+        let s_img = figures::tonemap(&e.equal_spp.image, exposure);
+        figures::write_png(&out.join(&et_png), &t_img)?;
+        figures::write_exr(&out.join(&et_exr), &e.equal_time.image)?;
+        figures::write_png(&out.join(&es_png), &s_img)?;
+        time_tiles.push((
+            t_img,
+            [
+                e.name.clone(),
+                format!("{} spp · MSE {:.2e}", e.equal_time_spp, e.mse_equal_time),
+            ],
+        ));
+        spp_tiles.push((
+            s_img,
+            [
+                e.name.clone(),
+                format!("{} spp · MSE {:.2e}", e.equal_spp.spp, e.mse_equal_spp),
+            ],
+        ));
+        let r = RenderReport {
+            ns_per_sample: e.ns_per_sample,
+            time_vs_cosine: e.ns_per_sample / cosine_ns,
+            equal_spp: e.equal_spp.spp,
+            mse_equal_spp: e.mse_equal_spp,
+            equal_time_spp: e.equal_time_spp,
+            mse_equal_time: e.mse_equal_time,
+            speedup_vs_baseline: metrics::speedup(e, &evals[base]),
+            speedup_measured_mse: metrics::speedup_measured(e, &evals[base]),
+            mse_expected_equal_spp: e.mse_expected_equal_spp,
+            mse_ratio_equal_spp: metrics::variance_ratio(e, &evals[base]),
+            convergence: e.convergence.clone(),
+            equal_time_exr: et_exr,
+            equal_time_png: et_png,
+            equal_spp_png: es_png,
+        };
+        if let Some(mr) = methods.iter_mut().find(|x| x.method == e.name) {
+            mr.speedup_vs_baseline = Some(r.speedup_vs_baseline);
+            mr.mse_equal_spp = Some(r.mse_equal_spp);
+            mr.mse_equal_time = Some(r.mse_equal_time);
+            mr.render = Some(r);
+        }
+    }
+    let budget = evals[base].ns_per_sample
+        * f64::from(p.settings.max_spp)
+        * (scene.camera.width * scene.camera.height) as f64
+        * 1e-9;
+    let est = match p.settings.estimator {
+        Estimator::Bsdf => "BSDF sampling",
+        Estimator::Mis => "MIS",
+    };
+    let eq_time = format!("{dir}/equal_time.png");
+    figures::write_png(
+        &out.join(&eq_time),
+        &figures::labelled_grid(
+            &time_tiles,
+            3,
+            &format!(
+                "{mname}: equal time ({:.0} ms single-thread per image), {est}",
+                budget * 1e3
+            ),
+        )?,
+    )?;
+    let eq_spp = format!("{dir}/equal_spp.png");
+    figures::write_png(
+        &out.join(&eq_spp),
+        &figures::labelled_grid(
+            &spp_tiles,
+            3,
+            &format!("{mname}: equal spp ({}), {est}", p.settings.max_spp),
+        )?,
+    )?;
+    pb.inc(1);
+
+    // Convergence plot (Fig. 8).
+    let by_spp: Vec<figures::Series> = evals
+        .iter()
+        .map(|e| figures::Series {
+            name: e.name.clone(),
+            points: e
+                .convergence
+                .iter()
+                .map(|c| (f64::from(c.spp), c.mse))
+                .collect(),
+        })
+        .collect();
+    let by_time: Vec<figures::Series> = evals
+        .iter()
+        .filter(|e| e.name != ORACLE)
+        .map(|e| figures::Series {
+            name: e.name.clone(),
+            points: e
+                .convergence
+                .iter()
+                .map(|c| (c.seconds * 1e3, c.mse))
+                .collect(),
+        })
+        .collect();
+    let conv = format!("plots/{}_convergence.png", slug(&mname));
+    figures::write_png(
+        &out.join(&conv),
+        &figures::convergence_plot(
+            &format!("{mname}: convergence ({est})"),
+            &by_spp,
+            &by_time,
+            "single-thread time per image (ms)",
+        )?,
+    )?;
+
+    // pdf grid (Fig. 7).
+    let pdfs = format!("{dir}/pdfs.png");
+    figures::write_png(
+        &out.join(&pdfs),
+        &pdf_figure(m, &techniques, p, p.settings.seed + 500)?,
+    )?;
+    pb.inc(1);
+
+    let pixels = rr.mask.iter().filter(|&&b| b).count();
+    Ok((
+        ReferenceReport {
+            spp: rr.spp,
+            res: p.settings.ref_res,
+            estimator: Estimator::Mis,
+            noise: reference.noise,
+            pixels,
+            seconds: rr.seconds,
+            exr: ref_exr,
+            png: ref_png,
+        },
+        FigureReport {
+            equal_time: eq_time,
+            equal_spp: eq_spp,
+            convergence: conv,
+            pdfs,
+        },
+        budget,
+    ))
+}
+
+/// Fig. 7: for a few random conditions, the ground truth p* (tabulated at `pdf_res`) beside
+/// every runtime sampler's disk density, false colour `viridis(√(p / max p*))`, with
+/// KL(p* ‖ p) under each.
+fn pdf_figure(
+    m: &dyn Material,
+    techniques: &[(String, Technique<'_>)],
+    p: &Preset,
+    seed: u64,
+) -> Result<Rgb8> {
+    let conds = groundtruth::conditions(m, p.pdf_conditions, seed);
+    let samplers: Vec<(&String, &AnySampler<'_>)> = techniques
+        .iter()
+        .filter_map(|(n, t)| match t {
+            Technique::Blob(s) => Some((n, s)),
+            Technique::Oracle(_) => None,
+        })
+        .collect();
+    let size = p.pdf_size;
+    let mut tiles = Vec::new();
+    for c in &conds {
+        let target = TargetPdf::new(m, c, p.pdf_res);
+        let vmax = target.density().iter().copied().fold(0.0f32, f32::max);
+        let theta = c.wi.z.clamp(-1.0, 1.0).acos().to_degrees();
+        tiles.push((
+            figures::disk_image(size, vmax, |q| target.pdf(q)),
+            [
+                "p* (ground truth)".to_string(),
+                format!("θi {theta:.0}° uv {:.2},{:.2}", c.uv.x, c.uv.y),
+            ],
+        ));
+        for (name, s) in &samplers {
+            let (img, kl) = match s.prepare(&c.phi, c.wi) {
+                Some(prep) => (
+                    figures::disk_image(size, vmax, |q| prep.pdf_disk(q)),
+                    target.kl_from(|q| prep.pdf_disk(q)),
+                ),
+                None => (Rgb8::filled(size, size, [40, 40, 40]), f64::INFINITY),
+            };
+            tiles.push((img, [(*name).clone(), format!("KL {kl:.3}")]));
+        }
+    }
+    figures::labelled_grid(
+        &tiles,
+        samplers.len() + 1,
+        &format!(
+            "{}: pdfs on the projected disk, viridis(sqrt(p / max p*)), one row per condition",
+            m.name()
+        ),
+    )
+}
+
+/// The fit of a sampler to the material's ground truth and, when a source is given, the mean
+/// KL against the source's ground truth (same conditions).
+fn fits<S: Sampler + Sync>(
+    sampler: &S,
+    m: &dyn Material,
+    source: Option<&dyn Material>,
+    p: &Preset,
+    seed: u64,
+) -> (Fit, Option<f64>) {
+    let fit = eval::fit(sampler, m, p.eval_conditions, p.eval_res, seed + 100);
+    let kl_src = source.map(|src| {
+        eval::fit_to(
+            sampler,
+            m,
+            Some(src),
+            p.eval_conditions,
+            p.eval_res,
+            seed + 100,
+        )
+        .kl_divergence
+    });
+    (fit, kl_src)
+}

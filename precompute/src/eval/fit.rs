@@ -1,0 +1,198 @@
+//! Fit to the ground truth, measured through the runtime's public API: a sampler's density
+//! against p* (KL(p* ‖ p), pdf MSE, mass), and a neural material against its source (RGB
+//! error, KL between the two p*, albedo).
+
+use glam::Vec2;
+use neusample::{Prepared, Sampler};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::groundtruth::{self, TargetPdf};
+use crate::materials::Material;
+use crate::train::neural_material::draw;
+use crate::util::json::f64_or_nan;
+use crate::util::rng::mix_seed;
+
+/// Fit of a sampler's density to the ground truth, averaged over conditions.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Fit {
+    /// Conditions evaluated.
+    pub conditions: usize,
+    /// Mean KL(p* ‖ p) in nats over the conditions (p* tabulated at `res`², p at cell
+    /// midpoints).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub kl_divergence: f64,
+    /// Mean over conditions of the mean squared difference of the disk densities.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub pdf_mse: f64,
+    /// Mean probability mass the sampler puts inside the disk.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub mass_in_disk: f64,
+}
+
+/// Mean fit of `sampler` to `material`'s ground truth at `conditions` random conditions.
+pub fn fit<S: Sampler + Sync>(
+    sampler: &S,
+    material: &dyn Material,
+    conditions: usize,
+    res: usize,
+    seed: u64,
+) -> Fit {
+    fit_to(sampler, material, None, conditions, res, seed)
+}
+
+/// [`fit`] with the target taken from `reference` instead of `material`: the sampler is
+/// conditioned on `material`'s φ(uv) and `wi`, the ground truth p* is `reference`'s at the
+/// same uv and wi. For a neural material and its source this measures the samplers against
+/// the material the neural one approximates (the same conditions as [`fit`] with the same
+/// seed, so the two are comparable).
+pub fn fit_to<S: Sampler + Sync>(
+    sampler: &S,
+    material: &dyn Material,
+    reference: Option<&dyn Material>,
+    conditions: usize,
+    res: usize,
+    seed: u64,
+) -> Fit {
+    let conds = groundtruth::conditions(material, conditions, seed);
+    let per: Vec<(f64, f64, f64)> = conds
+        .par_iter()
+        .map(|c| {
+            let target = match reference {
+                None => TargetPdf::new(material, c, res),
+                Some(r) => {
+                    let rc = groundtruth::Condition {
+                        phi: r.features(c.uv),
+                        ..*c
+                    };
+                    TargetPdf::new(r, &rc, res)
+                }
+            };
+            let Some(prep) = sampler.prepare(&c.phi, c.wi) else {
+                return (f64::INFINITY, f64::INFINITY, 0.0);
+            };
+            let kl = target.kl_from(|p| prep.pdf_disk(p));
+            let h = 2.0 / res as f64;
+            let (mut se, mut mass, mut n) = (0.0, 0.0, 0usize);
+            for r in 0..res {
+                for col in 0..res {
+                    let p = Vec2::new(
+                        (-1.0 + (col as f64 + 0.5) * h) as f32,
+                        (-1.0 + (r as f64 + 0.5) * h) as f32,
+                    );
+                    let q = f64::from(prep.pdf_disk(p));
+                    let t = f64::from(target.pdf(p));
+                    se += (q - t) * (q - t);
+                    mass += q * h * h;
+                    n += 1;
+                }
+            }
+            (kl, se / n as f64, mass)
+        })
+        .collect();
+    let n = per.len().max(1) as f64;
+    Fit {
+        conditions: per.len(),
+        kl_divergence: per.iter().map(|p| p.0).sum::<f64>() / n,
+        pdf_mse: per.iter().map(|p| p.1).sum::<f64>() / n,
+        mass_in_disk: per.iter().map(|p| p.2).sum::<f64>() / n,
+    }
+}
+
+/// How well a neural material reproduces its source, measured through the runtime.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub struct FitReport {
+    /// Random queries of the RGB error.
+    pub points: usize,
+    /// `Σ|f̂ − f| / Σ|f|` over RGB channels and queries with `wo` uniform on the projected
+    /// disk (the rendering measure): the relative L1 error of `f·cos`.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub relative_rgb_error: f64,
+    /// The same with `wo` around the mirror direction (the highlight region).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub relative_rgb_error_lobe: f64,
+    /// RMS of `ln(ε + f̂) − ln(ε + f)` (the training loss, square-rooted) on fresh queries.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub log_rmse: f64,
+    /// Conditions `(uv, wi)` of the KL and albedo measures.
+    pub conditions: usize,
+    /// Mean `KL(p*_source ‖ p*_neural)` in nats (tables at `res²`, same uv and wi).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub kl_pstar: f64,
+    /// Mean `KL(p*_source ‖ uniform disk)`: the KL of cosine sampling, for scale.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub kl_pstar_vs_cosine: f64,
+    /// `Σ|a_neural − a_source| / Σ a_source` over the conditions, `a` the luminance albedo
+    /// `∫ Y(f) cos θo dωo` at the condition.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub albedo_relative_error: f64,
+}
+
+/// Measures a neural material (any [`Material`], typically a
+/// [`crate::materials::neural::NeuralMaterialModel`])
+/// against its source: `points` random queries and `conditions` tabulated p* at `res²`.
+pub fn fit_report(
+    source: &dyn Material,
+    neural: &dyn Material,
+    points: usize,
+    conditions: usize,
+    res: usize,
+    epsilon: f32,
+    seed: u64,
+) -> FitReport {
+    let rel = |lobe: f32, s: u64| {
+        let q = draw(source, None, points, lobe, mix_seed(seed, s), 0);
+        let (num, den, se) = q
+            .par_iter()
+            .map(|s| {
+                let g = neural.eval(&neural.features(s.uv), s.wi, s.wo);
+                let (mut num, mut den, mut se) = (0f64, 0f64, 0f64);
+                for c in 0..3 {
+                    num += f64::from((g[c] - s.f[c]).abs());
+                    den += f64::from(s.f[c].abs());
+                    let d = f64::from((epsilon + g[c]).ln() - (epsilon + s.f[c]).ln());
+                    se += d * d;
+                }
+                (num, den, se)
+            })
+            .reduce(|| (0.0, 0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+        (
+            num / den.max(1e-30),
+            (se / (3 * q.len().max(1)) as f64).sqrt(),
+        )
+    };
+    let (disk, log_rmse) = rel(0.0, 1);
+    let (lobe, _) = rel(1.0, 2);
+    let conds = groundtruth::conditions(source, conditions, mix_seed(seed, 3));
+    let per: Vec<(f64, f64, f64, f64)> = conds
+        .par_iter()
+        .map(|c| {
+            let src = TargetPdf::new(source, c, res);
+            let nc = groundtruth::Condition {
+                phi: neural.features(c.uv),
+                ..*c
+            };
+            let neu = TargetPdf::new(neural, &nc, res);
+            let kl = src.kl_from(|p| neu.pdf(p));
+            let kl_cos = src.kl_from(|_| std::f32::consts::FRAC_1_PI);
+            (
+                kl,
+                kl_cos,
+                (neu.integral() - src.integral()).abs(),
+                src.integral(),
+            )
+        })
+        .collect();
+    let n = per.len().max(1) as f64;
+    FitReport {
+        points,
+        relative_rgb_error: disk,
+        relative_rgb_error_lobe: lobe,
+        log_rmse,
+        conditions: per.len(),
+        kl_pstar: per.iter().map(|p| p.0).sum::<f64>() / n,
+        kl_pstar_vs_cosine: per.iter().map(|p| p.1).sum::<f64>() / n,
+        albedo_relative_error: per.iter().map(|p| p.2).sum::<f64>()
+            / per.iter().map(|p| p.3).sum::<f64>().max(1e-30),
+    }
+}

@@ -1,0 +1,371 @@
+//! Rendering metrics of the evaluation (paper §4, Table 2 and Fig. 8): MSE against a
+//! high-sample reference at equal samples per pixel and at equal time, convergence curves,
+//! and the speed-up relative to the improved baseline.
+//!
+//! # Definitions
+//!
+//! * **MSE** — mean over the pixels whose primary ray hits an object and over the three
+//!   channels of `(L − L_ref)²`, linear radiance. The reference is an independent render with
+//!   variance `σ²_ref/N_ref` per pixel, which adds its mean to every measured MSE; it is
+//!   subtracted ([`Reference::noise`]), so the reported MSE estimates the error against the
+//!   true image.
+//! * **Time per sample** ([`TechniqueEval::ns_per_sample`]) — the single-thread wall time of
+//!   the whole render loop (primary ray, features, `prepare`, `sample`, material evaluation,
+//!   shadow ray, environment lookup, and with MIS the environment sample and `pdf`) divided by
+//!   the number of pixel samples of the image (background pixels included), the fastest of a
+//!   few passes interleaved over the techniques ([`render::time_per_sample`]; other
+//!   processes on the machine only ever add time). The oracle is timed in one pass on a
+//!   quarter-resolution view at 16× the spp (the same number of samples). For the oracle, the
+//!   per-pixel table build is **excluded** (the table is built once per pixel and its time subtracted): the oracle is
+//!   a limit of sampling quality, not a practical method.
+//! * **Speed-up vs the improved baseline** (paper Table 2: the relative time the baseline
+//!   needs to reach the same quality) — with MSE ∝ 1/spp for unbiased estimators, the
+//!   baseline reaches the method's MSE `e_m` after `t_b · N · e_b(N)/e_m(N)`, so
+//!
+//!   ```text
+//!   speed-up = (e_b(N) · t_b) / (e_m(N) · t_m)        (N = the equal-spp sample count)
+//!   ```
+//!
+//!   the ratio of inverse efficiencies `1/(MSE · time)`, evaluated at the largest equal-spp
+//!   count. The MSEs used are the *expected* MSEs `mean σ²/N` from the per-pixel sample
+//!   variances of the equal-spp renders (unbiased estimators: MSE = variance), which are far
+//!   less noisy than one image's squared error; the speed-up from the measured MSEs is
+//!   reported beside it ([`speedup_measured`]) and agrees within its noise.
+//! * **Equal time** — every technique gets the time the baseline needs for `N` spp:
+//!   `spp_m = round(N · t_b / t_m)` (at least 1) and is rendered with a fresh seed.
+
+use neusample::AnySampler;
+use neusample_render::{self as render, Estimator, Image, Render, RenderOptions, Scene, Surface};
+use serde::{Deserialize, Serialize};
+
+use super::oracle::OracleSampler;
+use crate::materials::Material;
+use crate::util::json::f64_or_nan;
+use crate::util::stats::ratio;
+
+/// A sampling technique of the evaluation.
+#[derive(Clone, Copy, Debug)]
+pub enum Technique<'a> {
+    /// A runtime sampler (any blob, or cosine).
+    Blob(AnySampler<'a>),
+    /// The tabulated oracle (prepared once per pixel, table time excluded).
+    Oracle(OracleSampler<'a>),
+}
+
+impl Technique<'_> {
+    fn options(&self, base: &RenderOptions) -> RenderOptions {
+        let mut o = base.clone();
+        o.reuse_prepared = matches!(self, Technique::Oracle(_)) && !o.jitter;
+        o
+    }
+
+    /// Renders `scene` with this technique on every object.
+    #[must_use]
+    pub fn render(&self, scene: &Scene, material: &dyn Material, opts: &RenderOptions) -> Render {
+        let o = self.options(opts);
+        match self {
+            Technique::Blob(s) => render::render(scene, &[Surface::new(material, *s)], &o),
+            Technique::Oracle(s) => render::render(scene, &[Surface::new(material, *s)], &o),
+        }
+    }
+
+    /// Single-thread ns per pixel sample ([`render::time_per_sample`]).
+    pub fn time_per_sample(
+        &self,
+        scene: &Scene,
+        material: &dyn Material,
+        opts: &RenderOptions,
+        passes: usize,
+    ) -> anyhow::Result<f64> {
+        let o = self.options(opts);
+        Ok(match self {
+            Technique::Blob(s) => {
+                render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
+            }
+            Technique::Oracle(s) => {
+                render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
+            }
+        })
+    }
+}
+
+/// Sizes and seeds of the rendering evaluation.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct RenderSettings {
+    /// Largest equal-spp sample count N (convergence checkpoints at powers of two up to it).
+    pub max_spp: u32,
+    /// Samples per pixel of the reference.
+    pub ref_spp: u32,
+    /// Table resolution of the reference's oracle.
+    pub ref_res: usize,
+    /// Table resolution of the oracle technique.
+    pub oracle_res: usize,
+    /// Samples per pixel of each timing pass.
+    pub timing_spp: u32,
+    /// Timing passes (interleaved over the techniques; the fastest is kept).
+    pub timing_passes: usize,
+    /// Cap on the samples per pixel of an equal-time render.
+    pub max_equal_time_spp: u32,
+    /// Estimator of the compared renders (the reference always uses MIS).
+    pub estimator: Estimator,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// The reference image of a material's scene.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    /// The render (oracle at [`RenderSettings::ref_res`], MIS, [`RenderSettings::ref_spp`]).
+    pub render: Render,
+    /// Its own expected contribution to a measured MSE: the mean over masked pixels and
+    /// channels of `σ²/N_ref`.
+    pub noise: f64,
+}
+
+/// Renders the reference: the oracle with MIS at many samples per pixel, seeded
+/// independently of the compared renders.
+#[must_use]
+pub fn reference(scene: &Scene, material: &dyn Material, s: &RenderSettings) -> Reference {
+    let mut opts = RenderOptions::new(s.ref_spp.max(2), s.seed ^ 0x5EF0_0000_0000_5EF0);
+    opts.checkpoints.clear();
+    opts.estimator = Estimator::Mis;
+    let t = Technique::Oracle(OracleSampler::new(material, s.ref_res));
+    let render = t.render(scene, material, &opts);
+    let noise = mean_variance_of_mean(&render, &render.mask);
+    Reference { render, noise }
+}
+
+/// Mean over masked pixels and channels of `variance / spp` (the expected squared error of
+/// the pixel means of an unbiased render).
+#[must_use]
+pub fn mean_variance_of_mean(r: &Render, mask: &[bool]) -> f64 {
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for (i, v) in r.variance.data.iter().enumerate() {
+        if mask.get(i).copied().unwrap_or(false) {
+            for c in v {
+                s += f64::from(*c);
+            }
+            n += 3;
+        }
+    }
+    if n > 0 {
+        s / n as f64 / f64::from(r.spp.max(1))
+    } else {
+        0.0
+    }
+}
+
+/// Mean over masked pixels and channels of `(a − b)²`.
+#[must_use]
+pub fn mse(a: &Image, b: &Image, mask: &[bool]) -> f64 {
+    let (mut s, mut n) = (0.0f64, 0usize);
+    for (i, (x, y)) in a.data.iter().zip(&b.data).enumerate() {
+        if mask.get(i).copied().unwrap_or(false) {
+            for c in 0..3 {
+                let d = f64::from(x[c]) - f64::from(y[c]);
+                s += d * d;
+            }
+            n += 3;
+        }
+    }
+    if n > 0 {
+        s / n as f64
+    } else {
+        0.0
+    }
+}
+
+/// Smallest MSE reported after subtracting the reference noise (keeps logs finite).
+pub const MSE_FLOOR: f64 = 1e-12;
+
+/// The pixel-averaged radiance of a render over `mask`, with its standard error from the
+/// per-pixel sample variances: `(mean, standard error)` per channel.
+#[must_use]
+pub fn pixel_average(r: &Render, mask: &[bool]) -> ([f64; 3], [f64; 3]) {
+    let (mut m, mut v, mut n) = ([0.0f64; 3], [0.0f64; 3], 0usize);
+    for (i, (c, var)) in r.image.data.iter().zip(&r.variance.data).enumerate() {
+        if mask.get(i).copied().unwrap_or(false) {
+            for k in 0..3 {
+                m[k] += f64::from(c[k]);
+                v[k] += f64::from(var[k]) / f64::from(r.spp.max(1));
+            }
+            n += 1;
+        }
+    }
+    let n = n.max(1) as f64;
+    let mut se = [0.0; 3];
+    for k in 0..3 {
+        m[k] /= n;
+        se[k] = v[k].sqrt() / n;
+    }
+    (m, se)
+}
+
+/// One point of a convergence curve.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ConvergencePoint {
+    /// Samples per pixel.
+    pub spp: u32,
+    /// MSE (reference noise subtracted).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub mse: f64,
+    /// Single-thread render time of the whole image at this spp, seconds
+    /// (`spp · pixels · ns_per_sample`).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub seconds: f64,
+}
+
+/// The rendering results of one technique on one material.
+#[derive(Clone, Debug)]
+pub struct TechniqueEval {
+    /// Technique name.
+    pub name: String,
+    /// Single-thread render-loop time per pixel sample, ns (module docs).
+    pub ns_per_sample: f64,
+    /// MSE at 1, 2, 4, … spp up to [`RenderSettings::max_spp`].
+    pub convergence: Vec<ConvergencePoint>,
+    /// The equal-spp render at [`RenderSettings::max_spp`].
+    pub equal_spp: Render,
+    /// MSE of [`Self::equal_spp`] against the reference (reference noise subtracted).
+    pub mse_equal_spp: f64,
+    /// The expected MSE at [`RenderSettings::max_spp`] estimated from the per-pixel sample
+    /// variances of [`Self::equal_spp`] (`mean σ²/N`; equal to the MSE for an unbiased
+    /// estimator, and a less noisy estimate of it than one realisation's squared error).
+    pub mse_expected_equal_spp: f64,
+    /// Samples per pixel of the equal-time render.
+    pub equal_time_spp: u32,
+    /// The equal-time render.
+    pub equal_time: Render,
+    /// MSE of [`Self::equal_time`].
+    pub mse_equal_time: f64,
+}
+
+/// Renders and measures every technique against `reference`. `baseline` names the technique
+/// that sets the equal-time budget (the improved baseline; the first technique if absent).
+/// `progress` is called with a short message before each step.
+pub fn evaluate(
+    scene: &Scene,
+    material: &dyn Material,
+    techniques: &[(String, Technique<'_>)],
+    reference: &Reference,
+    baseline: &str,
+    s: &RenderSettings,
+    progress: &dyn Fn(&str),
+) -> anyhow::Result<Vec<TechniqueEval>> {
+    let mask = &reference.render.mask;
+    let pixels = (scene.camera.width * scene.camera.height) as f64;
+    let mut base = RenderOptions::new(s.max_spp.max(1), s.seed);
+    base.estimator = s.estimator;
+
+    // 1. Time per sample, single thread: passes interleaved over the techniques (so that a
+    // change of machine load hits all of them alike), the fastest pass kept (interference
+    // only ever adds time). The oracle's passes mostly rebuild its (excluded) tables: one.
+    // The oracle is timed once, on a quarter-resolution view of the same scene: its per-pixel
+    // table builds (excluded from its time, but paid single-threaded here) would otherwise
+    // dominate the whole evaluation.
+    let mut times = vec![f64::INFINITY; techniques.len()];
+    let mut o = base.clone();
+    o.spp = s.timing_spp.max(1);
+    let mut small = scene.clone();
+    small.camera.width = (scene.camera.width / 4).max(8);
+    small.camera.height = (scene.camera.height / 4).max(6);
+    for pass in 0..s.timing_passes.max(1) {
+        for (i, (name, t)) in techniques.iter().enumerate() {
+            let oracle = matches!(t, Technique::Oracle(_));
+            if pass > 0 && oracle {
+                continue;
+            }
+            if pass == 0 {
+                progress(&format!("timing {name}"));
+            }
+            let timed = if oracle {
+                let mut q = o.clone();
+                q.spp = 16 * o.spp;
+                t.time_per_sample(&small, material, &q, 1)?
+            } else {
+                t.time_per_sample(scene, material, &o, 1)?
+            };
+            times[i] = times[i].min(timed);
+        }
+    }
+    let b = techniques
+        .iter()
+        .position(|(n, _)| n == baseline)
+        .unwrap_or(0);
+    let budget_ns = times.get(b).copied().unwrap_or(1.0) * f64::from(s.max_spp.max(1));
+
+    let mut out = Vec::with_capacity(techniques.len());
+    for ((name, t), &ns) in techniques.iter().zip(&times) {
+        // 2. Equal spp, with the convergence checkpoints.
+        progress(&format!("equal spp {name}"));
+        let r = t.render(scene, material, &base);
+        let convergence = r
+            .checkpoints
+            .iter()
+            .map(|(spp, img)| ConvergencePoint {
+                spp: *spp,
+                mse: (mse(img, &reference.render.image, mask) - reference.noise).max(MSE_FLOOR),
+                seconds: f64::from(*spp) * pixels * ns * 1e-9,
+            })
+            .collect::<Vec<_>>();
+        let mse_equal_spp =
+            (mse(&r.image, &reference.render.image, mask) - reference.noise).max(MSE_FLOOR);
+        let mse_expected_equal_spp = mean_variance_of_mean(&r, mask).max(MSE_FLOOR);
+
+        // 3. Equal time.
+        progress(&format!("equal time {name}"));
+        let spp_t = if ns > 0.0 {
+            (budget_ns / ns)
+                .round()
+                .clamp(1.0, f64::from(s.max_equal_time_spp.max(1))) as u32
+        } else {
+            1
+        };
+        let mut o = base.clone();
+        o.spp = spp_t;
+        o.checkpoints.clear();
+        o.seed = s.seed.wrapping_add(0x00E9_0A17);
+        let rt = t.render(scene, material, &o);
+        let mse_equal_time =
+            (mse(&rt.image, &reference.render.image, mask) - reference.noise).max(MSE_FLOOR);
+        out.push(TechniqueEval {
+            name: name.clone(),
+            ns_per_sample: ns,
+            convergence,
+            equal_spp: r,
+            mse_equal_spp,
+            mse_expected_equal_spp,
+            equal_time_spp: spp_t,
+            equal_time: rt,
+            mse_equal_time,
+        });
+    }
+    Ok(out)
+}
+
+/// Speed-up of `m` over `b` at equal quality (module docs), from the expected MSEs at equal
+/// spp ([`TechniqueEval::mse_expected_equal_spp`]): `(e_b · t_b) / (e_m · t_m)`.
+#[must_use]
+pub fn speedup(m: &TechniqueEval, b: &TechniqueEval) -> f64 {
+    ratio(
+        b.mse_expected_equal_spp * b.ns_per_sample,
+        m.mse_expected_equal_spp * m.ns_per_sample,
+    )
+}
+
+/// The same speed-up from the measured MSEs against the reference
+/// ([`TechniqueEval::mse_equal_spp`]); noisier, but it would also see a bias.
+#[must_use]
+pub fn speedup_measured(m: &TechniqueEval, b: &TechniqueEval) -> f64 {
+    ratio(
+        b.mse_equal_spp * b.ns_per_sample,
+        m.mse_equal_spp * m.ns_per_sample,
+    )
+}
+
+/// The MSE ratio at equal spp (`e_b / e_m`, expected MSEs): the speed-up if every technique
+/// cost the same per sample (the paper's "sampling rate" view).
+#[must_use]
+pub fn variance_ratio(m: &TechniqueEval, b: &TechniqueEval) -> f64 {
+    ratio(b.mse_expected_equal_spp, m.mse_expected_equal_spp)
+}

@@ -1,0 +1,173 @@
+//! `inspect`: what a blob holds, as a typed description (`inspect --json`, schema in
+//! README.md) and as text.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::Result;
+use neusample::blob::FORMAT_VERSION;
+use neusample::Weights;
+use neusample::{Blob, SamplerKind, TensorRole};
+use serde::{Deserialize, Serialize};
+
+use crate::util::io;
+
+/// A blob's description (`inspect --json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Inspection {
+    /// The file.
+    pub file: String,
+    /// File size in bytes.
+    pub bytes: usize,
+    /// Blob format version this build reads.
+    pub format_version: u32,
+    /// Kind name ([`SamplerKind::name`]).
+    pub kind: String,
+    /// Storage type of the parameters (`f32`, `f16`).
+    pub dtype: String,
+    /// Length of φ.
+    pub feature_dim: u32,
+    /// Number of network parameters.
+    pub param_count: u32,
+    /// Histogram mixture: bases K.
+    pub basis: u32,
+    /// Histogram mixture: latent levels T; neural material: texture height.
+    pub t_levels: u32,
+    /// Histogram grid N; neural material: texture width.
+    pub resolution: u32,
+    /// Histogram mixture: `nearest` or `linear`.
+    pub interpolation: String,
+    /// The blob's label.
+    pub label: String,
+    /// Always `ok` (a blob whose checksum fails does not open).
+    pub checksum: String,
+    /// The tensors in role order.
+    pub tensors: Vec<TensorInfo>,
+}
+
+/// One tensor of an [`Inspection`].
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TensorInfo {
+    /// Role name.
+    pub role: String,
+    /// Element type (`f32`, `f16`).
+    pub dtype: String,
+    /// Byte offset in the blob.
+    pub offset: u32,
+    /// Number of elements.
+    pub count: u32,
+    /// Smallest element (the stored value, widened).
+    pub min: f64,
+    /// Largest element.
+    pub max: f64,
+    /// Mean of the elements.
+    pub mean: f64,
+}
+
+/// Reads, validates and describes the blob at `path`.
+pub fn inspect(path: &Path) -> Result<Inspection> {
+    let bytes = io::read_blob(path)?;
+    let blob = Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let h = blob.header();
+    let lower = |v: &dyn std::fmt::Debug| format!("{v:?}").to_lowercase();
+    let mut tensors = Vec::new();
+    for role in TensorRole::ALL {
+        if let (Some(e), Some(t)) = (blob.entry(role), blob.tensor(role)) {
+            let n = t.len();
+            let (mut lo, mut hi, mut sum) = (f32::INFINITY, f32::NEG_INFINITY, 0f64);
+            for i in 0..n {
+                let v = t.at(i);
+                lo = lo.min(v);
+                hi = hi.max(v);
+                sum += f64::from(v);
+            }
+            tensors.push(TensorInfo {
+                role: role.name().to_string(),
+                dtype: lower(&e.dtype),
+                offset: e.offset,
+                count: e.count,
+                min: f64::from(lo),
+                max: f64::from(hi),
+                mean: if n > 0 { sum / f64::from(n) } else { 0.0 },
+            });
+        }
+    }
+    Ok(Inspection {
+        file: path.display().to_string(),
+        bytes: bytes.len(),
+        format_version: FORMAT_VERSION,
+        kind: h.kind.name().to_string(),
+        dtype: lower(&h.dtype),
+        feature_dim: h.feature_dim,
+        param_count: h.param_count,
+        basis: h.basis,
+        t_levels: h.t_levels,
+        resolution: h.resolution,
+        interpolation: lower(&h.interpolation),
+        label: h.label.to_string(),
+        checksum: "ok".to_string(),
+        tensors,
+    })
+}
+
+impl Inspection {
+    /// The human-readable description `inspect` prints.
+    #[must_use]
+    pub fn text(&self) -> String {
+        let mut s = String::new();
+        let kind = SamplerKind::from_name(&self.kind);
+        let _ = writeln!(
+            s,
+            "{}: {} {}, {} bytes, format v{}, checksum ok",
+            self.file,
+            self.kind,
+            if kind.is_some_and(SamplerKind::is_sampler) {
+                "sampler"
+            } else {
+                "blob"
+            },
+            self.bytes,
+            self.format_version
+        );
+        let _ = writeln!(
+            s,
+            "  storage {}, φ dim {}, {} params",
+            self.dtype.to_uppercase(),
+            self.feature_dim,
+            self.param_count
+        );
+        if kind == Some(SamplerKind::NeuralMaterial) {
+            let _ = writeln!(
+                s,
+                "  neural material: feature texture {}×{}×8 (NEURAL.md)",
+                self.resolution, self.t_levels
+            );
+        } else if self.t_levels > 0 {
+            let _ = writeln!(
+                s,
+                "  tables: K={} T={} N={} ({} in t)",
+                self.basis,
+                self.t_levels,
+                self.resolution,
+                capitalised(&self.interpolation)
+            );
+        }
+        let _ = writeln!(s, "  label: {}", self.label);
+        for t in &self.tensors {
+            let _ = writeln!(
+                s,
+                "  tensor {:<12} {:>4} {:>8} elements at {:>7}  min {:.4} max {:.4} mean {:.4}",
+                t.role, t.dtype, t.count, t.offset, t.min, t.max, t.mean
+            );
+        }
+        s
+    }
+}
+
+/// `linear` → `Linear` (the Debug spelling the text output always used).
+fn capitalised(s: &str) -> String {
+    let mut c = s.chars();
+    c.next()
+        .map(|f| f.to_uppercase().chain(c).collect())
+        .unwrap_or_default()
+}

@@ -1,0 +1,279 @@
+//! Training hyper-parameters: the settings every method shares, plus one block per method.
+//! Each block has one `quick()` (a few seconds per method, for tests and CI) and one
+//! `default()` (the default run: about a minute per method on two cores); the quick settings
+//! are written as changes to the default ones.
+
+use neusample::SamplerKind;
+
+use super::method::METHODS;
+
+/// Settings every method shares.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Common {
+    /// Seed of every random stream.
+    pub seed: u64,
+    /// Threads of the training pool (results depend on it; fixed for reproducibility).
+    pub threads: usize,
+    /// Show progress bars.
+    pub progress: bool,
+    /// Resolution of the tabulated ground truth (per side).
+    pub gt_res: usize,
+    /// Conditions in the ground-truth pool.
+    pub pool_conditions: usize,
+    /// A quarter of the pool is redrawn every this many steps (0: never).
+    pub pool_refresh_every: usize,
+    /// AdamW weight decay.
+    pub weight_decay: f32,
+    /// Gradient-norm clipping threshold.
+    pub grad_clip: f32,
+}
+
+impl Default for Common {
+    fn default() -> Self {
+        Common {
+            seed: 1,
+            threads: 2,
+            progress: false,
+            gt_res: 128,
+            pool_conditions: 512,
+            pool_refresh_every: 400,
+            weight_decay: 0.0,
+            grad_clip: 10.0,
+        }
+    }
+}
+
+impl Common {
+    /// A small ground-truth pool that is never refreshed.
+    #[must_use]
+    pub fn quick() -> Self {
+        Common {
+            gt_res: 48,
+            pool_conditions: 32,
+            pool_refresh_every: 0,
+            ..Common::default()
+        }
+    }
+}
+
+/// Length and peak learning rate of one method's run (AdamW; linear warm-up, cosine decay to
+/// 5 %).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Schedule {
+    /// Optimisation steps.
+    pub steps: usize,
+    /// Peak learning rate.
+    pub lr: f64,
+}
+
+impl Schedule {
+    /// The schedule of every quick run.
+    #[must_use]
+    pub fn quick() -> Self {
+        Schedule {
+            steps: 120,
+            lr: 3e-3,
+        }
+    }
+}
+
+/// A method trained by maximum likelihood of ground-truth samples (improved baseline,
+/// analytic mixture, the two flows, direct histogram): batches of `batch_conditions` pool
+/// conditions × `samples_per_condition` samples of p*.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaxLikelihood {
+    /// Steps and learning rate.
+    pub schedule: Schedule,
+    /// Conditions per batch.
+    pub batch_conditions: usize,
+    /// Ground-truth samples per condition.
+    pub samples_per_condition: usize,
+}
+
+impl Default for MaxLikelihood {
+    /// The default run of the lobe mixtures and the direct histogram; the flows change the
+    /// schedule ([`TrainConfig::default`]).
+    fn default() -> Self {
+        MaxLikelihood {
+            schedule: Schedule {
+                steps: 3000,
+                lr: 5e-3,
+            },
+            batch_conditions: 64,
+            samples_per_condition: 64,
+        }
+    }
+}
+
+impl MaxLikelihood {
+    /// Small batches, the quick schedule.
+    #[must_use]
+    pub fn quick() -> Self {
+        MaxLikelihood {
+            schedule: Schedule::quick(),
+            batch_conditions: 16,
+            samples_per_condition: 32,
+        }
+    }
+
+    /// The default batches with another schedule.
+    #[must_use]
+    pub fn with_schedule(steps: usize, lr: f64) -> Self {
+        MaxLikelihood {
+            schedule: Schedule { steps, lr },
+            ..MaxLikelihood::default()
+        }
+    }
+}
+
+/// The histogram mixture: its regression batches, the baked tables and the loss terms
+/// (`super::histogram_mixture`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HistogramMixture {
+    /// Steps and learning rate.
+    pub schedule: Schedule,
+    /// Conditions per batch.
+    pub batch_conditions: usize,
+    /// Regression points per condition (half uniform on the disk, half from p*; even).
+    pub points_per_condition: usize,
+    /// Latent-code levels T of the baked tables.
+    pub t_levels: usize,
+    /// Cells per side N of the baked tables.
+    pub res: usize,
+    /// Whether the runtime interpolates linearly in t (else the nearest level).
+    pub interpolate_t: bool,
+    /// Points per cell side when baking.
+    pub supersample: usize,
+    /// Weight λ of the quantisation term.
+    pub quant_weight: f32,
+    /// Output scale S of the basis network, `H = S·softplus(z)`: lets a freshly initialised
+    /// network reach the peak densities of glossy lobes quickly (the baked tables are
+    /// normalised, so S does not change what the model can represent).
+    pub output_scale: f32,
+    /// Weight of the self-normalised NLL term (a KL(p* ‖ p) estimate) added to the paper's
+    /// L2 loss; 0 gives the paper's objective (Eq. 7 + quantisation). The L2 loss ignores the
+    /// low-density tails, which the NLL term covers (`core/ARCHITECTURES.md` §6 and the README
+    /// give the measured effect).
+    pub nll_weight: f32,
+    /// Initialise the condition network with every basis aligned to the mirror direction;
+    /// only the starting point differs.
+    pub aligned_init: bool,
+}
+
+impl Default for HistogramMixture {
+    fn default() -> Self {
+        HistogramMixture {
+            schedule: Schedule {
+                steps: 2000,
+                lr: 4e-3,
+            },
+            batch_conditions: 16,
+            points_per_condition: 64,
+            t_levels: 32,
+            res: 64,
+            interpolate_t: true,
+            supersample: 2,
+            quant_weight: 100.0,
+            output_scale: 5.0,
+            nll_weight: 1.0,
+            aligned_init: true,
+        }
+    }
+}
+
+impl HistogramMixture {
+    /// Small batches and tables, no supersampling, the quick schedule.
+    #[must_use]
+    pub fn quick() -> Self {
+        HistogramMixture {
+            schedule: Schedule::quick(),
+            batch_conditions: 8,
+            points_per_condition: 32,
+            t_levels: 8,
+            res: 16,
+            supersample: 1,
+            ..HistogramMixture::default()
+        }
+    }
+}
+
+/// Training hyper-parameters of every method.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainConfig {
+    /// Settings every method shares.
+    pub common: Common,
+    /// Improved baseline.
+    pub baseline: MaxLikelihood,
+    /// Analytic mixture.
+    pub analytic: MaxLikelihood,
+    /// RQ-spline flow.
+    pub flow: MaxLikelihood,
+    /// Affine-coupling flow.
+    pub affine_flow: MaxLikelihood,
+    /// Direct histogram.
+    pub direct_histogram: MaxLikelihood,
+    /// Histogram mixture.
+    pub histogram_mixture: HistogramMixture,
+}
+
+impl Default for TrainConfig {
+    /// The default run of every method: about a minute per method on two cores.
+    fn default() -> Self {
+        TrainConfig {
+            common: Common::default(),
+            baseline: MaxLikelihood::default(),
+            analytic: MaxLikelihood::default(),
+            flow: MaxLikelihood::with_schedule(2000, 5e-3),
+            affine_flow: MaxLikelihood::with_schedule(2000, 4e-3),
+            direct_histogram: MaxLikelihood::default(),
+            histogram_mixture: HistogramMixture::default(),
+        }
+    }
+}
+
+impl TrainConfig {
+    /// A short run for tests and CI (a few seconds per method).
+    #[must_use]
+    pub fn quick() -> Self {
+        TrainConfig {
+            common: Common::quick(),
+            baseline: MaxLikelihood::quick(),
+            analytic: MaxLikelihood::quick(),
+            flow: MaxLikelihood::quick(),
+            affine_flow: MaxLikelihood::quick(),
+            direct_histogram: MaxLikelihood::quick(),
+            histogram_mixture: HistogramMixture::quick(),
+        }
+    }
+
+    /// The schedule of `method`; `None` for the kinds that are not trained (cosine, the
+    /// neural material).
+    #[must_use]
+    pub fn schedule(&self, method: SamplerKind) -> Option<Schedule> {
+        self.clone().schedule_mut(method).copied()
+    }
+
+    /// The schedule of `method`, to change it; `None` for the kinds that are not trained.
+    pub fn schedule_mut(&mut self, method: SamplerKind) -> Option<&mut Schedule> {
+        match method {
+            SamplerKind::ImprovedBaseline => Some(&mut self.baseline.schedule),
+            SamplerKind::AnalyticMixture => Some(&mut self.analytic.schedule),
+            SamplerKind::Flow => Some(&mut self.flow.schedule),
+            SamplerKind::AffineFlow => Some(&mut self.affine_flow.schedule),
+            SamplerKind::DirectHistogram => Some(&mut self.direct_histogram.schedule),
+            SamplerKind::HistogramMixture => Some(&mut self.histogram_mixture.schedule),
+            SamplerKind::Cosine | SamplerKind::NeuralMaterial => None,
+        }
+    }
+
+    /// Every method's step count multiplied by `factor` (rounded, at least 1).
+    #[must_use]
+    pub fn with_steps_scaled(mut self, factor: f64) -> Self {
+        for kind in METHODS {
+            if let Some(s) = self.schedule_mut(kind) {
+                s.steps = ((s.steps as f64 * factor).round() as usize).max(1);
+            }
+        }
+        self
+    }
+}

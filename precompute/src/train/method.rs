@@ -1,0 +1,28 @@
+//! The trainable methods, named by the runtime's [`SamplerKind`] (the names of
+//! [`SamplerKind::name`]: `baseline`, `analytic`, `flow`, `affine-flow`, `direct-histogram`,
+//! `histogram-mixture`).
+
+use neusample::SamplerKind;
+
+/// Every trainable method, in the paper's order (every sampler kind but cosine).
+pub const METHODS: [SamplerKind; 6] = [
+    SamplerKind::ImprovedBaseline,
+    SamplerKind::AnalyticMixture,
+    SamplerKind::Flow,
+    SamplerKind::AffineFlow,
+    SamplerKind::DirectHistogram,
+    SamplerKind::HistogramMixture,
+];
+
+/// The trainable method named `name`; the error lists the names.
+pub fn parse_method(name: &str) -> anyhow::Result<SamplerKind> {
+    SamplerKind::from_name(name)
+        .filter(|k| METHODS.contains(k))
+        .ok_or_else(|| {
+            let names: Vec<_> = METHODS.iter().map(|m| m.name()).collect();
+            anyhow::anyhow!(
+                "unknown method `{name}`; expected one of {}",
+                names.join(", ")
+            )
+        })
+}

@@ -1,0 +1,140 @@
+//! Where training conditions come from: a material (through [`crate::groundtruth`]) or the
+//! closed-form synthetic target of the tests ([`SyntheticSource`], a conditional mixture
+//! tabulated the same way). Both are deterministic in their seed.
+
+use glam::{Vec2, Vec3};
+use neusample::FEATURE_DIM;
+use rand::RngExt;
+use rand_pcg::Pcg64;
+use rayon::prelude::*;
+
+use crate::groundtruth::{self, TargetPdf};
+use crate::materials::Material;
+use crate::util::rng::rng_for;
+
+/// One training condition (φ, wi) with its target density.
+pub struct GtCondition {
+    /// Material features φ at the condition's texel.
+    pub phi: [f32; FEATURE_DIM],
+    /// Incoming direction (local frame, unit length, above the horizon).
+    pub wi: Vec3,
+    /// p*(ω⊥ | φ, wi), tabulated.
+    pub target: TargetPdf,
+}
+
+/// A source of training conditions, deterministic in its seed.
+pub trait TargetSource: Sync {
+    /// `n` random conditions with their targets tabulated at `res × res`, a pure function
+    /// of `(n, res, seed)`.
+    fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>>;
+}
+
+/// Draws training conditions of a material with [`groundtruth::batch`].
+pub struct MaterialSource<'a> {
+    material: &'a dyn Material,
+}
+
+impl<'a> MaterialSource<'a> {
+    /// The source of `material`.
+    #[must_use]
+    pub fn new(material: &'a dyn Material) -> Self {
+        MaterialSource { material }
+    }
+}
+
+impl TargetSource for MaterialSource<'_> {
+    fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>> {
+        Ok(groundtruth::batch(self.material, n, res, seed)
+            .into_iter()
+            .map(|(c, target)| GtCondition {
+                phi: c.phi,
+                wi: c.wi,
+                target,
+            })
+            .collect())
+    }
+}
+
+/// A closed-form conditional target for tests: a Lambert floor plus two anisotropic
+/// Gaussian lobes on the disk whose centres, widths and weights depend smoothly on φ and wi
+/// (the main lobe follows the mirror direction `−wi⊥`, shifted by φ like a normal map).
+///
+/// φ is uniform in `[−1, 1]⁸`; wi is cosine-distributed with `|wi⊥| < 0.9`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SyntheticSource;
+
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+impl SyntheticSource {
+    /// The unnormalised target f(p | φ, wi).
+    #[must_use]
+    pub fn density(phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f32 {
+        let m1 = Vec2::new(-wi.x, -wi.y) + 0.3 * Vec2::new(phi[0], phi[1]);
+        let s1 = Vec2::new(
+            0.04 + 0.2 * sigmoid(2.0 * phi[2]),
+            0.04 + 0.2 * sigmoid(2.0 * phi[3]),
+        );
+        let m2 = 0.5 * Vec2::new(phi[5], phi[6]);
+        let s2 = 0.15 + 0.1 * sigmoid(phi[7]);
+        let w2 = 0.4 * sigmoid(3.0 * phi[4]);
+        let floor = 0.05 + 0.1 * sigmoid(2.0 * phi[7]);
+        let g = |m: Vec2, s: Vec2| {
+            let d = (p - m) / s;
+            (-0.5 * d.length_squared()).exp() / (std::f32::consts::TAU * s.x * s.y)
+        };
+        floor / std::f32::consts::PI + g(m1, s1) + w2 * g(m2, Vec2::splat(s2))
+    }
+
+    /// One random condition from `rng`.
+    pub fn condition(rng: &mut Pcg64) -> ([f32; FEATURE_DIM], Vec3) {
+        let mut phi = [0.0f32; FEATURE_DIM];
+        for v in &mut phi {
+            *v = rng.random_range(-1.0f32..1.0);
+        }
+        let wi = loop {
+            let x = rng.random_range(-1.0f32..1.0);
+            let y = rng.random_range(-1.0f32..1.0);
+            let r2 = x * x + y * y;
+            if r2 < 0.81 {
+                break Vec3::new(x, y, (1.0 - r2).sqrt());
+            }
+        };
+        (phi, wi)
+    }
+}
+
+impl TargetSource for SyntheticSource {
+    fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>> {
+        Ok((0..n)
+            .into_par_iter()
+            .map(|i| {
+                let mut rng = rng_for(seed, 0x5e17, i as u64);
+                let (phi, wi) = Self::condition(&mut rng);
+                let h = 2.0 / res as f32;
+                let mut values = vec![0.0f32; res * res];
+                for r in 0..res {
+                    for c in 0..res {
+                        let mut acc = 0.0;
+                        for i in 0..2 {
+                            for j in 0..2 {
+                                let p = Vec2::new(
+                                    -1.0 + h * (c as f32 + 0.25 + 0.5 * j as f32),
+                                    -1.0 + h * (r as f32 + 0.25 + 0.5 * i as f32),
+                                );
+                                acc += 0.25 * Self::density(&phi, wi, p);
+                            }
+                        }
+                        values[r * res + c] = acc;
+                    }
+                }
+                GtCondition {
+                    phi,
+                    wi,
+                    target: TargetPdf::from_values(res, values),
+                }
+            })
+            .collect())
+    }
+}
