@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
-# GPU check of neusample (issue 7): build the samplers to SPIR-V with rust-gpu, validate the
-# module, run every sampler on a Vulkan device (lavapipe on CI) and compare each output
-# record with the CPU; then measure the samplers' code size on thumbv7em.
+# GPU check of neusample (issues 7, 13): build the samplers and the neural material
+# (features, eval) to SPIR-V with rust-gpu, validate the module, run each of them on a Vulkan
+# device (lavapipe on CI) and compare each output record with the CPU; then measure their
+# code size on thumbv7em.
 #
 # Exit status: 0 passed; 1 failed (build, validation or a CPU/GPU mismatch); 3 skipped
 # because a prerequisite (pinned nightly, apt packages, a Vulkan device) cannot be had here —
 # always announced by a loud "GPU CHECK SKIPPED: <reason>" line. Never passes silently.
 #
 # Environment: NEUSAMPLE_GPU_TARGET_DIR (default <repo>/target/gpu), NEUSAMPLE_GPU_RECORDS
-# (records per sampler, default 16384), NEUSAMPLE_GPU_SKIP_EMBEDDED=1 to skip the size step.
+# (records per sampler / material entry point, default 16384), NEUSAMPLE_GPU_SKIP_EMBEDDED=1
+# to skip the size step.
 set -uo pipefail
 
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -102,7 +104,7 @@ if [ "${NEUSAMPLE_GPU_SKIP_EMBEDDED:-0}" != 1 ]; then
         fi
         NM="$(command -v arm-none-eabi-nm || command -v llvm-nm || true)"
         if [ -n "$NM" ]; then
-            echo "[embedded] per-sampler entry functions (bytes, shared helpers such as libm not included):"
+            echo "[embedded] per-sampler (and neural-material) entry functions (bytes, shared helpers such as libm not included):"
             "$NM" -S --size-sort "$ELF" | while read -r _ sz _ name; do
                 case "$name" in ns_*) printf '  %-22s %6d\n' "$name" "$((16#$sz))" ;; esac
             done

@@ -1,6 +1,7 @@
-//! A bare-metal binary that prepares, samples and evaluates every `neusample` sampler with
-//! opaque inputs (`black_box`), so that none of them is optimised away. Built for
-//! `thumbv7em-none-eabihf` to measure the code size the samplers add to firmware.
+//! A bare-metal binary that prepares, samples and evaluates every `neusample` sampler, and
+//! the neural material's `features` and `eval`, with opaque inputs (`black_box`), so that
+//! none of them is optimised away. Built for `thumbv7em-none-eabihf` to measure the code size
+//! the samplers and the material add to firmware.
 //!
 //! Each sampler sits in its own `#[inline(never)]` function, so `nm --size-sort` attributes
 //! most of its code to that symbol (shared helpers such as libm stay separate).
@@ -89,6 +90,44 @@ pub extern "C" fn ns_histogram_mixture() -> f32 {
     exercise(&s)
 }
 
+/// The neural material's decoder: `eval(φ, wi, wo)` (14 → 64 → 64 → 64 → 3 and the exp),
+/// folded into one number.
+#[inline(never)]
+#[no_mangle]
+pub extern "C" fn ns_neural_eval() -> f32 {
+    let m = neusample::NeuralMaterial::new_unchecked(
+        weights(),
+        weights(),
+        black_box(256),
+        black_box(256),
+    );
+    let phi: [f32; FEATURE_DIM] = black_box([0.1; FEATURE_DIM]);
+    let wi = black_box(Vec3::new(0.1, 0.2, 0.9));
+    let wo = black_box(Vec3::new(-0.2, 0.1, 0.8));
+    let f = m.eval(&phi, wi, wo);
+    f[0] + f[1] + f[2]
+}
+
+/// The neural material's texture lookup: `features(uv)` (bilinear, wrapping).
+#[inline(never)]
+#[no_mangle]
+pub extern "C" fn ns_neural_features() -> f32 {
+    let m = neusample::NeuralMaterial::new_unchecked(
+        weights(),
+        weights(),
+        black_box(256),
+        black_box(256),
+    );
+    let phi = m.features(black_box(Vec2::new(0.3, 1.7)));
+    let mut acc = 0.0;
+    let mut k = 0;
+    while k < FEATURE_DIM {
+        acc += phi[k];
+        k += 1;
+    }
+    acc
+}
+
 /// Entry point (no runtime: the binary is only measured, never run).
 #[no_mangle]
 pub extern "C" fn _start() -> ! {
@@ -100,6 +139,8 @@ pub extern "C" fn _start() -> ! {
     acc += ns_analytic();
     acc += ns_direct_histogram();
     acc += ns_histogram_mixture();
+    acc += ns_neural_eval();
+    acc += ns_neural_features();
     black_box(acc);
     loop {}
 }

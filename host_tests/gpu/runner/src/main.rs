@@ -6,7 +6,7 @@
 //! slice fast paths, on SPIR-V the portable loops).
 //!
 //! Usage: `neusample-gpu-runner <module.spv> [records per sampler]`. Exit status 0 when every
-//! sampler matches, 1 on a mismatch, 2 when Vulkan is unusable.
+//! sampler and the neural material match, 1 on a mismatch, 2 when Vulkan is unusable.
 //!
 //! # Tolerances (per record)
 //!
@@ -36,7 +36,34 @@
 //!   difference. Accepted when the CPU reproduces the GPU's values (within the tolerances)
 //!   for an input (u for sample values, wo2 for densities at wo2) moved by at most
 //!   `CROSSING_DELTA`.
+//!
+//! # Neural material (`neural_features`, `neural_eval`; [`neural`])
+//!
+//! Run on the committed `fixtures/materials/neural/goat_leather_neural.nsb` (decoded on the
+//! host into flat f32 texture and decoder buffers) and on a seeded random 13 × 7 material
+//! whose decoder reaches the `ln f` clamps. Both functions are continuous away from the
+//! horizon test (bilinear weights go to 0/1 where a texel index changes; ReLU and the clamp
+//! are continuous), and the inputs keep clear of that test, so there is no edge / crossing
+//! class: every record must match.
+//!
+//! * `features(uv)`: `|Δφ_k| ≤ FEAT_EPS·(16 + 2·max(W, H))·max|T|` (`FEAT_EPS` = f32 ε).
+//!   φ is a convex combination of four texels computed by the same formula on both sides;
+//!   the driver may fuse `a·b + c` into an FMA or reorder, which moves each side
+//!   by ≤ ~4ε·max|T| (products and three sums, weights summing to 1), and the texel weight
+//!   `w = x − ⌊x⌋`, `x = t'·n − 0.5`, by up to one ulp of `x` (≤ n·ε), which moves φ by
+//!   ≤ n·ε·|T₁ − T₀| ≤ 2n·ε·max|T|. (For power-of-two n, `t'·n` is exact and the second
+//!   term does not arise.) The report gives max |Δφ| / max|T|.
+//! * `eval(φ, wi, wo)` and `eval(φ(uv), wi, wo)` (RGB, no cosine): refused (exactly
+//!   `[0, 0, 0]`) on both sides or on neither, and per channel `|Δf| ≤ EVAL_REL·max(f_gpu,
+//!   f_cpu)` with `EVAL_REL` 1e-4. The decoder's output is `ln f`, so a relative error of f
+//!   is an absolute error of `ln f`: four dense layers (≤ 64-term f32 dot products, any
+//!   order or fusion on the driver) plus `exp` give ~1e-6 on the committed material; 1e-4
+//!   is the densities' tolerance and leaves room for the φ(uv) error propagated through
+//!   `∂ ln f/∂φ`. Refused records must be exactly the documented edge positions (below /
+//!   on the horizon, zero, non-finite or overflowing directions; non-finite φ for
+//!   `eval(φ, …)` only), and no other record may be refused.
 
+mod neural;
 mod vk;
 
 use std::time::Instant;
@@ -57,6 +84,12 @@ const EDGE_COS: f32 = 1e-3;
 const PDF_ABS: f32 = 1e-6;
 /// Tolerance on `invert` results and on the u of a u-match.
 const U_TOL: f32 = 1e-5;
+/// Neural material: unit of the features' tolerance (`FEAT_EPS·(16 + 2·max(W, H))·max|T|`).
+const FEAT_EPS: f32 = f32::EPSILON;
+/// Neural material: relative tolerance per RGB channel of `eval`.
+const EVAL_REL: f32 = 1e-4;
+/// Neural material: gain of the random decoder's init (some outputs reach the `ln f` clamps).
+const RANDOM_DECODER_GAIN: f32 = 4.0;
 
 /// Tolerances of one sampler.
 #[derive(Copy, Clone, Debug)]
@@ -130,8 +163,16 @@ const HM_CELLS: u32 = 32;
 /// Baked histogram-mixture tables from random raw slices: per (basis, level) a sum of two
 /// Gaussian bumps with random centres and widths plus a little noise, so the densities have
 /// structure (and cell edges) everywhere, baked by core's own `bake_slices`.
-fn histogram_tables(rng: &mut Rng, levels: u32, cells: u32) -> neusample::samplers::histogram_mixture::BakedTables {
-    let (k, t, n) = (neusample::samplers::histogram_mixture::BASES, levels as usize, cells as usize);
+fn histogram_tables(
+    rng: &mut Rng,
+    levels: u32,
+    cells: u32,
+) -> neusample::samplers::histogram_mixture::BakedTables {
+    let (k, t, n) = (
+        neusample::samplers::histogram_mixture::BASES,
+        levels as usize,
+        cells as usize,
+    );
     let mut raw = Vec::with_capacity(k * t * n * n);
     for _ in 0..k * t {
         let mut bumps = [[0.0f32; 4]; 2];
@@ -474,6 +515,16 @@ fn compare(case: &Case, input: &[f32], gpu: &[f32], cpu_out: &[f32], verbose: bo
     s
 }
 
+/// The push-constant bytes of `p` (`Params` is `#[repr(C)]`, all `u32`).
+fn push_bytes(p: &Params) -> Vec<u8> {
+    let mut push = Vec::new();
+    for v in [p.n, p.levels, p.cells, p.interpolate, p.width, p.height] {
+        push.extend_from_slice(&v.to_le_bytes());
+    }
+    assert_eq!(push.len(), std::mem::size_of::<Params>());
+    push
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let Some(spv_path) = args.get(1) else {
@@ -612,6 +663,7 @@ fn main() {
                 levels,
                 cells,
                 interpolate,
+                ..Params::default()
             };
             for i in 0..n {
                 neusample_gpu_shader::histogram_mixture(
@@ -633,6 +685,7 @@ fn main() {
         levels,
         cells,
         interpolate,
+        ..Params::default()
     };
     let cases = [
         Case {
@@ -706,10 +759,7 @@ fn main() {
     if let Ok(entry) = std::env::var("NEUSAMPLE_GPU_SMOKE") {
         let input = make_input(n, 1);
         let out = vec![0.0f32; n * OUT_STRIDE];
-        let mut push = Vec::new();
-        for v in [n as u32, 0, 0, 0] {
-            push.extend_from_slice(&v.to_le_bytes());
-        }
+        let push = push_bytes(&p(n));
         let bufs: Vec<&[f32]> = vec![&input, &out, fw];
         let groups = (n as u32).div_ceil(WORKGROUP_SIZE);
         match ctx.dispatch(&entry, &bufs, 1, n * OUT_STRIDE, &push, groups) {
@@ -722,7 +772,7 @@ fn main() {
     let only: Option<Vec<String>> = std::env::var("NEUSAMPLE_GPU_ONLY")
         .ok()
         .map(|s| s.split(',').map(str::to_string).collect());
-    let mut failed = Vec::new();
+    let mut failed: Vec<String> = Vec::new();
     println!(
         "{:<17} {:>5} {:>5} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>5} {:>5} {:>5} {:>4} {:>7} {:>7} {:>7} {:>7} {:>7}",
         "sampler", "prep", "sampl", "inv", "wo abs", "pdf rel", "wo2 rel", "inv abs", "self rel",
@@ -739,21 +789,13 @@ fn main() {
         let out_init = vec![0.0f32; n * OUT_STRIDE];
         bufs[1] = &out_init;
         bufs.extend(case.buffers.iter().copied());
-        let mut push = Vec::new();
-        for v in [
-            case.params.n,
-            case.params.levels,
-            case.params.cells,
-            case.params.interpolate,
-        ] {
-            push.extend_from_slice(&v.to_le_bytes());
-        }
+        let push = push_bytes(&case.params);
         let groups = (n as u32).div_ceil(WORKGROUP_SIZE);
         let d = match ctx.dispatch(case.entry, &bufs, 1, n * OUT_STRIDE, &push, groups) {
             Ok(d) => d,
             Err(e) => {
                 println!("{:<20} DISPATCH FAILED: {e}", case.label);
-                failed.push(case.label);
+                failed.push(case.label.to_string());
                 continue;
             }
         };
@@ -787,9 +829,49 @@ fn main() {
         );
         let too_many_crossings = s.crossings as f64 > MAX_CROSSING_FRACTION * n as f64;
         if s.failures > 0 || too_many_crossings || s.sampled == 0 {
-            failed.push(case.label);
+            failed.push(case.label.to_string());
         }
     }
+    // The neural material: the committed goat leather and a seeded random one.
+    let material_path = std::env::var("NEUSAMPLE_GPU_MATERIAL").unwrap_or_else(|_| {
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../../fixtures/materials/neural/goat_leather_neural.nsb"
+        )
+        .to_string()
+    });
+    let wanted = |label: &str| only.as_ref().is_none_or(|o| o.iter().any(|x| x == label));
+    let mut materials = Vec::new();
+    if wanted("goat_leather") {
+        match neural::Material::from_blob("goat_leather", &material_path) {
+            Ok(m) => materials.push(m),
+            Err(e) => {
+                println!("goat_leather: cannot load the committed material: {e}");
+                failed.push("goat_leather".to_string());
+            }
+        }
+    }
+    if wanted("random_material") {
+        materials.push(neural::Material::random(
+            "random_material",
+            0x5eed_0002,
+            13,
+            7,
+            RANDOM_DECODER_GAIN,
+        ));
+    }
+    let mut failed_neural = Vec::new();
+    for m in &materials {
+        m.describe();
+    }
+    if !materials.is_empty() {
+        neural::header();
+    }
+    for (mi, m) in materials.iter().enumerate() {
+        failed_neural.extend(neural::run(&ctx, m, n, 0x9abc_def0 + mi as u64, verbose));
+    }
+    failed.extend(failed_neural);
+
     println!(
         "tolerances: wo ±{:.0e} abs, densities {:.0e} rel (flow 5e-4) + {PDF_ABS:.0e} abs, invert ±{U_TOL:.0e}; \
          edge = sample within {EDGE_COS:.0e} of the horizon; u-match = GPU sample is the CPU's at \
@@ -798,8 +880,12 @@ fn main() {
         tight.pdf_rel,
         MAX_CROSSING_FRACTION * 100.0
     );
+    println!(
+        "neural material: φ ±{FEAT_EPS:.1e}·(16 + 2·max(W, H))·max|T| abs; eval {EVAL_REL:.0e} rel per \
+         channel, refusals identical and only at the documented edge cases"
+    );
     if failed.is_empty() {
-        println!("GPU CHECK PASSED: every sampler matches the CPU");
+        println!("GPU CHECK PASSED: every sampler and the neural material match the CPU");
     } else {
         println!("GPU CHECK FAILED: {}", failed.join(", "));
         std::process::exit(1);

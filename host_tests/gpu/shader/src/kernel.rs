@@ -3,7 +3,8 @@
 //! Written in the subset rust-gpu accepts: index loops, fixed-size arrays, no iterators, no
 //! sub-slices. Indices are checked by [`in_range`] before [`run`] is called.
 
-use neusample::{Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
+use neusample::neural_material::DECODER_OUTPUTS;
+use neusample::{NeuralMaterial, Prepared, Sampler, Vec2, Vec3, Weights, FEATURE_DIM};
 
 /// Floats per input record: φ (8), wi (3), u (2), wo2 (3).
 pub const IN_STRIDE: usize = 16;
@@ -37,6 +38,10 @@ pub struct Params {
     pub cells: u32,
     /// Histogram mixture: 1 = linear interpolation between levels, 0 = nearest level.
     pub interpolate: u32,
+    /// Neural material: feature-texture width (texels along u).
+    pub width: u32,
+    /// Neural material: feature-texture height (texels along v).
+    pub height: u32,
 }
 
 /// `true` when record `i` lies inside both buffers (lengths in floats).
@@ -89,6 +94,82 @@ pub fn run<S: Sampler>(s: &S, i: u32, input: &[f32], output: &mut [f32]) {
     }
     rec[5] = flags as f32;
 
+    let o = i as usize * OUT_STRIDE;
+    let mut k = 0;
+    while k < OUT_STRIDE {
+        output[o + k] = rec[k];
+        k += 1;
+    }
+}
+
+/// Neural-material input record (same [`IN_STRIDE`]): offset of φ (8 values, the condition
+/// of `eval`).
+pub const NM_IN_PHI: usize = 0;
+/// Neural-material input record: offset of `wi`.
+pub const NM_IN_WI: usize = FEATURE_DIM;
+/// Neural-material input record: offset of `wo`.
+pub const NM_IN_WO: usize = FEATURE_DIM + 3;
+/// Neural-material input record: offset of `uv`.
+pub const NM_IN_UV: usize = FEATURE_DIM + 6;
+/// `neural_eval` output record: offset of `eval(φ, wi, wo)` (RGB).
+pub const NM_OUT_EVAL: usize = 0;
+/// `neural_eval` output record: offset of `eval(features(uv), wi, wo)` (RGB).
+pub const NM_OUT_EVAL_UV: usize = DECODER_OUTPUTS;
+
+/// `NeuralMaterial::features` of record `i`'s `uv`: writes the 8 features to the start of
+/// output record `i` (the rest of the record is zero). The caller guarantees [`in_range`].
+#[inline]
+pub fn run_features<W: Weights>(m: &NeuralMaterial<W>, i: u32, input: &[f32], output: &mut [f32]) {
+    let b = i as usize * IN_STRIDE;
+    let uv = Vec2::new(input[b + NM_IN_UV], input[b + NM_IN_UV + 1]);
+    let phi = m.features(uv);
+    let mut rec = [0.0f32; OUT_STRIDE];
+    let mut k = 0;
+    while k < FEATURE_DIM {
+        rec[k] = phi[k];
+        k += 1;
+    }
+    write_record(i, &rec, output);
+}
+
+/// `NeuralMaterial::eval(φ, wi, wo)` of record `i` (RGB at [`NM_OUT_EVAL`]) and
+/// `eval(features(uv), wi, wo)` (the renderer's path, at [`NM_OUT_EVAL_UV`]). The caller
+/// guarantees [`in_range`].
+#[inline]
+pub fn run_eval<W: Weights>(m: &NeuralMaterial<W>, i: u32, input: &[f32], output: &mut [f32]) {
+    let b = i as usize * IN_STRIDE;
+    let mut phi = [0.0f32; FEATURE_DIM];
+    let mut k = 0;
+    while k < FEATURE_DIM {
+        phi[k] = input[b + NM_IN_PHI + k];
+        k += 1;
+    }
+    let wi = Vec3::new(
+        input[b + NM_IN_WI],
+        input[b + NM_IN_WI + 1],
+        input[b + NM_IN_WI + 2],
+    );
+    let wo = Vec3::new(
+        input[b + NM_IN_WO],
+        input[b + NM_IN_WO + 1],
+        input[b + NM_IN_WO + 2],
+    );
+    let uv = Vec2::new(input[b + NM_IN_UV], input[b + NM_IN_UV + 1]);
+    let f = m.eval(&phi, wi, wo);
+    let f_uv = m.eval_uv(uv, wi, wo);
+    let mut rec = [0.0f32; OUT_STRIDE];
+    let mut c = 0;
+    while c < DECODER_OUTPUTS {
+        rec[NM_OUT_EVAL + c] = f[c];
+        rec[NM_OUT_EVAL_UV + c] = f_uv[c];
+        c += 1;
+    }
+    write_record(i, &rec, output);
+}
+
+/// Copies `rec` to output record `i`.
+#[inline]
+fn write_record(i: u32, rec: &[f32; OUT_STRIDE], output: &mut [f32]) {
     let o = i as usize * OUT_STRIDE;
     let mut k = 0;
     while k < OUT_STRIDE {

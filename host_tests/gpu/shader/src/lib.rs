@@ -18,6 +18,15 @@
 //! small float. `pdf`/`pdf_disk` are the sample's solid-angle / projected-disk densities;
 //! `pdf(wo)` re-evaluates `Prepared::pdf` at the sampled direction (must equal `pdf`);
 //! `pdf(wo2)` is the density of an unrelated direction, as MIS needs.
+//!
+//! The neural material's entry points (`neural_features`, `neural_eval`) use the same
+//! strides with their own record layout:
+//!
+//! ```text
+//! input  [16]: φ0..φ7 | wi.x wi.y wi.z | wo.x wo.y wo.z | u v
+//! neural_features output [12]: φ(uv)0..7 | 0 0 0 0
+//! neural_eval     output [12]: eval(φ, wi, wo) rgb | eval(φ(uv), wi, wo) rgb | 0 … 0
+//! ```
 #![cfg_attr(target_arch = "spirv", no_std)]
 #![deny(missing_docs)]
 
@@ -125,6 +134,45 @@ pub fn histogram_mixture(
             interpolation,
         );
         kernel::run(&s, i, input, output);
+    }
+}
+
+/// Neural material (NeuMIP-style BRDF, `ARCHITECTURES.md` §7): `features(uv)` of every
+/// record. Feature texture at binding 2, decoder parameters at 3 (unused here, bound for a
+/// common layout); texture size in the push constants.
+#[spirv(compute(threads(64)))]
+pub fn neural_features(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(push_constant)] params: &Params,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] output: &mut [f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] texture: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] decoder: &[f32],
+) {
+    let i = id.x;
+    if i < params.n && kernel::in_range(i, input.len(), output.len()) {
+        let m =
+            neusample::NeuralMaterial::new_unchecked(texture, decoder, params.width, params.height);
+        kernel::run_features(&m, i, input, output);
+    }
+}
+
+/// Neural material: `eval(φ, wi, wo)` and `eval(features(uv), wi, wo)` of every record.
+/// Bindings and push constants as [`neural_features`].
+#[spirv(compute(threads(64)))]
+pub fn neural_eval(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(push_constant)] params: &Params,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] output: &mut [f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] texture: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] decoder: &[f32],
+) {
+    let i = id.x;
+    if i < params.n && kernel::in_range(i, input.len(), output.len()) {
+        let m =
+            neusample::NeuralMaterial::new_unchecked(texture, decoder, params.width, params.height);
+        kernel::run_eval(&m, i, input, output);
     }
 }
 
