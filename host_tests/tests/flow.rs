@@ -514,7 +514,7 @@ fn sample_pdf_and_invert_agree() {
                 let n = neusample::distrib::gaussian::box_muller(neusample_host_tests::uniform2(
                     &mut r,
                 ));
-                let (q, li) = ss.from_latent(ss.mu + ss.sigma * n);
+                let (q, li) = ss.from_latent(ss.mean() + ss.sigma() * n);
                 if let Some((_, lf)) = ss.to_latent(q) {
                     dir_s = dir_s.max(f64::from((li + lf).abs()));
                 }
