@@ -8,8 +8,8 @@
 //! loop of libm calls. NaN results are NaN; their sign and payload are not promised (Rust
 //! leaves them unspecified).
 //!
-//! rust-gpu: plain arithmetic on `f32`, `u32`, `i32` and `bool`, no `u64`; [`sin_cos_fast`]
-//! keeps libm's `f64` kernels, which exactness needs.
+//! Plain arithmetic on `f32`, `u32`, `i32` and `bool`, no `u64`; [`sin_cos_fast`] keeps
+//! libm's `f64` kernels, which exactness needs, so SPIR-V builds use libm (see `BRANCH_FREE`).
 
 /// Adding 1.5·2²³ rounds `|v| < 2²²` to an integer held in the low mantissa bits.
 pub(super) const SHIFT: f32 = 12_582_912.0;

@@ -55,13 +55,17 @@ pub fn safe_sqrt(x: f32) -> f32 {
 }
 
 /// Whether the functions below use [`branch_free`]'s arithmetic: where loops of them
-/// vectorise (SIMD targets) and on GPUs (no calls); elsewhere (thumbv7em, plain wasm32)
-/// libm itself, which gives the same numbers in less code.
-const BRANCH_FREE: bool = cfg!(any(
-    target_feature = "sse2",
-    target_feature = "neon",
-    target_feature = "simd128",
-    target_arch = "spirv"
+/// vectorise (SIMD targets); elsewhere (thumbv7em, plain wasm32) libm itself, which gives the
+/// same numbers in less code.
+// rust-gpu: never on SPIR-V. The compiler turns these libm calls into GLSL.std.450
+// instructions, and `sin_cos_fast`'s f64 kernels would need the Float64 capability.
+const BRANCH_FREE: bool = cfg!(all(
+    any(
+        target_feature = "sse2",
+        target_feature = "neon",
+        target_feature = "simd128"
+    ),
+    not(target_arch = "spirv")
 ));
 
 /// eˣ: libm's `expf`, branch-free where [`BRANCH_FREE`].
