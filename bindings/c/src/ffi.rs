@@ -1,6 +1,6 @@
 //! The `extern "C"` entry points: the only module with `unsafe`. Each function checks its
 //! pointers (NULL, alignment, length, outputs overlapping anything else), turns them into
-//! references and slices, and calls the safe body in `api` under [`guard`] (no panic
+//! references and slices, and calls the safe body in `api` under `guard` (no panic
 //! unwinds into C).
 //!
 //! # Safety (for every function taking pointers)

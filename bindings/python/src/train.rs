@@ -1,0 +1,88 @@
+//! `neusample.train_sampler` (cargo feature `train`): the training entry point of
+//! neusample-precompute, the same steps as `neusample train --material M --method X --out F`
+//! (train, bake, verify the blob against the model, write it atomically).
+//!
+//! This is the only file of the Python crate that uses neusample-precompute, so that the
+//! precompute restructure (branch `arch-precompute`, where these steps become the library
+//! function `jobs::sampler::train_sampler`) changes this file alone.
+
+use std::path::PathBuf;
+
+use neusample::DType;
+use neusample_precompute::{bake, demo, io, train};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// Verification points of the baked blob (as the CLI).
+const VERIFY_CONDITIONS: usize = 16;
+
+/// Trains `method` for `material` (a material file, TOML/JSON, a neural-material blob, or a
+/// built-in material name), bakes and verifies the blob and writes it to `out`. Returns a
+/// dict: `out`, `bytes`, `seconds`, `final_loss`, `max_relative` (blob vs model),
+/// `tolerance`. The GIL is released while training.
+#[pyfunction]
+#[pyo3(signature = (material, method, out, *, seed = 0, steps_scale = 1.0, quick = false, f16 = false))]
+#[allow(clippy::too_many_arguments)]
+fn train_sampler<'py>(
+    py: Python<'py>,
+    material: String,
+    method: String,
+    out: PathBuf,
+    seed: u64,
+    steps_scale: f64,
+    quick: bool,
+    f16: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let method: train::Method = method
+        .parse()
+        .map_err(|e: anyhow::Error| PyValueError::new_err(e.to_string()))?;
+    if !(steps_scale > 0.0 && steps_scale.is_finite()) {
+        return Err(PyValueError::new_err("steps_scale must be positive"));
+    }
+    let out2 = out.clone();
+    let result = py.detach(move || -> anyhow::Result<_> {
+        let m = demo::resolve_material(&material)?;
+        let mut cfg = if quick {
+            train::TrainConfig::quick()
+        } else {
+            train::TrainConfig::default_for(method)
+        };
+        cfg.seed = seed;
+        cfg.steps = ((cfg.steps as f64 * steps_scale).round() as usize).max(1);
+        let dtype = if f16 { DType::F16 } else { DType::F32 };
+        let trained = train::train(m.as_ref(), method, &cfg)?;
+        let label = format!(
+            "material={} method={} steps={} seed={} dtype={:?}",
+            m.name(),
+            method,
+            cfg.steps,
+            cfg.seed,
+            dtype
+        );
+        let bytes = bake::blob_bytes(&trained, dtype, &label)?;
+        let v = bake::verify(
+            &trained,
+            &bytes,
+            m.as_ref(),
+            VERIFY_CONDITIONS,
+            cfg.seed ^ 0x5EED,
+        )?;
+        io::atomic_write(&out2, &bytes)?;
+        Ok((trained, bytes.len(), v))
+    });
+    let (trained, len, v) = result.map_err(|e| PyRuntimeError::new_err(format!("{e:#}")))?;
+    let d = PyDict::new(py);
+    d.set_item("out", out.to_string_lossy().into_owned())?;
+    d.set_item("bytes", len)?;
+    d.set_item("seconds", trained.seconds)?;
+    d.set_item("final_loss", trained.loss_history.last().copied())?;
+    d.set_item("max_relative", v.max_relative)?;
+    d.set_item("tolerance", v.tolerance)?;
+    Ok(d)
+}
+
+/// Adds the training functions to the module.
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(train_sampler, m)?)
+}
