@@ -40,7 +40,9 @@ step "C ABI: header and golden values current"
 cargo test -p neusample-capi -p neusample-owned
 
 step "C ABI: C and C++ examples (system compilers)"
-cargo build -p neusample-capi
+# The test profile (output in target/debug) shares core and its dependencies with the
+# `cargo test` runs before: only this crate is rebuilt.
+cargo build --profile test -p neusample-capi
 mkdir -p "$target/capi"
 lib="$target/debug/libneusample_capi.a"
 cc -std=c99 -Wall -Wextra -Werror -pedantic -O2 -Ibindings/c/include \
