@@ -94,7 +94,9 @@ def train_sampler(
     seed: int = 0,
     steps_scale: float = 1.0,
     quick: bool = False,
+    f16: bool = False,
 ) -> Dict[str, Any]:
     """Trains, bakes and verifies a sampler for a material file (TOML/JSON) or a
-    neural-material blob and writes its blob to ``out``. Only with the ``train`` feature
-    (``HAS_TRAINING``)."""
+    neural-material blob (or a built-in material's name) and writes its blob to ``out``;
+    returns ``out``, ``bytes``, ``seconds``, ``final_loss``, ``max_relative``, ``tolerance``.
+    Only with the ``train`` cargo feature (``HAS_TRAINING``)."""
