@@ -3,8 +3,8 @@
 
 Usage: python3 tools/module_cycles.py CRATE_SRC_DIR [CRATE_SRC_DIR ...] [--graph]
 
-A node is a module: a file (`foo.rs`, `foo/mod.rs`) or an inline `mod name { ... }` is
-folded into the file that holds it. An edge M -> N means that M names an item of N through
+A node is a module: a file (`foo.rs`, `foo/mod.rs`); an inline `mod name { ... }` is
+folded into the file that holds it (its `super::` paths resolve from the inline module). An edge M -> N means that M names an item of N through
 `crate::...`, `super::...` or `self::...` paths (in `use` items or in expressions). Paths
 through a module's `pub use` re-exports are followed to the module that defines the item, so
 `use crate::Error` from inside the crate counts as an edge to `error`, not to the crate root.
@@ -123,15 +123,46 @@ def referenced_paths(text):
     for m in PATH_RE.finditer(text):
         segs = [m.group(1)]
         tail = m.group(2)
+        grouped = False
         for s in re.split(r"\s*::\s*", tail):
             s = s.strip()
             if not s:
                 continue
             if s == "{":
+                grouped = True  # `use a::{...}`: the use-tree expansion above names the items
                 break
             segs.append(s)
-        paths.append(segs)
+        if not grouped:
+            paths.append(segs)
     return paths
+
+
+def inline_modules(text):
+    """Split a file's text into (relative module path, text) pieces: each inline
+    `mod name { ... }` (nested ones too) is its own piece, so that its `super::` and `self::`
+    resolve from the inline module; the rest of the file is the piece with path []."""
+    pieces = []
+
+    def walk(rel, body):
+        out, i = [], 0
+        for m in re.finditer(r"\bmod\s+(" + IDENT + r")\s*\{", body):
+            if m.start() < i:
+                continue
+            depth, j = 1, m.end()
+            while j < len(body) and depth:
+                if body[j] == "{":
+                    depth += 1
+                elif body[j] == "}":
+                    depth -= 1
+                j += 1
+            out.append(body[i : m.start()])
+            walk(rel + [m.group(1)], body[m.end() : j - 1])
+            i = j
+        out.append(body[i:])
+        pieces.append((rel, "".join(out)))
+
+    walk([], text)
+    return pieces
 
 
 def resolve(current, segs):
@@ -194,13 +225,15 @@ def main(argv):
         for m, t in texts.items():
             # Sub-modules declared here: bare `child::x` paths count as edges too.
             children = {k[-1] for k in mods if len(k) == len(m) + 1 and k[:-1] == m}
-            for segs in referenced_paths(t):
-                ab = resolve(m, segs)
-                if ab is None:
-                    continue
-                o = owner(ab)
-                if o != m and not (len(o) > len(m) and o[: len(m)] == m and len(ab) == len(o)):
-                    edges[m].add(o)
+            for rel, piece in inline_modules(t):
+                here = tuple(list(m) + rel)
+                for segs in referenced_paths(piece):
+                    ab = resolve(here, segs)
+                    if ab is None:
+                        continue
+                    o = owner(ab)
+                    if o != m and not (len(o) > len(m) and o[: len(m)] == m and len(ab) == len(o)):
+                        edges[m].add(o)
             for c in children:
                 for u in re.finditer(r"(?<![:\w])" + c + r"\s*::\s*(" + IDENT + ")", t):
                     o = owner(list(m) + [c, u.group(1)])

@@ -100,6 +100,17 @@ impl DType {
             DType::F16 | DType::U16 => 2,
         }
     }
+
+    /// Lower-case name as `neusample inspect` prints it (`f32`, `f16`, `u16`).
+    #[inline]
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            DType::F32 => "f32",
+            DType::F16 => "f16",
+            DType::U16 => "u16",
+        }
+    }
 }
 
 /// How the histogram mixture reads the latent-code axis of its tables.

@@ -67,6 +67,8 @@
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
+#[cfg(not(target_arch = "spirv"))]
+mod batch;
 pub mod blob;
 pub mod distrib;
 mod error;

@@ -297,37 +297,12 @@ mod batch {
     //! and [`NeuralMaterial::eval`].
 
     use super::*;
+    use crate::batch::simd::{dispatch, Kernel};
+    use crate::batch::{check_len, dense, Features, FeaturesMut, RgbMut, Soa, Vec2s, Vec3s};
     use crate::error::Result;
-    use crate::wavefront::simd::{dispatch, Kernel};
-    use crate::wavefront::{check_len, dense, Features, FeaturesMut, Soa, Vec2s, Vec3s};
 
     /// Lanes per chunk (two 64-wide activations of 32 lanes: 16 KiB).
     const CHUNK: usize = 32;
-
-    /// Where [`NeuralMaterial::eval_batch`] writes: the BRDF (no cosine) per RGB channel.
-    #[derive(Debug)]
-    pub struct RgbMut<'a> {
-        /// Red.
-        pub r: &'a mut [f32],
-        /// Green.
-        pub g: &'a mut [f32],
-        /// Blue.
-        pub b: &'a mut [f32],
-    }
-
-    impl<'a> RgbMut<'a> {
-        /// The `(3, n)` row-major array `rows` (r, g, b) as three slices; `None` unless
-        /// `rows.len() == 3n`.
-        #[must_use]
-        pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
-            if rows.len() != 3 * n {
-                return None;
-            }
-            let (r, gb) = rows.split_at_mut(n);
-            let (g, b) = gb.split_at_mut(n);
-            Some(RgbMut { r, g, b })
-        }
-    }
 
     impl<W: Weights> NeuralMaterial<W> {
         /// [`NeuralMaterial::features`] of every `uv[i]`, written to `phi` (structure of
@@ -456,6 +431,3 @@ mod batch {
         }
     }
 }
-
-#[cfg(not(target_arch = "spirv"))]
-pub use batch::RgbMut;

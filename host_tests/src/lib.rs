@@ -261,11 +261,14 @@ pub fn fixture_blobs_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/blobs")
 }
 
+/// A shading condition of the fixture suites: φ and wi (local frame).
+pub type Condition = ([f32; FEATURE_DIM], Vec3);
+
 /// The conditions `(φ, wi)` of a fixture material folder (`conditions.txt`, written by
 /// `neusample fixtures`: one `φ0 … φ7 wi.x wi.y wi.z` line each, `#` comments). Panics on a
 /// missing file or a malformed line (test input).
 #[must_use]
-pub fn fixture_conditions(dir: &Path) -> Vec<([f32; FEATURE_DIM], Vec3)> {
+pub fn fixture_conditions(dir: &Path) -> Vec<Condition> {
     let text = std::fs::read_to_string(dir.join("conditions.txt"))
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
     text.lines()

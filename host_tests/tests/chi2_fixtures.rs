@@ -15,7 +15,7 @@ use neusample::wavefront::{BatchSampler, Features, SamplesMut, Vec2s, Vec3s, Vec
 use neusample::{Blob, Sampler, Vec3, FEATURE_DIM};
 use neusample_host_tests::{
     bonferroni, chi2_test, chi2_test_samples, fixture_blobs_dir, fixture_conditions, full_tests,
-    rng, uniform2,
+    rng, uniform2, Condition,
 };
 
 #[test]
@@ -116,7 +116,7 @@ fn every_fixture_blob_passes_chi2() {
 }
 
 /// The fixture blobs as `(path, conditions)`, `per_blob` conditions each.
-fn fixture_jobs(per_blob: usize) -> Vec<(PathBuf, Vec<([f32; FEATURE_DIM], Vec3)>)> {
+fn fixture_jobs(per_blob: usize) -> Vec<(PathBuf, Vec<Condition>)> {
     let mut materials: Vec<PathBuf> = std::fs::read_dir(fixture_blobs_dir())
         .unwrap()
         .flatten()

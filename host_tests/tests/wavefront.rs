@@ -15,7 +15,7 @@ use neusample::{
     AnySampler, Blob, BlobWriter, DType, Error, Prepared, Sampler, SamplerKind, TensorRole, Vec2,
     Vec3, FEATURE_DIM,
 };
-use neusample_host_tests::{fixture_blobs_dir, fixture_conditions, rng, TestRng};
+use neusample_host_tests::{fixture_blobs_dir, fixture_conditions, rng, Condition, TestRng};
 use rand::RngExt;
 
 /// Batch sizes: empty, one lane, partial tiles and chunks, several chunks plus a remainder.
@@ -213,7 +213,7 @@ where
     }
 }
 
-fn fixture_samplers() -> Vec<(PathBuf, Vec<u8>, Vec<([f32; FEATURE_DIM], Vec3)>)> {
+fn fixture_samplers() -> Vec<(PathBuf, Vec<u8>, Vec<Condition>)> {
     let mut out = Vec::new();
     let mut dirs: Vec<PathBuf> = std::fs::read_dir(fixture_blobs_dir())
         .unwrap()
@@ -388,7 +388,7 @@ fn neural_material_batched_equals_scalar() {
                     soa.phi(),
                     soa.wi(),
                     soa.wo(),
-                    neusample::neural_material::RgbMut::from_rows(&mut rgb, n).unwrap(),
+                    neusample::wavefront::RgbMut::from_rows(&mut rgb, n).unwrap(),
                 )
                 .unwrap();
                 for (i, l) in ls.iter().enumerate() {

@@ -3,7 +3,8 @@
 
 use glam::Vec2;
 
-use crate::math::{self, Lane};
+use crate::math;
+use crate::math::lane::Lane;
 
 /// Lower clamp of every predicted `log σ` (σ ≥ e⁻⁷ ≈ 9·10⁻⁴).
 pub const LOG_SIGMA_MIN: f32 = -7.0;

@@ -45,7 +45,8 @@
 //! index provably in `0..K`), which rust-gpu compiles as a plain loop.
 
 use crate::distrib::gaussian;
-use crate::math::{self, Lane};
+use crate::math;
+use crate::math::lane::Lane;
 
 /// Minimum bin width as a fraction of the interval `2B` (nflows' `DEFAULT_MIN_BIN_WIDTH`).
 pub const MIN_BIN_WIDTH: f32 = 1e-3;
@@ -191,6 +192,7 @@ impl<const K: usize> Knots<K> {
 #[allow(private_bounds)]
 impl<const K: usize, L: Lane> Knots<K, L> {
     /// Placeholder knots (all zero) for buffers that are filled before use.
+    #[cfg(not(target_arch = "spirv"))]
     #[inline(always)]
     pub(crate) fn zeroed() -> Self {
         let z = [L::splat(0.0); K];

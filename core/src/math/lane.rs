@@ -1,6 +1,6 @@
 //! [`Lane`]: the arithmetic that the per-point math shared by the scalar and the batched
 //! paths is written in. `f32` is one point (the scalar API, GPU shaders); the batched path
-//! implements it for eight points at once (`wavefront::lanes::V8`), element by element with
+//! implements it for eight points at once (`batch::lanes::V8`), element by element with
 //! the scalar operations, so one definition of the math gives the same bits on both paths
 //! and vectorises across points.
 

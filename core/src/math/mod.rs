@@ -12,9 +12,7 @@
 //! libm: the same numbers in less code.
 
 mod branch_free;
-mod lane;
-
-pub(crate) use lane::Lane;
+pub(crate) mod lane;
 
 pub use branch_free::SIN_COS_FAST_MAX;
 

@@ -144,13 +144,11 @@ mod batch {
     //! batched kernels.
 
     use super::*;
+    use crate::batch::{BatchSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s, FUSED_CHUNK};
     use crate::error::{Error, Result};
     use crate::samplers::{
         AffineLane, AnalyticMixturePrepared, CosinePrepared, DirectHistogramPrepared, FlowLane,
         ImprovedBaselinePrepared, MixtureLane,
-    };
-    use crate::wavefront::{
-        BatchSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s, FUSED_CHUNK,
     };
 
     /// The lane of an [`AnySampler`]: the concrete sampler's lane. It is as large as the
@@ -226,7 +224,7 @@ mod batch {
             wi: Vec3s<'_>,
             lanes: &mut [AnyLane],
         ) -> Result<()> {
-            let n = crate::wavefront::check_prepare_args(&phi, &wi, lanes)?;
+            let n = crate::batch::check_prepare_args(&phi, &wi, lanes)?;
             macro_rules! prep {
                 ($s:expr, $variant:ident, $lane:ty) => {{
                     let mut buf: [Option<$lane>; FUSED_CHUNK] = [None; FUSED_CHUNK];
@@ -254,7 +252,7 @@ mod batch {
             u: Vec2s<'_>,
             mut out: SamplesMut<'_>,
         ) -> Result<()> {
-            crate::wavefront::check_sample_args(lanes, &u, &out)?;
+            crate::batch::check_sample_args(lanes, &u, &out)?;
             macro_rules! samp {
                 ($s:expr, $variant:ident, $lane:ty) => {
                     typed!(lanes, $variant, $lane, |t, a| $s.sample_batch(
@@ -268,7 +266,7 @@ mod batch {
         }
 
         fn pdf_batch(&self, lanes: &[AnyLane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
-            crate::wavefront::check_pdf_args(lanes, &wo, pdf)?;
+            crate::batch::check_pdf_args(lanes, &wo, pdf)?;
             macro_rules! dens {
                 ($s:expr, $variant:ident, $lane:ty) => {
                     typed!(lanes, $variant, $lane, |t, a| $s.pdf_batch(
@@ -288,7 +286,7 @@ mod batch {
             mut u: Vec2sMut<'_>,
             ok: &mut [bool],
         ) -> Result<()> {
-            crate::wavefront::check_invert_args(lanes, &wo, &u, ok)?;
+            crate::batch::check_invert_args(lanes, &wo, &u, ok)?;
             macro_rules! inv {
                 ($s:expr, $variant:ident, $lane:ty) => {
                     typed!(lanes, $variant, $lane, |t, a| $s.invert_batch(

@@ -45,15 +45,15 @@ impl Prepared for CosinePrepared {
 }
 
 #[cfg(not(target_arch = "spirv"))]
-impl crate::wavefront::ChunkedSampler for CosineSampler {
+impl crate::batch::ChunkedSampler for CosineSampler {
     type Lane = Option<CosinePrepared>;
     const CHUNK: usize = 64;
 
     #[inline(always)]
     fn prepare_chunk(
         &self,
-        phi: crate::wavefront::Features<'_>,
-        wi: crate::wavefront::Vec3s<'_>,
+        phi: crate::batch::Features<'_>,
+        wi: crate::batch::Vec3s<'_>,
         lanes: &mut [Option<CosinePrepared>],
     ) {
         for (i, lane) in lanes.iter_mut().enumerate() {
@@ -61,5 +61,5 @@ impl crate::wavefront::ChunkedSampler for CosineSampler {
         }
     }
 
-    crate::wavefront::per_lane_chunks!(CosinePrepared);
+    crate::batch::per_lane_chunks!(CosinePrepared);
 }

@@ -179,7 +179,7 @@ mod batch {
     //! lanes, the histogram per lane ([`DirectHistogramPrepared::from_logits`]).
 
     use super::*;
-    use crate::wavefront::{self, dense, per_lane_chunks, ChunkedSampler, Features, Soa, Vec3s};
+    use crate::batch::{self, dense, per_lane_chunks, ChunkedSampler, Features, Soa, Vec3s};
 
     /// Lanes per chunk (the 256 logits of 16 lanes take 16 KiB).
     const CHUNK: usize = 16;
@@ -192,7 +192,7 @@ mod batch {
         fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
             let w = &self.params;
             let m = lanes.len();
-            let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+            let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
             let mut h: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
             let mut g: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
             let mut o: Soa<DIRECT_CELLS, CHUNK> = [[0.0; CHUNK]; DIRECT_CELLS];
@@ -201,8 +201,8 @@ mod batch {
             dense::dense(w, DIRECT_L1 as u32, &h, relu, &mut g, m);
             dense::dense(w, DIRECT_L2 as u32, &g, Activation::Identity, &mut o, m);
             for l in 0..m {
-                lanes[l] = valid[l]
-                    .then(|| DirectHistogramPrepared::from_logits(&wavefront::column(&o, l)));
+                lanes[l] =
+                    valid[l].then(|| DirectHistogramPrepared::from_logits(&batch::column(&o, l)));
             }
         }
 

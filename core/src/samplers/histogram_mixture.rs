@@ -678,7 +678,7 @@ mod batch {
     //! `lane_sample`, `lane_pdf_disk`, `lane_invert`).
 
     use super::*;
-    use crate::wavefront::{
+    use crate::batch::{
         self, dense, ChunkedSampler, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s,
     };
 
@@ -693,7 +693,7 @@ mod batch {
         fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
             let w = &self.params;
             let m = lanes.len();
-            let (c, valid) = wavefront::raw_conditions::<CHUNK>(&phi, &wi);
+            let (c, valid) = batch::raw_conditions::<CHUNK>(&phi, &wi);
             let mut h: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
             let mut g: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
             let mut o: Soa<MIX_OUTPUTS, CHUNK> = [[0.0; CHUNK]; MIX_OUTPUTS];
@@ -704,7 +704,7 @@ mod batch {
             dense::dense(w, MIX_L3 as u32, &h, Activation::Identity, &mut o, m);
             for l in 0..m {
                 lanes[l] = if valid[l] {
-                    self.lane_from_outputs(&wavefront::column(&o, l))
+                    self.lane_from_outputs(&batch::column(&o, l))
                 } else {
                     None
                 };

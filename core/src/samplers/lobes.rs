@@ -316,7 +316,7 @@ mod batch {
     //! [`AnalyticMixturePrepared::from_outputs`]).
 
     use super::*;
-    use crate::wavefront::{self, dense, per_lane_chunks, ChunkedSampler, Features, Soa, Vec3s};
+    use crate::batch::{self, dense, per_lane_chunks, ChunkedSampler, Features, Soa, Vec3s};
 
     /// Lanes per chunk.
     const CHUNK: usize = 32;
@@ -329,7 +329,7 @@ mod batch {
         fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
             let w = &self.params;
             let m = lanes.len();
-            let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+            let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
             let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
             let mut g: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
             let mut o: Soa<BASELINE_OUTPUTS, CHUNK> = [[0.0; CHUNK]; BASELINE_OUTPUTS];
@@ -339,8 +339,8 @@ mod batch {
             dense::dense(w, BASELINE_L2 as u32, &g, relu, &mut h, m);
             dense::dense(w, BASELINE_L3 as u32, &h, Activation::Identity, &mut o, m);
             for l in 0..m {
-                lanes[l] = valid[l]
-                    .then(|| ImprovedBaselinePrepared::from_outputs(&wavefront::column(&o, l)));
+                lanes[l] =
+                    valid[l].then(|| ImprovedBaselinePrepared::from_outputs(&batch::column(&o, l)));
             }
         }
 
@@ -355,14 +355,14 @@ mod batch {
         fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
             let w = &self.params;
             let m = lanes.len();
-            let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+            let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
             let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
             let mut o: Soa<ANALYTIC_OUTPUTS, CHUNK> = [[0.0; CHUNK]; ANALYTIC_OUTPUTS];
             dense::dense(w, ANALYTIC_L0 as u32, &c, Activation::Relu, &mut h, m);
             dense::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity, &mut o, m);
             for l in 0..m {
-                lanes[l] = valid[l]
-                    .then(|| AnalyticMixturePrepared::from_outputs(&wavefront::column(&o, l)));
+                lanes[l] =
+                    valid[l].then(|| AnalyticMixturePrepared::from_outputs(&batch::column(&o, l)));
             }
         }
 

@@ -6,7 +6,7 @@
 //! * [`material`] — fit a neural material to a material, import one from safetensors, measure
 //!   a material's cost;
 //! * [`inspect`] — describe a blob (`inspect --json`);
-//! * [`bench`] — the runtime's cost per shading point, scalar and batched (`bench --json`).
+//! * [`bench`](mod@bench) — the runtime's cost per shading point, scalar and batched (`bench --json`).
 
 pub mod bench;
 pub mod inspect;

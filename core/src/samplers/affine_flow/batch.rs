@@ -7,6 +7,7 @@ use super::{
     scale_shift, AffineFlowPrepared, AffineFlowSampler, AffineLane, AFFINE_LAYERS, AFFINE_NET_L0,
     AFFINE_NET_L1, AFFINE_NET_L2, AFFINE_NET_LEN, AFFINE_OUTPUTS,
 };
+use crate::batch::{self, dense, ChunkedSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::gaussian;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
@@ -15,13 +16,15 @@ use crate::samplers::coupling::{
 };
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::{self, dense, ChunkedSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk.
 const CHUNK: usize = 32;
 
-type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
+type Soa<const N: usize> = batch::Soa<N, CHUNK>;
+
+/// Per coupling layer and lane, the input `v` and the `(s, t)` computed from it.
+type Seen = [[(f32, f32, f32); CHUNK]; AFFINE_LAYERS];
 
 impl<W: Weights + Copy> AffineFlowSampler<W> {
     /// `(s, t)` of coupling network `l` for the lanes `idx[..m]` of a chunk, each at its own
@@ -87,7 +90,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     #[inline(always)]
     fn chunk_prepare(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<AffineLane>]) {
         let m = out.len();
-        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
         let mut share: [Soa<HIDDEN>; AFFINE_LAYERS] = [[[0.0; CHUNK]; HIDDEN]; AFFINE_LAYERS];
         for (l, s) in share.iter_mut().enumerate() {
@@ -99,7 +102,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
             out[l] = if valid[l] {
                 let mut sh = [[0.0f32; HIDDEN]; AFFINE_LAYERS];
                 for (dst, src) in sh.iter_mut().zip(share.iter()) {
-                    *dst = wavefront::column(src, l);
+                    *dst = batch::column(src, l);
                 }
                 AffineLane::new(sh)
             } else {
@@ -116,7 +119,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         lanes: &[Option<AffineLane>],
         p: &[Vec2; CHUNK],
         st0: &[(f32, f32); CHUNK],
-        seen: Option<&[[(f32, f32, f32); CHUNK]; AFFINE_LAYERS]>,
+        seen: Option<&Seen>,
         zl: &mut [Vec2; CHUNK],
         ld: &mut [f32; CHUNK],
     ) {
@@ -161,7 +164,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     #[inline(always)]
     fn chunk_sample(&self, lanes: &[Option<AffineLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
-        let all = wavefront::identity_index::<CHUNK>();
+        let all = batch::identity_index::<CHUNK>();
         let mut ok = [false; CHUNK];
         let mut xy = [Vec2::ZERO; CHUNK];
         for i in 0..m {
@@ -171,7 +174,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
             }
         }
         // Sampling direction (`point_and_layer0`): layers 3‥1, then layer 0 at the final y.
-        let mut seen = [[(0.0f32, 0.0f32, 0.0f32); CHUNK]; AFFINE_LAYERS];
+        let mut seen: Seen = [[(0.0, 0.0, 0.0); CHUNK]; AFFINE_LAYERS];
         let mut st = [(0.0f32, 0.0f32); CHUNK];
         let mut v = [0.0f32; CHUNK];
         for l in (1..AFFINE_LAYERS).rev() {
@@ -216,7 +219,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     /// The density direction (`to_latent`) at the directions `wo`: disk points, their
     /// validity and cos θ, the latent points and the log-dets.
     #[inline(always)]
-    fn to_latent_chunk(
+    fn latent_at_chunk(
         &self,
         lanes: &[Option<AffineLane>],
         wo: Vec3s<'_>,
@@ -226,7 +229,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         ld: &mut [f32; CHUNK],
     ) {
         let m = lanes.len();
-        let all = wavefront::identity_index::<CHUNK>();
+        let all = batch::identity_index::<CHUNK>();
         let mut p = [Vec2::ZERO; CHUNK];
         let mut v = [0.0f32; CHUNK];
         for i in 0..m {
@@ -248,7 +251,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         let mut cos = [0.0f32; CHUNK];
         let mut zl = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
-        self.to_latent_chunk(lanes, wo, &mut ok, &mut cos, &mut zl, &mut ld);
+        self.latent_at_chunk(lanes, wo, &mut ok, &mut cos, &mut zl, &mut ld);
         for i in 0..lanes.len() {
             pdf[i] = if ok[i] {
                 let d = density_from_log(AffineFlowPrepared::<W>::log_density(zl[i], ld[i]));
@@ -271,7 +274,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         let mut cos = [0.0f32; CHUNK];
         let mut zl = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
-        self.to_latent_chunk(lanes, wo, &mut ok, &mut cos, &mut zl, &mut ld);
+        self.latent_at_chunk(lanes, wo, &mut ok, &mut cos, &mut zl, &mut ld);
         for i in 0..lanes.len() {
             let z = zl[i];
             let r = if ok[i] && math::is_finite(z.x) && math::is_finite(z.y) {

@@ -10,6 +10,8 @@ use super::{
     FLOW_COUPLING1, SPLINE_BINS, SPLINE_NET_L0, SPLINE_NET_L1, SPLINE_NET_L2, SPLINE_RAW_LEN,
     TAIL_BOUND,
 };
+use crate::batch::lanes::V8;
+use crate::batch::{self, dense, ChunkedSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
@@ -18,8 +20,6 @@ use crate::samplers::coupling::{
 };
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::lanes::V8;
-use crate::wavefront::{self, dense, ChunkedSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk: activations, splines and lane states of a chunk stay in L1.
@@ -28,7 +28,7 @@ const CHUNK: usize = 32;
 const GROUPS: usize = CHUNK / 8;
 
 /// Activations of a chunk: `[feature][lane]`.
-type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
+type Soa<const N: usize> = batch::Soa<N, CHUNK>;
 
 impl<W: Weights + Copy> FlowSampler<W> {
     /// The raw spline parameters of coupling network `net` (at `FLOW_COUPLING0/1`) for the
@@ -105,7 +105,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
     #[inline(always)]
     fn chunk_prepare(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<FlowLane>]) {
         let m = out.len();
-        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
+        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
         let mut h: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
         dense::dense::<W, CONDITION_DIM, HIDDEN, CHUNK>(
@@ -150,7 +150,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
     fn chunk_sample(&self, lanes: &[Option<FlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
-        let all = wavefront::identity_index::<CHUNK>();
+        let all = batch::identity_index::<CHUNK>();
         // Base points (refused lanes keep z = 0 and are dropped at the end).
         let mut zx = [0.0f32; CHUNK];
         let mut zy = [0.0f32; CHUNK];
@@ -243,7 +243,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
     ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
-        let all = wavefront::identity_index::<CHUNK>();
+        let all = batch::identity_index::<CHUNK>();
         let mut k = [Knots::<SPLINE_BINS, V8>::zeroed(); GROUPS];
         self.knots_for(FLOW_COUPLING1, lanes, &all, m, px, &mut k);
         let mut yl = [0.0f32; CHUNK];

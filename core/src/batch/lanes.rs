@@ -5,7 +5,8 @@
 
 use core::ops::{Add, Mul};
 
-use crate::math::{self, Lane};
+use crate::math;
+use crate::math::lane::Lane;
 
 /// Eight `f32` lanes.
 #[derive(Copy, Clone, Debug, PartialEq)]

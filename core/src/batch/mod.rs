@@ -1,28 +1,7 @@
-//! The batched ("wavefront") API: prepare, sample, pdf and invert over N shading points at
-//! once, in structure-of-arrays form, as the paper ran its samplers and as Mitsuba's
-//! LLVM/CUDA variants, GPUs and production CPU renderers call a material.
-//!
-//! Every sampler implements [`BatchSampler`]. Its per-point prepared state is a plain value,
-//! the **lane** ([`BatchSampler::Lane`]): the scalar prepared state without its weights
-//! handle. A renderer that prepares once and then samples and evaluates pdfs (BSDF sampling
-//! with MIS) keeps a `Vec<Lane>` of its own; one that only needs "prepare and sample" or
-//! "prepare and pdf" per call (a Mitsuba plugin) uses the fused [`BatchSampler::sample_fused`]
-//! and [`BatchSampler::pdf_fused`], which prepare in chunks on the stack.
-//!
-//! # Contract
-//!
-//! - The caller provides every buffer; nothing allocates. Any N works (no multiple of a SIMD
-//!   width is required); every slice of one call must have the same length, otherwise the
-//!   call returns [`Error::BatchLength`] and writes nothing.
-//! - Per lane, the rules of the scalar API hold: a refused condition gives a refused lane
-//!   (`Lane::default()`), a refused sample gives `pdf = 0` and `wo = 0`, a direction outside
-//!   the hemisphere gives a zero pdf. A bad lane never disturbs another lane.
-//! - Results equal the scalar path's bit for bit: both run the same operations in the same
-//!   order per lane (dense layers as small matrix products over lanes, the rest per lane
-//!   through the same functions).
-//!
-//! Densities are with respect to **solid angle**, `p_ω = p_disk · cos θo`, as in the scalar
-//! [`Prepared::pdf`].
+//! The batched runtime's building blocks: structure-of-arrays views, the [`BatchSampler`]
+//! trait, chunked kernels and their run-time instruction-set dispatch, dense layers over
+//! lanes. Samplers and the neural material implement their batched calls with these; users
+//! reach them through [`crate::wavefront`], which also names the samplers' lane types.
 
 use glam::{Vec2, Vec3};
 
@@ -30,8 +9,6 @@ pub(crate) mod dense;
 pub(crate) mod lanes;
 pub(crate) mod simd;
 
-pub use crate::neural_material::RgbMut;
-pub use crate::samplers::{AffineLane, AnyLane, FlowLane, MixtureLane};
 pub use simd::{current as current_isa, detected as detected_isa, prefer as prefer_isa, Isa};
 
 use crate::error::{Error, Result};
@@ -105,6 +82,31 @@ pub struct SamplesMut<'a> {
     pub wo: Vec3sMut<'a>,
     /// Their densities with respect to solid angle ([`Sample::pdf`]).
     pub pdf: &'a mut [f32],
+}
+
+/// Where [`NeuralMaterial::eval_batch`](crate::NeuralMaterial::eval_batch) writes: the BRDF (no cosine) per RGB channel.
+#[derive(Debug)]
+pub struct RgbMut<'a> {
+    /// Red.
+    pub r: &'a mut [f32],
+    /// Green.
+    pub g: &'a mut [f32],
+    /// Blue.
+    pub b: &'a mut [f32],
+}
+
+impl<'a> RgbMut<'a> {
+    /// The `(3, n)` row-major array `rows` (r, g, b) as three slices; `None` unless
+    /// `rows.len() == 3n`.
+    #[must_use]
+    pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
+        if rows.len() != 3 * n {
+            return None;
+        }
+        let (r, gb) = rows.split_at_mut(n);
+        let (g, b) = gb.split_at_mut(n);
+        Some(RgbMut { r, g, b })
+    }
 }
 
 impl<'a> Vec2s<'a> {
@@ -403,7 +405,7 @@ fn clamp_u32(x: usize) -> u32 {
     u32::try_from(x).unwrap_or(u32::MAX)
 }
 
-/// A sampler evaluated over wavefronts (see the [module docs](self) for the contract).
+/// A sampler evaluated over wavefronts (see the [`crate::wavefront`] docs for the contract).
 pub trait BatchSampler {
     /// The prepared state of one shading point, without the sampler's weights handle
     /// (`Option<…>`: `None`, the default, is a refused lane).
@@ -418,14 +420,14 @@ pub trait BatchSampler {
         lanes: &mut [Self::Lane],
     ) -> Result<()>;
 
-    /// Draws one direction per lane from `u[i]` (as [`Prepared::sample`]).
+    /// Draws one direction per lane from `u[i]` (as [`Prepared::sample`](crate::Prepared::sample)).
     fn sample_batch(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) -> Result<()>;
 
-    /// The solid-angle density of `wo[i]` at lane `i` (as [`Prepared::pdf`]).
+    /// The solid-angle density of `wo[i]` at lane `i` (as [`Prepared::pdf`](crate::Prepared::pdf)).
     fn pdf_batch(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()>;
 
     /// The `u` that [`BatchSampler::sample_batch`] maps to `wo[i]`, where the method has a
-    /// unique inverse (as [`Prepared::invert`]); `ok[i]` says whether lane `i` has one (its
+    /// unique inverse (as [`Prepared::invert`](crate::Prepared::invert)); `ok[i]` says whether lane `i` has one (its
     /// `u` is then written, else left as it was).
     fn invert_batch(
         &self,
@@ -819,8 +821,8 @@ macro_rules! per_lane_chunks {
         fn sample_chunk(
             &self,
             lanes: &[Option<$p>],
-            u: $crate::wavefront::Vec2s<'_>,
-            mut out: $crate::wavefront::SamplesMut<'_>,
+            u: $crate::batch::Vec2s<'_>,
+            mut out: $crate::batch::SamplesMut<'_>,
         ) {
             for (i, l) in lanes.iter().enumerate() {
                 out.set(i, l.as_ref().and_then(|p| p.sample(u.at(i))));
@@ -828,12 +830,7 @@ macro_rules! per_lane_chunks {
         }
 
         #[inline(always)]
-        fn pdf_chunk(
-            &self,
-            lanes: &[Option<$p>],
-            wo: $crate::wavefront::Vec3s<'_>,
-            pdf: &mut [f32],
-        ) {
+        fn pdf_chunk(&self, lanes: &[Option<$p>], wo: $crate::batch::Vec3s<'_>, pdf: &mut [f32]) {
             for (i, l) in lanes.iter().enumerate() {
                 pdf[i] = l.as_ref().map_or(0.0, |p| p.pdf(wo.at(i)));
             }
@@ -843,8 +840,8 @@ macro_rules! per_lane_chunks {
         fn invert_chunk(
             &self,
             lanes: &[Option<$p>],
-            wo: $crate::wavefront::Vec3s<'_>,
-            mut u: $crate::wavefront::Vec2sMut<'_>,
+            wo: $crate::batch::Vec3s<'_>,
+            mut u: $crate::batch::Vec2sMut<'_>,
             ok: &mut [bool],
         ) {
             for (i, l) in lanes.iter().enumerate() {

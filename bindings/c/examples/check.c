@@ -1,0 +1,316 @@
+/*
+ * check.c: loads the fixture blobs through the C ABI and checks, for every sampler of the
+ * three demo materials (and the cosine sampler):
+ *   - a sample's pdf equals ns_pdf at the sampled direction (bit for bit),
+ *   - the prepared path (ns_prepare + ns_prepared_sample/pdf) equals the fused scalar calls,
+ *   - the batched calls equal the scalar ones lane by lane (bit for bit),
+ *   - bad input gives the documented status, never a crash: a missing file, a corrupted
+ *     blob, a material blob used as a sampler, NULL handles, NaN directions, n = 0,
+ *     overlapping output arrays.
+ *
+ * Build (from the repository root, after `cargo build -p neusample-capi`):
+ *   cc -std=c99 -Wall -Wextra -O2 -Ibindings/c/include bindings/c/examples/check.c
+ *      target/debug/libneusample_capi.a -lm -lpthread -ldl -o target/check_c   (one line)
+ *   target/check_c fixtures
+ */
+#include "neusample.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int failures = 0;
+static int checks = 0;
+
+#define CHECK(cond, ...)                                 \
+  do {                                                   \
+    ++checks;                                            \
+    if (!(cond)) {                                       \
+      ++failures;                                        \
+      fprintf(stderr, "FAIL %s:%d: ", __FILE__, __LINE__); \
+      fprintf(stderr, __VA_ARGS__);                      \
+      fprintf(stderr, "\n");                             \
+    }                                                    \
+  } while (0)
+
+#define EXPECT_STATUS(call, want)                                                     \
+  do {                                                                              \
+    NsStatus got_ = (call);                                                         \
+    CHECK(got_ == (want), "%s returned %s (%s), expected %s", #call,                 \
+          ns_status_name(got_), ns_last_error(), ns_status_name(want));             \
+  } while (0)
+
+static const char *MATERIALS[] = {"goat_leather_neural", "brushed_metal_neural",
+                                  "victorian_fabric_neural"};
+static const char *METHODS[] = {"baseline", "analytic", "flow", "affine-flow",
+                                "direct-histogram", "histogram-mixture"};
+
+/* A small deterministic generator (xorshift32) for u in [0, 1). */
+static unsigned rng_state = 0x9e3779b9u;
+static float next_u(void) {
+  rng_state ^= rng_state << 13;
+  rng_state ^= rng_state >> 17;
+  rng_state ^= rng_state << 5;
+  return (float)(rng_state >> 8) * (1.0f / 16777216.0f);
+}
+
+static NsVec3 normalize(float x, float y, float z) {
+  float l = sqrtf(x * x + y * y + z * z);
+  NsVec3 v = {x / l, y / l, z / l};
+  return v;
+}
+
+enum { LANES = 37 };
+
+/* Checks one sampler against one material at a few shading points. */
+static void check_sampler(const char *label, const NsSampler *s, const NsMaterial *m) {
+  const NsVec3 wis[3] = {normalize(0.0f, 0.0f, 1.0f), normalize(0.5f, -0.3f, 0.8f),
+                         normalize(-0.9f, 0.2f, 0.25f)};
+  const NsVec2 uvs[2] = {{0.25f, 0.5f}, {0.77f, 0.13f}};
+  NsPrepared *prep = NULL;
+  EXPECT_STATUS(ns_prepared_new(&prep), NS_OK);
+  int samples = 0, refused = 0;
+  for (int a = 0; a < 2; ++a) {
+    NsPhi phi;
+    EXPECT_STATUS(ns_material_features(m, uvs[a], &phi), NS_OK);
+    for (int b = 0; b < 3; ++b) {
+      NsVec3 wi = wis[b];
+      EXPECT_STATUS(ns_prepare(s, &phi, wi, prep), NS_OK);
+      /* Scalar: sample and pdf agree; the prepared path equals the fused calls. */
+      float lane_u[2][LANES];
+      NsSample scalar[LANES];
+      for (int i = 0; i < LANES; ++i) {
+        NsVec2 u = {next_u(), next_u()};
+        lane_u[0][i] = u.x;
+        lane_u[1][i] = u.y;
+        NsSample smp, smp2;
+        NsStatus st = ns_sample(s, &phi, wi, u, &smp);
+        CHECK(st == NS_OK || st == NS_REFUSED, "%s: ns_sample -> %s", label, ns_status_name(st));
+        NsStatus st2 = ns_prepared_sample(s, prep, u, &smp2);
+        CHECK(st2 == st && memcmp(&smp, &smp2, sizeof smp) == 0,
+              "%s: prepared sample differs from fused sample", label);
+        scalar[i] = smp;
+        if (st != NS_OK) {
+          ++refused;
+          CHECK(smp.pdf == 0.0f && smp.wo.z == 0.0f, "%s: refused sample not zeroed", label);
+          continue;
+        }
+        ++samples;
+        CHECK(smp.pdf > 0.0f && isfinite(smp.pdf) && smp.wo.z > 0.0f,
+              "%s: bad sample pdf %g wo.z %g", label, smp.pdf, smp.wo.z);
+        float p = -1.0f, p2 = -1.0f;
+        EXPECT_STATUS(ns_pdf(s, &phi, wi, smp.wo, &p), NS_OK);
+        EXPECT_STATUS(ns_prepared_pdf(s, prep, smp.wo, &p2), NS_OK);
+        CHECK(p == smp.pdf, "%s: pdf(sample.wo) = %.9g but sample.pdf = %.9g", label, p,
+              smp.pdf);
+        CHECK(p2 == p, "%s: prepared pdf %.9g != fused pdf %.9g", label, p2, p);
+        NsRgb f;
+        EXPECT_STATUS(ns_material_eval(m, &phi, wi, smp.wo, &f), NS_OK);
+        CHECK(f.r > 0.0f && f.g > 0.0f && f.b > 0.0f, "%s: f not positive", label);
+      }
+      /* Batched = scalar, lane by lane, bit for bit. */
+      float phi_rows[NS_FEATURE_DIM][LANES], wi_rows[3][LANES];
+      float wo_rows[3][LANES], pdf[LANES], pdf_again[LANES];
+      for (int i = 0; i < LANES; ++i) {
+        for (int k = 0; k < NS_FEATURE_DIM; ++k) phi_rows[k][i] = phi.v[k];
+        wi_rows[0][i] = wi.x;
+        wi_rows[1][i] = wi.y;
+        wi_rows[2][i] = wi.z;
+      }
+      NsFeatures fphi = ns_features_rows(&phi_rows[0][0], LANES);
+      NsVec3s vwi = ns_vec3s_rows(&wi_rows[0][0], LANES);
+      EXPECT_STATUS(ns_sample_batch(s, LANES, fphi, vwi, ns_vec2s_rows(&lane_u[0][0], LANES),
+                                    ns_samples_mut_rows(&wo_rows[0][0], pdf, LANES)),
+                    NS_OK);
+      for (int i = 0; i < LANES; ++i) {
+        CHECK(pdf[i] == scalar[i].pdf && wo_rows[0][i] == scalar[i].wo.x &&
+                  wo_rows[1][i] == scalar[i].wo.y && wo_rows[2][i] == scalar[i].wo.z,
+              "%s: batched sample lane %d differs from scalar", label, i);
+      }
+      EXPECT_STATUS(
+          ns_pdf_batch(s, LANES, fphi, vwi, ns_vec3s_rows(&wo_rows[0][0], LANES), pdf_again),
+          NS_OK);
+      for (int i = 0; i < LANES; ++i) {
+        CHECK(pdf_again[i] == pdf[i], "%s: batched pdf lane %d = %.9g, sample said %.9g",
+              label, i, pdf_again[i], pdf[i]);
+      }
+    }
+  }
+  printf("  %-44s %4d samples, %3d refused: sample/pdf agree, batched = scalar\n", label,
+         samples, refused);
+  ns_prepared_free(prep);
+}
+
+static void check_bad_input(const char *root, const NsMaterial *m, const NsSampler *s) {
+  char path[1024];
+  NsBlob *blob = NULL;
+  /* A missing file. */
+  snprintf(path, sizeof path, "%s/blobs/no_such_material/flow.nsb", root);
+  EXPECT_STATUS(ns_blob_open(path, &blob), NS_ERR_IO);
+  CHECK(blob == NULL, "handle written on error");
+  CHECK(strstr(ns_last_error(), "no_such_material") != NULL, "message names the file: %s",
+        ns_last_error());
+  /* A corrupted blob: one flipped bit. */
+  snprintf(path, sizeof path, "%s/blobs/goat_leather_neural/analytic.nsb", root);
+  FILE *fp = fopen(path, "rb");
+  CHECK(fp != NULL, "cannot open %s", path);
+  if (fp) {
+    unsigned char buf[1 << 16];
+    size_t len = fread(buf, 1, sizeof buf, fp);
+    fclose(fp);
+    EXPECT_STATUS(ns_blob_from_bytes(buf, len, &blob), NS_OK);
+    ns_blob_free(blob);
+    blob = NULL;
+    buf[len / 2] ^= 0x10;
+    EXPECT_STATUS(ns_blob_from_bytes(buf, len, &blob), NS_ERR_CHECKSUM_MISMATCH);
+    EXPECT_STATUS(ns_blob_from_bytes(buf, 7, &blob), NS_ERR_TRUNCATED);
+    EXPECT_STATUS(ns_blob_from_bytes((const uint8_t *)"garbage!garbage!", 16, &blob),
+                  NS_ERR_BAD_MAGIC);
+    EXPECT_STATUS(ns_blob_from_bytes(NULL, 0, &blob), NS_ERR_TRUNCATED);
+    CHECK(blob == NULL, "handle written on error");
+  }
+  /* A material blob is not a sampler, a sampler blob is not a material. */
+  snprintf(path, sizeof path, "%s/materials/neural/goat_leather_neural.nsb", root);
+  EXPECT_STATUS(ns_blob_open(path, &blob), NS_OK);
+  NsSampler *bad = NULL;
+  EXPECT_STATUS(ns_sampler_new(blob, &bad), NS_ERR_NOT_A_SAMPLER);
+  ns_blob_free(blob);
+  snprintf(path, sizeof path, "%s/blobs/goat_leather_neural/flow.nsb", root);
+  EXPECT_STATUS(ns_blob_open(path, &blob), NS_OK);
+  NsMaterial *badm = NULL;
+  EXPECT_STATUS(ns_material_new(blob, &badm), NS_ERR_WRONG_KIND);
+  ns_blob_free(blob);
+  /* NULL handles and outputs. */
+  NsPhi phi;
+  NsSample smp;
+  float p;
+  NsVec3 up = {0.0f, 0.0f, 1.0f};
+  NsVec2 u = {0.5f, 0.5f};
+  EXPECT_STATUS(ns_blob_open(NULL, &blob), NS_ERR_NULL_POINTER);
+  EXPECT_STATUS(ns_blob_open(path, NULL), NS_ERR_NULL_POINTER);
+  EXPECT_STATUS(ns_material_features(NULL, u, &phi), NS_ERR_NULL_POINTER);
+  EXPECT_STATUS(ns_material_features(m, u, &phi), NS_OK);
+  EXPECT_STATUS(ns_sample(NULL, &phi, up, u, &smp), NS_ERR_NULL_POINTER);
+  EXPECT_STATUS(ns_sample(s, NULL, up, u, &smp), NS_ERR_NULL_POINTER);
+  EXPECT_STATUS(ns_pdf(s, &phi, up, up, NULL), NS_ERR_NULL_POINTER);
+  /* NaN directions: scalar calls say so; batched lanes are refused (zeros), others intact. */
+  NsVec3 nan_dir = {NAN, 0.0f, 1.0f};
+  EXPECT_STATUS(ns_sample(s, &phi, nan_dir, u, &smp), NS_ERR_NOT_FINITE);
+  CHECK(smp.pdf == 0.0f, "output not zeroed");
+  EXPECT_STATUS(ns_pdf(s, &phi, up, nan_dir, &p), NS_ERR_NOT_FINITE);
+  NsVec3 below = {0.0f, 0.6f, -0.8f};
+  EXPECT_STATUS(ns_sample(s, &phi, below, u, &smp), NS_REFUSED);
+  EXPECT_STATUS(ns_pdf(s, &phi, up, below, &p), NS_OK);
+  CHECK(p == 0.0f, "pdf below the horizon = %g", p);
+  {
+    float phis[NS_FEATURE_DIM][2], wis[3][2] = {{NAN, 0.0f}, {0.0f, 0.0f}, {1.0f, 1.0f}};
+    float us[2][2] = {{0.3f, 0.3f}, {0.6f, 0.6f}}, wos[3][2], pdfs[2];
+    for (int k = 0; k < NS_FEATURE_DIM; ++k) phis[k][0] = phis[k][1] = phi.v[k];
+    EXPECT_STATUS(ns_sample_batch(s, 2, ns_features_rows(&phis[0][0], 2),
+                                  ns_vec3s_rows(&wis[0][0], 2), ns_vec2s_rows(&us[0][0], 2),
+                                  ns_samples_mut_rows(&wos[0][0], pdfs, 2)),
+                  NS_OK);
+    CHECK(pdfs[0] == 0.0f && wos[2][0] == 0.0f, "NaN lane not refused");
+    CHECK(pdfs[1] > 0.0f, "a NaN lane disturbed its neighbour");
+    /* Outputs overlapping an input or each other. */
+    EXPECT_STATUS(ns_sample_batch(s, 2, ns_features_rows(&phis[0][0], 2),
+                                  ns_vec3s_rows(&wis[0][0], 2), ns_vec2s_rows(&us[0][0], 2),
+                                  ns_samples_mut_rows(&wis[0][0], pdfs, 2)),
+                  NS_ERR_INVALID_ARGUMENT);
+    EXPECT_STATUS(ns_pdf_batch(s, 2, ns_features_rows(&phis[0][0], 2),
+                               ns_vec3s_rows(&wis[0][0], 2), ns_vec3s_rows(&wos[0][0], 2),
+                               &wis[2][0]),
+                  NS_ERR_INVALID_ARGUMENT);
+    /* A NULL array with n > 0; a misaligned one. */
+    NsVec3s nowi = {NULL, NULL, NULL};
+    EXPECT_STATUS(ns_pdf_batch(s, 2, ns_features_rows(&phis[0][0], 2), nowi,
+                               ns_vec3s_rows(&wos[0][0], 2), pdfs),
+                  NS_ERR_NULL_POINTER);
+    EXPECT_STATUS(ns_pdf_batch(s, 1, ns_features_rows(&phis[0][0], 1),
+                               ns_vec3s_rows(&wos[0][0], 1), ns_vec3s_rows(&wos[0][0], 1),
+                               (float *)((char *)pdfs + 1)),
+                  NS_ERR_INVALID_ARGUMENT);
+  }
+  /* n = 0 is a no-op, whatever the pointers. */
+  {
+    NsFeatures none_phi;
+    for (int k = 0; k < NS_FEATURE_DIM; ++k) none_phi.c[k] = NULL;
+    NsVec3s none3 = {NULL, NULL, NULL};
+    NsVec2s none2 = {NULL, NULL};
+    NsSamplesMut none_out = {NULL, NULL, NULL, NULL};
+    EXPECT_STATUS(ns_sample_batch(s, 0, none_phi, none3, none2, none_out), NS_OK);
+    EXPECT_STATUS(ns_pdf_batch(s, 0, none_phi, none3, none3, NULL), NS_OK);
+  }
+  /* A prepared state used with another sampler. */
+  {
+    NsSampler *cos = NULL;
+    NsPrepared *prep = NULL;
+    EXPECT_STATUS(ns_sampler_cosine(&cos), NS_OK);
+    EXPECT_STATUS(ns_prepared_new(&prep), NS_OK);
+    EXPECT_STATUS(ns_prepared_sample(s, prep, u, &smp), NS_ERR_INVALID_ARGUMENT);
+    EXPECT_STATUS(ns_prepare(cos, &phi, up, prep), NS_OK);
+    EXPECT_STATUS(ns_prepared_pdf(s, prep, up, &p), NS_ERR_INVALID_ARGUMENT);
+    ns_prepared_free(prep);
+    ns_sampler_free(cos);
+  }
+  /* Freeing NULL is fine. */
+  ns_blob_free(NULL);
+  ns_sampler_free(NULL);
+  ns_material_free(NULL);
+  ns_prepared_free(NULL);
+  printf("  bad input: missing file, corrupted blob, wrong kinds, NULL, NaN, n = 0, overlap\n");
+}
+
+int main(int argc, char **argv) {
+  const char *root = argc > 1 ? argv[1] : "fixtures";
+  char path[1024];
+  printf("neusample C ABI %s\n", ns_version());
+  NsMaterial *first_material = NULL;
+  NsSampler *first_sampler = NULL;
+  for (size_t a = 0; a < sizeof MATERIALS / sizeof *MATERIALS; ++a) {
+    NsBlob *mblob = NULL;
+    NsMaterial *m = NULL;
+    snprintf(path, sizeof path, "%s/materials/neural/%s.nsb", root, MATERIALS[a]);
+    EXPECT_STATUS(ns_blob_open(path, &mblob), NS_OK);
+    if (!mblob) return 1;
+    NsHeader h;
+    EXPECT_STATUS(ns_blob_header(mblob, &h), NS_OK);
+    CHECK(h.kind == NS_KIND_NEURAL_MATERIAL && h.feature_dim == NS_FEATURE_DIM,
+          "material header");
+    EXPECT_STATUS(ns_material_new(mblob, &m), NS_OK);
+    ns_blob_free(mblob); /* the material keeps the bytes alive */
+    printf("%s (texture %ux%u)\n", MATERIALS[a], h.resolution, h.t_levels);
+    NsSampler *cos = NULL;
+    EXPECT_STATUS(ns_sampler_cosine(&cos), NS_OK);
+    check_sampler("cosine", cos, m);
+    ns_sampler_free(cos);
+    for (size_t b = 0; b < sizeof METHODS / sizeof *METHODS; ++b) {
+      NsBlob *blob = NULL;
+      NsSampler *s = NULL;
+      snprintf(path, sizeof path, "%s/blobs/%s/%s.nsb", root, MATERIALS[a], METHODS[b]);
+      EXPECT_STATUS(ns_blob_open(path, &blob), NS_OK);
+      EXPECT_STATUS(ns_sampler_new(blob, &s), NS_OK);
+      char label[256];
+      size_t len = 0;
+      EXPECT_STATUS(ns_blob_label(blob, label, sizeof label, &len), NS_OK);
+      CHECK(strlen(label) == (len < sizeof label ? len : sizeof label - 1), "label length");
+      ns_blob_free(blob);
+      if (!s) continue;
+      check_sampler(METHODS[b], s, m);
+      if (!first_sampler)
+        first_sampler = s;
+      else
+        ns_sampler_free(s);
+    }
+    if (!first_material)
+      first_material = m;
+    else
+      ns_material_free(m);
+  }
+  check_bad_input(root, first_material, first_sampler);
+  ns_sampler_free(first_sampler);
+  ns_material_free(first_material);
+  printf("%d passed, %d failed\n", checks - failures, failures);
+  return failures == 0 ? 0 : 1;
+}

@@ -1,0 +1,220 @@
+//! The safe bodies of the entry points: references and slices in, `Result` out. `ffi` checks
+//! the pointers and calls these.
+
+use neusample::wavefront::{
+    AnyLane, BatchSampler, Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut,
+};
+use neusample::{Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
+
+use crate::error::CallError;
+use crate::types::{NsPhi, NsPrepared, NsRgb, NsSample, NsSampler, NsVec2, NsVec3};
+
+pub(crate) fn vec3(v: NsVec3, what: &'static str) -> Result<Vec3, CallError> {
+    let w = Vec3::new(v.x, v.y, v.z);
+    if w.is_finite() {
+        Ok(w)
+    } else {
+        Err(CallError::NotFinite(what))
+    }
+}
+
+pub(crate) fn vec2(v: NsVec2, what: &'static str) -> Result<Vec2, CallError> {
+    let w = Vec2::new(v.x, v.y);
+    if w.is_finite() {
+        Ok(w)
+    } else {
+        Err(CallError::NotFinite(what))
+    }
+}
+
+pub(crate) fn phi(p: &NsPhi) -> Result<[f32; FEATURE_DIM], CallError> {
+    if p.v.iter().all(|x| x.is_finite()) {
+        Ok(p.v)
+    } else {
+        Err(CallError::NotFinite("phi"))
+    }
+}
+
+fn ns_vec3(v: Vec3) -> NsVec3 {
+    NsVec3 {
+        x: v.x,
+        y: v.y,
+        z: v.z,
+    }
+}
+
+/// Prepare + sample in one call (the scalar API).
+pub(crate) fn sample(
+    s: &NsSampler,
+    phi: &[f32; FEATURE_DIM],
+    wi: Vec3,
+    u: Vec2,
+    out: &mut NsSample,
+) -> Result<(), CallError> {
+    *out = NsSample::default();
+    let p = s.0.get().prepare(phi, wi).ok_or(CallError::Refused)?;
+    let smp = p.sample(u).ok_or(CallError::Refused)?;
+    *out = NsSample {
+        wo: ns_vec3(smp.wo),
+        pdf: smp.pdf,
+    };
+    Ok(())
+}
+
+/// Prepare + pdf in one call (the scalar API).
+pub(crate) fn pdf(
+    s: &NsSampler,
+    phi: &[f32; FEATURE_DIM],
+    wi: Vec3,
+    wo: Vec3,
+    out: &mut f32,
+) -> Result<(), CallError> {
+    *out = 0.0;
+    let p = s.0.get().prepare(phi, wi).ok_or(CallError::Refused)?;
+    *out = p.pdf(wo);
+    Ok(())
+}
+
+/// One-lane views of a scalar condition, for the lane-based prepared state.
+fn one<const N: usize>(v: &[f32; N]) -> [&[f32]; N] {
+    core::array::from_fn(|i| core::slice::from_ref(&v[i]))
+}
+
+fn sampler_id(s: &NsSampler) -> usize {
+    s as *const NsSampler as usize
+}
+
+fn check_owner(s: &NsSampler, p: &NsPrepared) -> Result<(), CallError> {
+    if p.owner == sampler_id(s) {
+        Ok(())
+    } else {
+        Err(CallError::Invalid(
+            "this NsPrepared was not prepared by this sampler (call ns_prepare first)".into(),
+        ))
+    }
+}
+
+pub(crate) fn prepare(
+    s: &NsSampler,
+    phi: &[f32; FEATURE_DIM],
+    wi: Vec3,
+    p: &mut NsPrepared,
+) -> Result<(), CallError> {
+    let channels = one(phi);
+    let w = [wi.x, wi.y, wi.z];
+    let [x, y, z] = one(&w);
+    let mut lane = [AnyLane::default()];
+    s.0.get()
+        .prepare_batch(Features { channels }, Vec3s { x, y, z }, &mut lane)?;
+    p.lane = lane[0];
+    p.owner = sampler_id(s);
+    match p.lane {
+        AnyLane::Refused => Err(CallError::Refused),
+        _ => Ok(()),
+    }
+}
+
+pub(crate) fn prepared_sample(
+    s: &NsSampler,
+    p: &NsPrepared,
+    u: Vec2,
+    out: &mut NsSample,
+) -> Result<(), CallError> {
+    check_owner(s, p)?;
+    *out = NsSample::default();
+    let (ux, uy) = ([u.x], [u.y]);
+    let (mut x, mut y, mut z, mut pdf) = ([0.0f32], [0.0f32], [0.0f32], [0.0f32]);
+    let dst = SamplesMut {
+        wo: Vec3sMut {
+            x: &mut x,
+            y: &mut y,
+            z: &mut z,
+        },
+        pdf: &mut pdf,
+    };
+    s.0.get().sample_batch(
+        core::slice::from_ref(&p.lane),
+        Vec2s { x: &ux, y: &uy },
+        dst,
+    )?;
+    if !(pdf[0] > 0.0) {
+        return Err(CallError::Refused);
+    }
+    *out = NsSample {
+        wo: NsVec3 {
+            x: x[0],
+            y: y[0],
+            z: z[0],
+        },
+        pdf: pdf[0],
+    };
+    Ok(())
+}
+
+pub(crate) fn prepared_pdf(
+    s: &NsSampler,
+    p: &NsPrepared,
+    wo: Vec3,
+    out: &mut f32,
+) -> Result<(), CallError> {
+    check_owner(s, p)?;
+    let w = [wo.x, wo.y, wo.z];
+    let [x, y, z] = one(&w);
+    let mut pdf = [0.0f32];
+    s.0.get()
+        .pdf_batch(core::slice::from_ref(&p.lane), Vec3s { x, y, z }, &mut pdf)?;
+    *out = pdf[0];
+    Ok(())
+}
+
+pub(crate) fn sample_batch(
+    s: &NsSampler,
+    phi: Features<'_>,
+    wi: Vec3s<'_>,
+    u: Vec2s<'_>,
+    out: SamplesMut<'_>,
+) -> Result<(), CallError> {
+    Ok(s.0.get().sample_fused(phi, wi, u, out)?)
+}
+
+pub(crate) fn pdf_batch(
+    s: &NsSampler,
+    phi: Features<'_>,
+    wi: Vec3s<'_>,
+    wo: Vec3s<'_>,
+    pdf: &mut [f32],
+) -> Result<(), CallError> {
+    Ok(s.0.get().pdf_fused(phi, wi, wo, pdf)?)
+}
+
+pub(crate) fn features(m: &crate::types::NsMaterial, uv: Vec2) -> [f32; FEATURE_DIM] {
+    m.0.get().features(uv)
+}
+
+pub(crate) fn eval(
+    m: &crate::types::NsMaterial,
+    phi: &[f32; FEATURE_DIM],
+    wi: Vec3,
+    wo: Vec3,
+) -> NsRgb {
+    let [r, g, b] = m.0.get().eval(phi, wi, wo);
+    NsRgb { r, g, b }
+}
+
+pub(crate) fn features_batch(
+    m: &crate::types::NsMaterial,
+    uv: Vec2s<'_>,
+    phi: FeaturesMut<'_>,
+) -> Result<(), CallError> {
+    Ok(m.0.get().features_batch(uv, phi)?)
+}
+
+pub(crate) fn eval_batch(
+    m: &crate::types::NsMaterial,
+    phi: Features<'_>,
+    wi: Vec3s<'_>,
+    wo: Vec3s<'_>,
+    out: RgbMut<'_>,
+) -> Result<(), CallError> {
+    Ok(m.0.get().eval_batch(phi, wi, wo, out)?)
+}

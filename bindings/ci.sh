@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# CI steps of the bindings (called from .ci/run; runnable alone from the repository root):
+#   1. Debian's libllvm19 for Mitsuba's llvm_ad_rgb variant (installed only when missing);
+#   2. a venv with mitsuba==3.9.1, numpy, pytest (pip's cache makes a warm run fast);
+#   3. the C ABI: header current (cbindgen test), golden values current, the C and C++
+#      examples built with the system cc/c++ against the static library, and run;
+#   4. `pip install ./bindings/python` (the documented command; one release build of the
+#      wheel, without the `train` feature, so burn is never compiled for it);
+#   5. pytest: unit tests, Mitsuba χ² on every fixture sampler, the wrong-pdf control, the
+#      render test (NEUSAMPLE_REQUIRE_MITSUBA=1: a missing Mitsuba fails instead of skipping).
+# Environment: CARGO_TARGET_DIR (default target/), NEUSAMPLE_VENV (default target/ci-venv).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+target=${CARGO_TARGET_DIR:-$root/target}
+venv=${NEUSAMPLE_VENV:-$target/ci-venv}
+start=$(date +%s)
+step() { echo; echo "=== bindings: $* ($(( $(date +%s) - start ))s)"; }
+
+step "libllvm19 (Mitsuba llvm_ad_rgb)"
+if ! ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1 \
+   && ! ls /usr/lib/x86_64-linux-gnu/libLLVM-19.so* >/dev/null 2>&1; then
+  if [ "$(id -u)" = 0 ]; then
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null
+  else
+    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null
+  fi
+fi
+ls /usr/lib/x86_64-linux-gnu/libLLVM*19* | head -1
+
+step "venv ($venv)"
+if [ ! -x "$venv/bin/python" ]; then
+  python3 -m venv "$venv"
+fi
+"$venv/bin/python" -m pip install -q --disable-pip-version-check --upgrade pip
+"$venv/bin/python" -m pip install -q --disable-pip-version-check "mitsuba==3.9.1" numpy pytest
+"$venv/bin/python" -c "import mitsuba, drjit; print('mitsuba', mitsuba.__version__, 'drjit', drjit.__version__)"
+
+step "C ABI: header and golden values current"
+cargo test -p neusample-capi -p neusample-owned
+
+step "C ABI: C and C++ examples (system compilers)"
+# The test profile (output in target/debug) shares core and its dependencies with the
+# `cargo test` runs before: only this crate is rebuilt.
+cargo build --profile test -p neusample-capi
+mkdir -p "$target/capi"
+lib="$target/debug/libneusample_capi.a"
+cc -std=c99 -Wall -Wextra -Werror -pedantic -O2 -Ibindings/c/include \
+  bindings/c/examples/check.c "$lib" -lm -lpthread -ldl -o "$target/capi/check_c"
+c++ -std=c++17 -Wall -Wextra -Werror -O2 -Ibindings/c/include \
+  bindings/c/examples/pbrt_bxdf.cpp "$lib" -lm -lpthread -ldl -o "$target/capi/pbrt_bxdf"
+"$target/capi/check_c" fixtures | tail -3
+"$target/capi/pbrt_bxdf" fixtures
+
+step "Python package: pip install ./bindings/python"
+CARGO_TARGET_DIR="$target" "$venv/bin/python" -m pip install -q --disable-pip-version-check \
+  --force-reinstall --no-deps ./bindings/python
+"$venv/bin/python" -c "import neusample; print('neusample', neusample.__version__, neusample.__file__)"
+
+step "pytest (unit, Mitsuba χ², wrong-pdf control, render)"
+cd bindings/python/tests
+NEUSAMPLE_REQUIRE_MITSUBA=1 "$venv/bin/python" -m pytest -q -p no:cacheprovider .
+cd "$root"
+
+step "bindings done"

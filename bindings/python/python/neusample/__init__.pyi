@@ -1,0 +1,102 @@
+"""Type stubs of the neusample extension module.
+
+Arrays are float32 numpy arrays of shape ``(k, N)``: one row per component, one column per
+shading point, C-contiguous. Pass an ``(N, k)`` array ``a`` as ``np.ascontiguousarray(a.T)``.
+Directions are in the local shading frame (z = normal, both pointing away from the
+surface); pdfs are densities with respect to solid angle. ``threads``: 1 runs on the
+calling thread, 0 on every thread of rayon's pool, k > 1 in k chunks on that pool; the GIL
+is released in every case.
+"""
+
+from os import PathLike
+from typing import Any, Dict, List, Optional, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+F32 = npt.NDArray[np.float32]
+StrPath = Union[str, PathLike[str]]
+
+__version__: str
+FEATURE_DIM: int
+"""Length of the feature vector φ (8)."""
+SAMPLER_KINDS: List[str]
+"""Every sampler kind: "cosine", "baseline", "analytic", "flow", "affine-flow",
+"direct-histogram", "histogram-mixture"."""
+HAS_TRAINING: bool
+"""Whether the module was built with the ``train`` cargo feature."""
+
+class BlobError(ValueError):
+    """A blob could not be opened or used. ``kind`` names the typed error of the runtime
+    ("truncated", "bad_magic", "unsupported_version", "checksum_mismatch", "header_decode",
+    "header_invalid", "wrong_kind", "not_a_sampler", "dimension_mismatch",
+    "tensor_missing", "tensor_shape", "tensor_bounds", "tensor_dtype", "non_finite",
+    "table_not_normalized", "other"); ``path`` the file, or None."""
+
+    kind: str
+    path: Optional[str]
+
+class Blob:
+    """A validated blob (a sampler of any kind, or a neural material) owning its bytes.
+    Raises FileNotFoundError / OSError for a missing file, BlobError for bad bytes."""
+
+    def __init__(self, path: StrPath) -> None: ...
+    @staticmethod
+    def from_bytes(data: bytes) -> "Blob": ...
+    @property
+    def kind(self) -> str: ...
+    @property
+    def path(self) -> Optional[str]: ...
+    @property
+    def header(self) -> Dict[str, Any]: ...
+    def sampler(self) -> "Sampler":
+        """The sampler it holds (BlobError "not_a_sampler" for a material)."""
+    def neural_material(self) -> "NeuralMaterial":
+        """The material it holds (BlobError "wrong_kind" for a sampler)."""
+    def __len__(self) -> int: ...
+
+class Sampler:
+    """A learned sampler (``Sampler(path)``) or cosine sampling (``Sampler()``)."""
+
+    def __init__(self, path: Optional[StrPath] = None) -> None: ...
+    @staticmethod
+    def cosine() -> "Sampler": ...
+    @property
+    def kind(self) -> str: ...
+    def sample(self, phi: F32, wi: F32, u: F32, *, threads: int = 1) -> Tuple[F32, F32]:
+        """phi (8, N), wi (3, N), u (2, N) in [0, 1) → (wo (3, N), pdf (N,)); refused
+        lanes (wi below the horizon, NaN, sample outside the support) are wo = 0, pdf = 0."""
+    def pdf(self, phi: F32, wi: F32, wo: F32, *, threads: int = 1) -> F32:
+        """phi (8, N), wi (3, N), wo (3, N) → solid-angle pdf (N,); 0 below the horizon."""
+
+class NeuralMaterial:
+    """A neural material (feature texture + decoder) from a neural-material blob."""
+
+    def __init__(self, path: StrPath) -> None: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    def features(self, uv: F32, *, threads: int = 1) -> F32:
+        """uv (2, N) → φ (8, N): bilinear, wrapping texture lookup."""
+    def eval(self, phi: F32, wi: F32, wo: F32, *, threads: int = 1) -> F32:
+        """phi (8, N), wi, wo (3, N) → RGB BRDF (3, N) without the cosine; 0 below the
+        horizon or for non-finite input."""
+
+def inspect(path: StrPath) -> Dict[str, Any]:
+    """The header and tensors of a blob, as ``neusample inspect --json`` prints them."""
+
+def train_sampler(
+    material: StrPath,
+    method: str,
+    out: StrPath,
+    *,
+    seed: int = 0,
+    steps_scale: float = 1.0,
+    quick: bool = False,
+    f16: bool = False,
+) -> Dict[str, Any]:
+    """Trains, bakes and verifies a sampler for a material file (TOML/JSON) or a
+    neural-material blob (or a built-in material's name) and writes its blob to ``out``;
+    returns ``out``, ``bytes``, ``seconds``, ``final_loss``, ``max_relative``, ``tolerance``.
+    Only with the ``train`` cargo feature (``HAS_TRAINING``)."""

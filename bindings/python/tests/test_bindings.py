@@ -1,0 +1,193 @@
+"""Unit tests of the Python bindings: values against the Rust scalar API (golden.txt),
+consistency of sample and pdf, threads, and every kind of bad input."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import neusample
+from conftest import MATERIALS, METHODS, material_path, sampler_path
+
+GOLDEN = Path(__file__).with_name("golden.txt")
+
+
+def golden_rows():
+    rows = []
+    for line in GOLDEN.read_text().splitlines():
+        if line.startswith("#"):
+            continue
+        head, phi, sample, f = line.split("|")
+        fields = head.split()
+        rows.append(
+            dict(
+                material=fields[0],
+                method=fields[1],
+                uv=np.array(fields[2:4], dtype=np.float32),
+                wi=np.array(fields[4:7], dtype=np.float32),
+                u=np.array(fields[7:9], dtype=np.float32),
+                phi=np.array(phi.split(), dtype=np.float32),
+                wo=np.array(sample.split()[:3], dtype=np.float32),
+                pdf=np.float32(sample.split()[3]),
+                f=np.array(f.split(), dtype=np.float32),
+            )
+        )
+    return rows
+
+
+def col(v):
+    """A (k,) vector as a (k, 1) float32 array."""
+    return np.ascontiguousarray(np.asarray(v, dtype=np.float32).reshape(-1, 1))
+
+
+def test_golden_values_from_the_rust_scalar_api():
+    rows = golden_rows()
+    assert len(rows) == 3 * 7 * 3
+    materials = {m: neusample.NeuralMaterial(material_path(m)) for m in MATERIALS}
+    for r in rows:
+        m = materials[r["material"]]
+        s = neusample.Sampler(sampler_path(r["material"], r["method"]))
+        assert s.kind == ("cosine" if r["method"] == "cosine" else r["method"])
+        phi = m.features(col(r["uv"]))
+        np.testing.assert_array_equal(phi[:, 0], r["phi"])
+        wo, pdf = s.sample(phi, col(r["wi"]), col(r["u"]))
+        np.testing.assert_array_equal(wo[:, 0], r["wo"])
+        assert pdf[0] == r["pdf"]
+        f = m.eval(phi, col(r["wi"]), wo)
+        np.testing.assert_array_equal(f[:, 0], r["f"])
+
+
+def random_lanes(n, seed=1):
+    rng = np.random.default_rng(seed)
+    uv = rng.random((2, n), dtype=np.float32)
+    wi = rng.normal(size=(3, n)).astype(np.float32)
+    wi[2] = np.abs(wi[2]) + 0.05
+    wi /= np.linalg.norm(wi, axis=0)
+    u = rng.random((2, n), dtype=np.float32)
+    return uv, np.ascontiguousarray(wi), u
+
+
+@pytest.mark.parametrize("method", ["cosine"] + METHODS)
+def test_sample_pdf_agree_and_threads_are_bit_identical(method):
+    m = neusample.NeuralMaterial(material_path("goat_leather_neural"))
+    s = neusample.Sampler(sampler_path("goat_leather_neural", method))
+    uv, wi, u = random_lanes(3000)
+    phi = m.features(uv)
+    wo, pdf = s.sample(phi, wi, u)
+    ok = pdf > 0
+    assert ok.mean() > 0.9
+    np.testing.assert_array_equal(s.pdf(phi, wi, wo)[ok], pdf[ok])
+    assert np.all(wo[:, ~ok] == 0)
+    np.testing.assert_allclose(np.linalg.norm(wo[:, ok], axis=0), 1, atol=1e-5)
+    wo2, pdf2 = s.sample(phi, wi, u, threads=2)
+    np.testing.assert_array_equal(wo2, wo)
+    np.testing.assert_array_equal(pdf2, pdf)
+    np.testing.assert_array_equal(s.pdf(phi, wi, wo, threads=0), s.pdf(phi, wi, wo))
+    np.testing.assert_array_equal(m.eval(phi, wi, wo, threads=3), m.eval(phi, wi, wo))
+    np.testing.assert_array_equal(m.features(uv, threads=2), phi)
+
+
+def test_cosine_is_cos_over_pi():
+    s = neusample.Sampler.cosine()
+    _, wi, u = random_lanes(500)
+    phi = np.zeros((8, 500), np.float32)
+    wo, pdf = s.sample(phi, wi, u)
+    np.testing.assert_allclose(pdf, wo[2] / np.pi, rtol=1e-6)
+
+
+def test_nan_and_below_horizon_lanes_are_refused_without_disturbing_others():
+    m = neusample.NeuralMaterial(material_path("brushed_metal_neural"))
+    s = neusample.Sampler(sampler_path("brushed_metal_neural", "flow"))
+    uv, wi, u = random_lanes(64)
+    phi = m.features(uv)
+    _, ref_pdf = s.sample(phi, wi, u)
+    wi_bad = wi.copy()
+    wi_bad[0, 3] = np.nan
+    wi_bad[2, 5] = -0.5
+    phi_bad = phi.copy()
+    phi_bad[4, 7] = np.inf
+    wo, pdf = s.sample(phi_bad, wi_bad, u)
+    assert pdf[3] == 0 and pdf[5] == 0 and pdf[7] == 0
+    assert np.all(wo[:, [3, 5, 7]] == 0)
+    keep = np.setdiff1d(np.arange(64), [3, 5, 7])
+    np.testing.assert_array_equal(pdf[keep], ref_pdf[keep])
+    f = m.eval(phi_bad, wi_bad, wo)
+    assert np.all(f[:, [3, 5, 7]] == 0) and np.all(np.isfinite(f))
+
+
+def test_empty_batches():
+    m = neusample.NeuralMaterial(material_path("goat_leather_neural"))
+    s = neusample.Sampler.cosine()
+    phi = m.features(np.zeros((2, 0), np.float32))
+    assert phi.shape == (8, 0) and phi.dtype == np.float32
+    wo, pdf = s.sample(phi, np.zeros((3, 0), np.float32), np.zeros((2, 0), np.float32))
+    assert wo.shape == (3, 0) and pdf.shape == (0,)
+
+
+def test_open_errors_are_typed(tmp_path):
+    with pytest.raises(FileNotFoundError) as e:
+        neusample.Sampler(str(tmp_path / "missing.nsb"))
+    assert "missing.nsb" in str(e.value)
+    data = bytearray(Path(sampler_path("goat_leather_neural", "analytic")).read_bytes())
+    data[len(data) // 2] ^= 0x10
+    bad = tmp_path / "corrupted.nsb"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(neusample.BlobError) as e:
+        neusample.Sampler(str(bad))
+    assert e.value.kind == "checksum_mismatch"
+    assert e.value.path == str(bad)
+    assert isinstance(e.value, ValueError)
+    with pytest.raises(neusample.BlobError) as e:
+        neusample.Blob.from_bytes(b"definitely not a blob")
+    assert e.value.kind == "bad_magic" and e.value.path is None
+    with pytest.raises(neusample.BlobError) as e:
+        neusample.Blob.from_bytes(bytes(data[:100]))
+    assert e.value.kind == "truncated"
+    with pytest.raises(neusample.BlobError) as e:
+        neusample.Sampler(material_path("goat_leather_neural"))
+    assert e.value.kind == "not_a_sampler"
+    with pytest.raises(neusample.BlobError) as e:
+        neusample.NeuralMaterial(sampler_path("goat_leather_neural", "flow"))
+    assert e.value.kind == "wrong_kind"
+
+
+def test_wrong_arrays_raise_never_crash():
+    s = neusample.Sampler(sampler_path("victorian_fabric_neural", "histogram-mixture"))
+    phi = np.zeros((8, 4), np.float32)
+    wi = np.tile(np.array([[0], [0], [1]], np.float32), 4)
+    u = np.full((2, 4), 0.5, np.float32)
+    with pytest.raises(TypeError, match="float32"):
+        s.sample(phi.astype(np.float64), wi, u)
+    with pytest.raises(TypeError, match="numpy.ndarray"):
+        s.sample(phi.tolist(), wi, u)
+    with pytest.raises(ValueError, match=r"shape \(3, N\)"):
+        s.sample(phi, wi.T.copy(), u)
+    with pytest.raises(ValueError, match=r"shape \(3, N\)"):
+        s.pdf(phi, wi[0], wi)
+    with pytest.raises(ValueError, match="C-contiguous"):
+        s.sample(phi, np.asfortranarray(wi), u)
+    with pytest.raises(ValueError, match="C-contiguous"):
+        s.pdf(phi, wi, np.tile(np.array([[0], [0], [1]], np.float32), 8)[:, ::2])
+    with pytest.raises(ValueError, match="N = 3"):
+        s.sample(phi, wi, u[:, :3].copy())
+    with pytest.raises(OverflowError):
+        s.sample(phi, wi, u, threads=-1)
+    m = neusample.NeuralMaterial(material_path("victorian_fabric_neural"))
+    with pytest.raises(ValueError):
+        m.features(np.zeros((3, 4), np.float32))
+    with pytest.raises(TypeError):
+        m.eval(phi, wi, wi.astype(np.float16))
+
+
+def test_inspect_and_header():
+    info = neusample.inspect(sampler_path("goat_leather_neural", "histogram-mixture"))
+    assert info["kind"] == "histogram-mixture"
+    assert info["checksum"] == "ok" and info["feature_dim"] == neusample.FEATURE_DIM
+    roles = [t["role"] for t in info["tensors"]]
+    assert roles[0] == "params" and "table" in roles
+    blob = neusample.Blob(material_path("goat_leather_neural"))
+    assert blob.kind == "neural-material"
+    assert blob.header["resolution"] == blob.neural_material().width
+    assert len(blob) == Path(material_path("goat_leather_neural")).stat().st_size
+    assert blob.sampler.__doc__
+    assert set(neusample.SAMPLER_KINDS) == {"cosine", *METHODS}
