@@ -45,7 +45,7 @@ impl Prepared for CosinePrepared {
 }
 
 #[cfg(not(target_arch = "spirv"))]
-impl crate::batch::ChunkedSampler for CosineSampler {
+impl crate::batch::chunked::ChunkedSampler for CosineSampler {
     type Lane = Option<CosinePrepared>;
     const CHUNK: usize = 64;
 

@@ -179,7 +179,8 @@ mod batch {
     //! lanes, the histogram per lane ([`DirectHistogramPrepared::from_logits`]).
 
     use super::*;
-    use crate::batch::{self, dense, per_lane_chunks, ChunkedSampler, Features, Soa, Vec3s};
+    use crate::batch::chunked::ChunkedSampler;
+    use crate::batch::{self, dense, per_lane_chunks, Features, Soa, Vec3s};
 
     /// Lanes per chunk (the 256 logits of 16 lanes take 16 KiB).
     const CHUNK: usize = 16;

@@ -678,9 +678,8 @@ mod batch {
     //! `lane_sample`, `lane_pdf_disk`, `lane_invert`).
 
     use super::*;
-    use crate::batch::{
-        self, dense, ChunkedSampler, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s,
-    };
+    use crate::batch::chunked::ChunkedSampler;
+    use crate::batch::{self, dense, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s};
 
     /// Lanes per chunk.
     const CHUNK: usize = 32;

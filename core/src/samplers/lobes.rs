@@ -316,7 +316,8 @@ mod batch {
     //! [`AnalyticMixturePrepared::from_outputs`]).
 
     use super::*;
-    use crate::batch::{self, dense, per_lane_chunks, ChunkedSampler, Features, Soa, Vec3s};
+    use crate::batch::chunked::ChunkedSampler;
+    use crate::batch::{self, dense, per_lane_chunks, Features, Soa, Vec3s};
 
     /// Lanes per chunk.
     const CHUNK: usize = 32;

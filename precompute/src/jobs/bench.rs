@@ -51,7 +51,7 @@ pub struct BenchConfig {
 }
 
 impl BenchConfig {
-    /// The committed goat-leather fixtures, the reference material.
+    /// The committed goat-leather fixtures, the reference material of the cost targets.
     #[must_use]
     pub fn fixtures() -> Self {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures");

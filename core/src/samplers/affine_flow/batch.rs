@@ -7,7 +7,8 @@ use super::{
     scale_shift, AffineFlowPrepared, AffineFlowSampler, AffineLane, AFFINE_LAYERS, AFFINE_NET_L0,
     AFFINE_NET_L1, AFFINE_NET_L2, AFFINE_NET_LEN, AFFINE_OUTPUTS,
 };
-use crate::batch::{self, dense, ChunkedSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
+use crate::batch::chunked::ChunkedSampler;
+use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::gaussian;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};

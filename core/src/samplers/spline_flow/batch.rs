@@ -10,8 +10,9 @@ use super::{
     FLOW_COUPLING1, SPLINE_BINS, SPLINE_NET_L0, SPLINE_NET_L1, SPLINE_NET_L2, SPLINE_RAW_LEN,
     TAIL_BOUND,
 };
+use crate::batch::chunked::ChunkedSampler;
 use crate::batch::lanes::V8;
-use crate::batch::{self, dense, ChunkedSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
+use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};

@@ -1,0 +1,185 @@
+//! [`ChunkedSampler`]: what a sampler writes to be batched; [`BatchSampler`] follows
+//! (argument checks, chunking, instruction-set dispatch).
+
+use super::simd::{dispatch, Kernel};
+use super::{
+    check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, BatchSampler,
+    Features, SamplesMut, Vec2s, Vec2sMut, Vec3s,
+};
+use crate::error::Result;
+
+/// How a sampler computes one chunk of at most `CHUNK` lanes (arguments already checked).
+/// Every method must be `#[inline(always)]`, so that [`dispatch`] compiles it for the
+/// chosen instruction set. Public only to name it in [`BatchSampler`]'s blanket impl; the
+/// module is private.
+pub trait ChunkedSampler {
+    /// See [`BatchSampler::Lane`].
+    type Lane: Copy + Default;
+    /// Lanes per chunk.
+    const CHUNK: usize;
+    /// [`BatchSampler::prepare_batch`] of one chunk.
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]);
+    /// [`BatchSampler::sample_batch`] of one chunk.
+    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>);
+    /// [`BatchSampler::pdf_batch`] of one chunk.
+    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]);
+    /// [`BatchSampler::invert_batch`] of one chunk.
+    fn invert_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, u: Vec2sMut<'_>, ok: &mut [bool]);
+}
+
+/// The chunks `[a, b)` of `0..n`, `c` lanes each.
+#[inline(always)]
+fn next_chunk(a: usize, n: usize, c: usize) -> usize {
+    if n - a > c {
+        a + c
+    } else {
+        n
+    }
+}
+
+struct Prepare<'a, 's, S: ChunkedSampler> {
+    s: &'s S,
+    phi: Features<'a>,
+    wi: Vec3s<'a>,
+    lanes: &'a mut [S::Lane],
+}
+
+impl<S: ChunkedSampler> Kernel for Prepare<'_, '_, S> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        let n = self.lanes.len();
+        let mut a = 0;
+        while a < n {
+            let b = next_chunk(a, n, S::CHUNK);
+            let (phi, wi) = (self.phi.range(a, b), self.wi.range(a, b));
+            self.s.prepare_chunk(phi, wi, &mut self.lanes[a..b]);
+            a = b;
+        }
+    }
+}
+
+struct Sample<'a, 's, S: ChunkedSampler> {
+    s: &'s S,
+    lanes: &'a [S::Lane],
+    u: Vec2s<'a>,
+    out: SamplesMut<'a>,
+}
+
+impl<S: ChunkedSampler> Kernel for Sample<'_, '_, S> {
+    type Output = ();
+    #[inline(always)]
+    fn run(mut self) {
+        let n = self.lanes.len();
+        let mut a = 0;
+        while a < n {
+            let b = next_chunk(a, n, S::CHUNK);
+            let u = self.u.range(a, b);
+            self.s
+                .sample_chunk(&self.lanes[a..b], u, self.out.range(a, b));
+            a = b;
+        }
+    }
+}
+
+struct Pdf<'a, 's, S: ChunkedSampler> {
+    s: &'s S,
+    lanes: &'a [S::Lane],
+    wo: Vec3s<'a>,
+    pdf: &'a mut [f32],
+}
+
+impl<S: ChunkedSampler> Kernel for Pdf<'_, '_, S> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        let n = self.lanes.len();
+        let mut a = 0;
+        while a < n {
+            let b = next_chunk(a, n, S::CHUNK);
+            let wo = self.wo.range(a, b);
+            self.s.pdf_chunk(&self.lanes[a..b], wo, &mut self.pdf[a..b]);
+            a = b;
+        }
+    }
+}
+
+struct Invert<'a, 's, S: ChunkedSampler> {
+    s: &'s S,
+    lanes: &'a [S::Lane],
+    wo: Vec3s<'a>,
+    u: Vec2sMut<'a>,
+    ok: &'a mut [bool],
+}
+
+impl<S: ChunkedSampler> Kernel for Invert<'_, '_, S> {
+    type Output = ();
+    #[inline(always)]
+    fn run(mut self) {
+        let n = self.lanes.len();
+        let mut a = 0;
+        while a < n {
+            let b = next_chunk(a, n, S::CHUNK);
+            let wo = self.wo.range(a, b);
+            let lanes = &self.lanes[a..b];
+            self.s
+                .invert_chunk(lanes, wo, self.u.range(a, b), &mut self.ok[a..b]);
+            a = b;
+        }
+    }
+}
+
+impl<S: ChunkedSampler> BatchSampler for S {
+    type Lane = S::Lane;
+
+    fn prepare_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [S::Lane]) -> Result<()> {
+        check_prepare_args(&phi, &wi, lanes)?;
+        dispatch(Prepare {
+            s: self,
+            phi,
+            wi,
+            lanes,
+        });
+        Ok(())
+    }
+
+    fn sample_batch(&self, lanes: &[S::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) -> Result<()> {
+        check_sample_args(lanes, &u, &out)?;
+        dispatch(Sample {
+            s: self,
+            lanes,
+            u,
+            out,
+        });
+        Ok(())
+    }
+
+    fn pdf_batch(&self, lanes: &[S::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+        check_pdf_args(lanes, &wo, pdf)?;
+        dispatch(Pdf {
+            s: self,
+            lanes,
+            wo,
+            pdf,
+        });
+        Ok(())
+    }
+
+    fn invert_batch(
+        &self,
+        lanes: &[S::Lane],
+        wo: Vec3s<'_>,
+        u: Vec2sMut<'_>,
+        ok: &mut [bool],
+    ) -> Result<()> {
+        check_invert_args(lanes, &wo, &u, ok)?;
+        dispatch(Invert {
+            s: self,
+            lanes,
+            wo,
+            u,
+            ok,
+        });
+        Ok(())
+    }
+}
