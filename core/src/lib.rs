@@ -25,9 +25,11 @@
 //! | `error`, `kind`, `math`, [`warp`], `weights` | leaves: the error type, the kind enums, the only calls to transcendental functions, disk ↔ hemisphere warps, parameter storage ([`Weights`]) |
 //! | [`nn`] | dense layers and the condition encodings |
 //! | [`distrib`] | Gaussians, RQ splines, [`Table2D`] |
-//! | [`samplers`] | one file per method, the [`Sampler`]/[`Prepared`] traits, [`AnySampler`] |
+//! | `batch` | the batched path's building blocks (not on SPIR-V): structure-of-arrays views, the `BatchSampler` trait, chunked kernels, run-time instruction-set dispatch, dense layers over lanes |
+//! | [`samplers`] | one file per method (scalar, and batched beside it), the [`Sampler`]/[`Prepared`] traits, [`AnySampler`] |
 //! | [`neural_material`] | the neural BRDF the samplers are trained for |
 //! | [`blob`] | the file format: layout, reader, validation, writer |
+//! | `wavefront` | the batched API as users see it: `batch`'s public items and the samplers' lane types |
 //!
 //! Everything a renderer needs is re-exported here; the modules add the architecture
 //! constants and building blocks a trainer or a test needs.
