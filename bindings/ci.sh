@@ -8,7 +8,9 @@
 #      wheel, without the `train` feature, so burn is never compiled for it);
 #   5. pytest: unit tests, Mitsuba χ² on every fixture sampler, the wrong-pdf control, the
 #      render test (NEUSAMPLE_REQUIRE_MITSUBA=1: a missing Mitsuba fails instead of skipping).
-# Environment: CARGO_TARGET_DIR (default target/), NEUSAMPLE_VENV (default target/ci-venv).
+# Environment: CARGO_TARGET_DIR (default target/), NEUSAMPLE_VENV (default target/ci-venv),
+# NEUSAMPLE_BINDINGS_CARGO_TESTED=1 when `cargo test --workspace` ran just before (step 3's
+# cargo tests are then not rebuilt with another feature set).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -37,7 +39,11 @@ fi
 "$venv/bin/python" -c "import mitsuba, drjit; print('mitsuba', mitsuba.__version__, 'drjit', drjit.__version__)"
 
 step "C ABI: header and golden values current"
-cargo test -p neusample-capi -p neusample-owned
+if [ "${NEUSAMPLE_BINDINGS_CARGO_TESTED:-0}" = 1 ]; then
+  echo "already run by cargo test --workspace (header.rs, golden.rs)"
+else
+  cargo test -p neusample-capi -p neusample-owned
+fi
 
 step "C ABI: C and C++ examples (system compilers)"
 # The test profile (output in target/debug) shares core and its dependencies with the
