@@ -20,17 +20,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::util::timing::{median_of_passes, ns_per_call};
 
-/// The sampler blobs measured, by file stem, in report order.
-pub const METHODS: [&str; 7] = [
-    "cosine",
-    "baseline",
-    "analytic",
-    "flow",
-    "affine-flow",
-    "direct-histogram",
-    "histogram-mixture",
-];
-
 /// The batch sizes measured.
 pub const BATCH_SIZES: [usize; 4] = [1, 8, 64, 1024];
 
@@ -471,7 +460,8 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
 
     // The samplers.
     let mut methods = Vec::new();
-    for method in METHODS {
+    // The sampler blobs, by kind name (`<method>.nsb`), in `SamplerKind::ALL` order.
+    for method in neusample::SamplerKind::ALL.map(neusample::SamplerKind::name) {
         let path = cfg.blobs.join(format!("{method}.nsb"));
         let bytes = match std::fs::read(&path) {
             Ok(b) => b,
