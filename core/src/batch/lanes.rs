@@ -8,6 +8,17 @@ use core::ops::{Add, Mul};
 use crate::math;
 use crate::math::lane::Lane;
 
+/// `[f(0), …, f(7)]` as a plain loop (`core::array::from_fn`'s machinery is not always
+/// inlined into the dispatched kernels, and a call there runs without their instruction set).
+#[inline(always)]
+fn each<T: Copy + Default>(f: impl Fn(usize) -> T) -> [T; 8] {
+    let mut r = [T::default(); 8];
+    for (l, v) in r.iter_mut().enumerate() {
+        *v = f(l);
+    }
+    r
+}
+
 /// Eight `f32` lanes.
 #[derive(Copy, Clone, Debug, PartialEq)]
 #[repr(C, align(32))]
@@ -77,7 +88,7 @@ impl core::ops::Sub for V8 {
     type Output = V8;
     #[inline(always)]
     fn sub(self, b: V8) -> V8 {
-        V8(core::array::from_fn(|l| self.0[l] - b.0[l]))
+        V8(each(|l| self.0[l] - b.0[l]))
     }
 }
 
@@ -85,7 +96,7 @@ impl core::ops::Div for V8 {
     type Output = V8;
     #[inline(always)]
     fn div(self, b: V8) -> V8 {
-        V8(core::array::from_fn(|l| self.0[l] / b.0[l]))
+        V8(each(|l| self.0[l] / b.0[l]))
     }
 }
 
@@ -93,15 +104,7 @@ impl core::ops::Neg for V8 {
     type Output = V8;
     #[inline(always)]
     fn neg(self) -> V8 {
-        V8(core::array::from_fn(|l| -self.0[l]))
-    }
-}
-
-impl V8 {
-    /// `f` of every lane.
-    #[inline(always)]
-    pub(crate) fn map(self, f: impl Fn(f32) -> f32) -> V8 {
-        V8(core::array::from_fn(|l| f(self.0[l])))
+        V8(each(|l| -self.0[l]))
     }
 }
 
@@ -115,45 +118,59 @@ impl Lane for V8 {
     }
     #[inline(always)]
     fn ge(self, b: V8) -> [bool; 8] {
-        core::array::from_fn(|l| self.0[l] >= b.0[l])
+        each(|l| self.0[l] >= b.0[l])
     }
     #[inline(always)]
     fn le(self, b: V8) -> [bool; 8] {
-        core::array::from_fn(|l| self.0[l] <= b.0[l])
+        each(|l| self.0[l] <= b.0[l])
     }
     #[inline(always)]
     fn gt(self, b: V8) -> [bool; 8] {
-        core::array::from_fn(|l| self.0[l] > b.0[l])
+        each(|l| self.0[l] > b.0[l])
     }
     #[inline(always)]
     fn and(a: [bool; 8], b: [bool; 8]) -> [bool; 8] {
-        core::array::from_fn(|l| a[l] & b[l])
+        each(|l| a[l] & b[l])
     }
     #[inline(always)]
     fn select(m: [bool; 8], a: V8, b: V8) -> V8 {
-        V8(core::array::from_fn(|l| if m[l] { a.0[l] } else { b.0[l] }))
+        V8(each(|l| if m[l] { a.0[l] } else { b.0[l] }))
     }
     #[inline(always)]
     fn clamp_to(self, lo: V8, hi: V8) -> V8 {
-        V8(core::array::from_fn(|l| {
-            math::clamp(self.0[l], lo.0[l], hi.0[l])
-        }))
+        V8(each(|l| math::clamp(self.0[l], lo.0[l], hi.0[l])))
     }
     #[inline(always)]
     fn exp_nonpositive(self) -> V8 {
-        self.map(math::exp_nonpositive)
+        let mut r = self.0;
+        for v in &mut r {
+            *v = math::exp_nonpositive(*v);
+        }
+        V8(r)
     }
     #[inline(always)]
     fn ln(self) -> V8 {
-        self.map(math::ln)
+        let mut r = self.0;
+        for v in &mut r {
+            *v = math::ln(*v);
+        }
+        V8(r)
     }
     #[inline(always)]
     fn softplus(self) -> V8 {
-        self.map(math::softplus)
+        let mut r = self.0;
+        for v in &mut r {
+            *v = math::softplus(*v);
+        }
+        V8(r)
     }
     #[inline(always)]
     fn safe_sqrt(self) -> V8 {
-        self.map(math::safe_sqrt)
+        let mut r = self.0;
+        for v in &mut r {
+            *v = math::safe_sqrt(*v);
+        }
+        V8(r)
     }
     #[inline(always)]
     fn index(k: usize) -> [u32; 8] {
@@ -161,20 +178,18 @@ impl Lane for V8 {
     }
     #[inline(always)]
     fn select_index(m: [bool; 8], k: usize, i: [u32; 8]) -> [u32; 8] {
-        core::array::from_fn(|l| if m[l] { k as u32 } else { i[l] })
+        each(|l| if m[l] { k as u32 } else { i[l] })
     }
     #[inline(always)]
     fn gather<const K: usize>(a: &[V8; K], i: [u32; 8], plus: usize, fallback: f32) -> V8 {
-        V8(core::array::from_fn(|l| {
-            match a.get(i[l] as usize + plus) {
-                Some(v) => v.0[l],
-                None => fallback,
-            }
+        V8(each(|l| match a.get(i[l] as usize + plus) {
+            Some(v) => v.0[l],
+            None => fallback,
         }))
     }
     #[inline(always)]
     fn interior<const K: usize>(i: [u32; 8], plus: usize) -> [bool; 8] {
-        core::array::from_fn(|l| {
+        each(|l| {
             let j = i[l] as usize + plus;
             j > 0 && j < K
         })

@@ -98,7 +98,10 @@ impl<W: Weights + Copy> FlowSampler<W> {
         let mut raw: Soa<SPLINE_RAW_LEN> = [[0.0; CHUNK]; SPLINE_RAW_LEN];
         self.coupling_raw(net, &share, &vv, m, &mut raw);
         for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
-            let r: [V8; SPLINE_RAW_LEN] = core::array::from_fn(|j| V8::load(&raw[j][8 * g..]));
+            let mut r = [V8::splat(0.0); SPLINE_RAW_LEN];
+            for (rj, row) in r.iter_mut().zip(raw.iter()) {
+                *rj = V8::load(&row[8 * g..]);
+            }
             *kn = Knots::from_raw_lanes(&r, TAIL_BOUND);
         }
     }
