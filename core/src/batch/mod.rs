@@ -134,19 +134,20 @@ pub(crate) fn identity_index<const B: usize>() -> [usize; B] {
     idx
 }
 
-/// The encoded conditions ([`crate::nn::encode_condition`]) of a chunk's lanes and which
-/// lanes are usable ([`crate::nn::check_condition`]); refused lanes are zeros.
+/// `encode` (a condition encoding) of every lane of a chunk, and which lanes are usable
+/// ([`crate::nn::check_condition`]); refused lanes are zeros.
 #[inline(always)]
-pub(crate) fn encoded_conditions<const B: usize>(
+fn conditions<const N: usize, const B: usize>(
     phi: &Features<'_>,
     wi: &Vec3s<'_>,
-) -> (Soa<{ crate::nn::CONDITION_DIM }, B>, [bool; B]) {
-    let mut c = [[0.0f32; B]; crate::nn::CONDITION_DIM];
+    encode: impl Fn(&[f32; crate::nn::FEATURE_DIM], glam::Vec3) -> [f32; N],
+) -> (Soa<N, B>, [bool; B]) {
+    let mut c = [[0.0f32; B]; N];
     let mut valid = [false; B];
     for l in 0..wi.len() {
         let p = phi.at(l);
         if let Some(w) = crate::nn::check_condition(&p, wi.at(l)) {
-            let enc = crate::nn::encode_condition(&p, w);
+            let enc = encode(&p, w);
             for (k, v) in enc.iter().enumerate() {
                 c[k][l] = *v;
             }
@@ -156,6 +157,16 @@ pub(crate) fn encoded_conditions<const B: usize>(
     (c, valid)
 }
 
+/// The encoded conditions ([`crate::nn::encode_condition`]) of a chunk's lanes and which
+/// lanes are usable; refused lanes are zeros.
+#[inline(always)]
+pub(crate) fn encoded_conditions<const B: usize>(
+    phi: &Features<'_>,
+    wi: &Vec3s<'_>,
+) -> (Soa<{ crate::nn::CONDITION_DIM }, B>, [bool; B]) {
+    conditions(phi, wi, crate::nn::encode_condition)
+}
+
 /// The raw conditions ([`crate::nn::raw_condition`]) of a chunk's lanes and which lanes are
 /// usable; refused lanes are zeros.
 #[inline(always)]
@@ -163,19 +174,7 @@ pub(crate) fn raw_conditions<const B: usize>(
     phi: &Features<'_>,
     wi: &Vec3s<'_>,
 ) -> (Soa<{ crate::nn::RAW_CONDITION_DIM }, B>, [bool; B]) {
-    let mut c = [[0.0f32; B]; crate::nn::RAW_CONDITION_DIM];
-    let mut valid = [false; B];
-    for l in 0..wi.len() {
-        let p = phi.at(l);
-        if let Some(w) = crate::nn::check_condition(&p, wi.at(l)) {
-            let enc = crate::nn::raw_condition(&p, w);
-            for (k, v) in enc.iter().enumerate() {
-                c[k][l] = *v;
-            }
-            valid[l] = true;
-        }
-    }
-    (c, valid)
+    conditions(phi, wi, crate::nn::raw_condition)
 }
 
 /// The length checks every [`BatchSampler::sample_batch`] does.
