@@ -24,7 +24,7 @@
 //! Densities are with respect to **solid angle**, `p_ω = p_disk · cos θo`, as in the scalar
 //! [`Prepared::pdf`](crate::Prepared::pdf).
 pub use crate::batch::{
-    current_isa, detected_isa, prefer_isa, BatchSampler, Features, FeaturesMut, Isa, RgbMut,
-    SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut, FUSED_CHUNK,
+    current_isa, detected_isa, prefer_isa, BatchSampler, Features, FeaturesMut, Isa, LaneState,
+    RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut, FUSED_CHUNK,
 };
 pub use crate::samplers::{AffineLane, AnyLane, FlowLane, MixtureLane};

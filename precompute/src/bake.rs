@@ -3,11 +3,18 @@
 //! The check opens the written bytes with the runtime (`neusample::Blob::open`, the
 //! same code a renderer runs) and compares its disk density with the trained model's
 //! ([`crate::train::model_pdf_disk`], f64) at random conditions and points. f32 blobs must
-//! agree to [`F32_TOLERANCE`] relative; f16 blobs are reported, with a looser bound.
+//! agree to [`F32_TOLERANCE`] relative, compact histogram-mixture tables to
+//! [`COMPACT_TOLERANCE`]; f16 blobs are reported, with a looser bound.
+//!
+//! A histogram mixture's tables are written in the compact layout by default
+//! ([`DEFAULT_TABLE_LAYOUT`]: u16 row CDFs and f32 row totals, no values), a quarter of the
+//! memory of values plus f32 CDFs; [`compact_blob`] converts an existing blob.
 
 use anyhow::{bail, Context, Result};
 use glam::Vec2;
-use neusample::{Blob, BlobWriter, SamplerKind, TensorRole};
+use neusample::distrib::table2d::TableLayout;
+use neusample::samplers::histogram_mixture as histogram;
+use neusample::{Blob, BlobWriter, SamplerKind, TensorRole, Weights};
 use neusample::{DType, Prepared, Sampler};
 use rand::{RngExt, SeedableRng};
 
@@ -21,23 +28,111 @@ pub const F32_TOLERANCE: f64 = 1e-3;
 /// weights carry 11 significant bits; errors compound through the layers).
 pub const F16_TOLERANCE: f64 = 0.25;
 
-/// Serialises a trained model as a blob with the given storage type.
+/// Largest relative difference allowed between a blob with compact histogram-mixture tables
+/// and the trained model: each row's CDF is quantised to 1/65535 of the row, so a cell at the
+/// comparison's floor (10⁻³ of the peak) may be off by a few percent.
+pub const COMPACT_TOLERANCE: f64 = 0.05;
+
+/// How [`blob_bytes`] stores a histogram mixture's tables.
+pub const DEFAULT_TABLE_LAYOUT: TableLayout = TableLayout::Compact;
+
+/// Serialises a trained model as a blob with the given storage type, histogram-mixture
+/// tables in [`DEFAULT_TABLE_LAYOUT`].
 pub fn blob_bytes(trained: &Trained, dtype: DType, label: &str) -> Result<Vec<u8>> {
+    blob_bytes_with(trained, dtype, DEFAULT_TABLE_LAYOUT, label)
+}
+
+/// [`blob_bytes`] with the histogram-mixture table layout chosen (ignored by other kinds).
+/// The compact layout stores no values and each row's CDF as u16 (a quarter of the
+/// memory); `dtype` then applies to the network parameters only.
+pub fn blob_bytes_with(
+    trained: &Trained,
+    dtype: DType,
+    layout: TableLayout,
+    label: &str,
+) -> Result<Vec<u8>> {
     let mut w = BlobWriter::new(trained.method, dtype, label);
     if let Some(t) = &trained.tables {
-        let baked = t.rebake(dtype)?;
-        let n = baked.resolution;
-        let levels = baked.t_levels;
-        w = w.histogram_dims(levels, n, t.interpolation);
-        w.tensor(TensorRole::Mass, &baked.mass)
-            .tensor(TensorRole::Table, &baked.table)
-            .tensor(TensorRole::Marginal, &baked.marginal)
-            .tensor(TensorRole::Conditional, &baked.conditional);
+        let b = &t.baked;
+        w = w.histogram_dims(b.t_levels, b.resolution, t.interpolation);
+        match layout {
+            TableLayout::Values => {
+                let baked = t.rebake(dtype)?;
+                w.tensor(TensorRole::Mass, &baked.mass)
+                    .tensor(TensorRole::Table, &baked.table)
+                    .tensor(TensorRole::Marginal, &baked.marginal)
+                    .tensor(TensorRole::Conditional, &baked.conditional);
+            }
+            TableLayout::Compact => {
+                let c = histogram::try_bake_compact(
+                    &t.raw,
+                    b.bases as usize,
+                    b.t_levels as usize,
+                    b.resolution as usize,
+                )
+                .map_err(|e| anyhow::anyhow!("baking compact tables: {e}"))?;
+                write_compact(&mut w, &c);
+            }
+        }
     } else if trained.method == SamplerKind::HistogramMixture {
         bail!("the histogram mixture has no baked tables");
     }
     w.tensor(TensorRole::Params, &trained.params);
     Ok(w.to_bytes())
+}
+
+fn write_compact(w: &mut BlobWriter<'_>, c: &histogram::CompactTables) {
+    w.tensor(TensorRole::Mass, &c.mass)
+        .tensor(TensorRole::Marginal, &c.marginal)
+        .tensor_u16(TensorRole::Conditional, &c.conditional);
+}
+
+/// Re-encodes a histogram-mixture blob whose tables store values ([`TableLayout::Values`])
+/// in the compact layout: each slice's raw values are recovered as `table · mass` and baked
+/// again with [`histogram::try_bake_compact`]; the parameters and header are kept. A blob of
+/// another kind, or one already compact, is an error.
+pub fn compact_blob(bytes: &[u8]) -> Result<Vec<u8>> {
+    let blob = Blob::open(bytes).context("the blob does not open")?;
+    let h = *blob.header();
+    if h.kind != SamplerKind::HistogramMixture {
+        bail!(
+            "only a histogram mixture has tables to compact (this blob is {})",
+            h.kind.name()
+        );
+    }
+    if blob.is_compact() {
+        bail!("the blob's tables are compact already");
+    }
+    let read = |role: TensorRole| -> Result<Vec<f32>> {
+        let t = blob
+            .tensor(role)
+            .with_context(|| format!("the blob has no {} tensor", role.name()))?;
+        Ok((0..t.len()).map(|i| t.at(i)).collect())
+    };
+    let (mass, table, params) = (
+        read(TensorRole::Mass)?,
+        read(TensorRole::Table)?,
+        read(TensorRole::Params)?,
+    );
+    let (t, n) = (h.t_levels as usize, h.resolution as usize);
+    let slices = mass.len();
+    let raw: Vec<f32> = table
+        .chunks(n * n)
+        .zip(&mass)
+        .flat_map(|(slice, &m)| slice.iter().map(move |&v| v * m))
+        .collect();
+    let c = histogram::try_bake_compact(&raw, slices / t.max(1), t, n)
+        .map_err(|e| anyhow::anyhow!("baking compact tables: {e}"))?;
+    let mut w = BlobWriter::new(h.kind, h.dtype, h.label).histogram_dims(
+        h.t_levels,
+        h.resolution,
+        h.interpolation,
+    );
+    write_compact(&mut w, &c);
+    w.tensor(TensorRole::Params, &params);
+    let out = w.to_bytes();
+    Blob::open(&out).context("the compacted blob does not open")?;
+    Ok(out)
 }
 
 /// Outcome of [`verify`].
@@ -65,6 +160,7 @@ pub fn verify(
     let sampler = blob.sampler()?;
     let tolerance = match blob.header().dtype {
         DType::F16 => F16_TOLERANCE,
+        _ if blob.is_compact() => COMPACT_TOLERANCE,
         // U16 is never a header dtype (the blob would not have opened).
         DType::F32 | DType::U16 => F32_TOLERANCE,
     };

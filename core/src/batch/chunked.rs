@@ -14,7 +14,7 @@ use crate::error::Result;
 /// module is private.
 pub trait ChunkedSampler {
     /// See [`BatchSampler::Lane`].
-    type Lane: Copy + Default;
+    type Lane: super::LaneState;
     /// Lanes per chunk.
     const CHUNK: usize;
     /// [`BatchSampler::prepare_batch`] of one chunk.

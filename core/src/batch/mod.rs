@@ -22,7 +22,7 @@ pub const FUSED_CHUNK: usize = 32;
 pub trait BatchSampler {
     /// The prepared state of one shading point, without the sampler's weights handle
     /// (`Option<…>`: `None`, the default, is a refused lane).
-    type Lane: Copy + Default;
+    type Lane: LaneState;
 
     /// Runs the networks for the `N = lanes.len()` conditions `(phi[i], wi[i])` and writes
     /// each lane's state (refused conditions: `Lane::default()`).
@@ -108,6 +108,21 @@ pub trait BatchSampler {
             a = b;
         }
         Ok(())
+    }
+}
+
+/// A lane's prepared state: `Default` is the refused lane, and [`LaneState::is_prepared`]
+/// tells a renderer whether `prepare` accepted the condition (a scalar `prepare` that
+/// returned `Some`), which the densities alone cannot (a prepared lane may give a zero pdf).
+pub trait LaneState: Copy + Default {
+    /// Whether the lane holds a prepared state.
+    fn is_prepared(&self) -> bool;
+}
+
+impl<T: Copy> LaneState for Option<T> {
+    #[inline(always)]
+    fn is_prepared(&self) -> bool {
+        self.is_some()
     }
 }
 

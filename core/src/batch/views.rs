@@ -120,8 +120,10 @@ impl<'a> Vec2s<'a> {
         self.x.is_empty()
     }
 
+    /// Point `i` (panics when `i` is out of range, as slice indexing does).
     #[inline(always)]
-    pub(crate) fn at(&self, i: usize) -> Vec2 {
+    #[must_use]
+    pub fn at(&self, i: usize) -> Vec2 {
         Vec2::new(self.x[i], self.y[i])
     }
 
@@ -163,8 +165,10 @@ impl<'a> Vec3s<'a> {
         self.x.is_empty()
     }
 
+    /// Direction `i` (panics when `i` is out of range, as slice indexing does).
     #[inline(always)]
-    pub(crate) fn at(&self, i: usize) -> Vec3 {
+    #[must_use]
+    pub fn at(&self, i: usize) -> Vec3 {
         Vec3::new(self.x[i], self.y[i], self.z[i])
     }
 

@@ -144,7 +144,9 @@ mod batch {
     //! batched kernels.
 
     use super::*;
-    use crate::batch::{BatchSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s, FUSED_CHUNK};
+    use crate::batch::{
+        BatchSampler, Features, LaneState, SamplesMut, Vec2s, Vec2sMut, Vec3s, FUSED_CHUNK,
+    };
     use crate::error::{Error, Result};
     use crate::samplers::{
         AffineLane, AnalyticMixturePrepared, CosinePrepared, DirectHistogramPrepared, FlowLane,
@@ -174,6 +176,13 @@ mod batch {
         DirectHistogram(DirectHistogramPrepared),
         /// [`SamplerKind::HistogramMixture`].
         HistogramMixture(MixtureLane),
+    }
+
+    impl LaneState for AnyLane {
+        #[inline(always)]
+        fn is_prepared(&self) -> bool {
+            !matches!(self, AnyLane::Refused)
+        }
     }
 
     /// Runs `f` on chunks of typed lanes converted from and to [`AnyLane`]s.

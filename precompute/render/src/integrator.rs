@@ -1,19 +1,26 @@
-//! The path-tracing integrator: BSDF sampling, optionally combined with environment sampling
-//! (MIS), direct lighting or multi-bounce global illumination, per-pixel statistics and
-//! convergence checkpoints.
+//! What both integrators share: the estimator, the options, the result, the random numbers a
+//! path vertex draws, the MIS weight, per-pixel accumulation and the assembly of the image.
+//!
+//! The scalar integrator ([`crate::render()`], one shading point at a time) and the wavefront
+//! integrator ([`crate::render_wavefront()`], a wavefront of shading points per call) follow
+//! the same per-pixel recipe, so that they give the same image bit for bit:
+//!
+//! 1. pixel `i` draws from its own stream ([`indexed_rng`] of the seed and `i`), samples in
+//!    order `1..=spp`;
+//! 2. a sample draws the pixel jitter (with [`RenderOptions::jitter`]), then every surface
+//!    interaction of its path, in path order, draws its [`VertexRandoms`] (the BSDF sample's
+//!    `u`, and with MIS the environment sample's `pick` and `u`) **before** anything else is
+//!    decided there — so a stream's position never depends on a sampler's answer;
+//! 3. a vertex's radiance is `0 + bsdf term + environment term` in that order, non-finite
+//!    values set to 0, and the pixel sums are kept in f64 in sample order.
 
 use std::time::Instant;
 
-use glam::{Vec2, Vec3};
-use neusample::{Frame, Prepared, Sampler, FEATURE_DIM};
+use glam::Vec2;
 use rand::RngExt;
-use rayon::prelude::*;
 
-use crate::geometry::{Hit, Ray};
 use crate::image::Image;
-use crate::material::{Material, Surface};
 use crate::rng::{indexed_rng, StreamRng};
-use crate::scene::{Scene, RAY_EPSILON};
 
 /// How a pixel sample estimates the light arriving from the environment.
 ///
@@ -30,13 +37,16 @@ pub enum Estimator {
     Mis,
 }
 
-/// Options of [`render`].
+/// Default number of pixels per wavefront ([`RenderOptions::wavefront_pixels`]).
+pub const WAVEFRONT_PIXELS: usize = 256;
+
+/// Options of [`crate::render()`] and [`crate::render_wavefront()`].
 #[derive(Clone, Debug)]
 pub struct RenderOptions {
     /// Samples per pixel.
     pub spp: u32,
     /// Sample counts at which the running mean image is kept, e.g. 1, 2, 4, … (sorted and
-    /// limited to `1..=spp` by [`render`]).
+    /// limited to `1..=spp` by the integrators).
     pub checkpoints: Vec<u32>,
     /// Seed of the per-pixel random streams.
     pub seed: u64,
@@ -47,8 +57,9 @@ pub struct RenderOptions {
     /// sampling alone.
     pub jitter: bool,
     /// Prepare once per pixel and reuse it for all its samples (only without `jitter`; the
-    /// same point is shaded). Meant for samplers whose `prepare` is expensive (a tabulated oracle); the time spent in
-    /// `prepare` is then reported separately ([`Render::prepare_seconds`]).
+    /// same point is shaded). Meant for samplers whose `prepare` is expensive (a tabulated
+    /// oracle); the time spent in `prepare` is then reported separately
+    /// ([`Render::prepare_seconds`]).
     pub reuse_prepared: bool,
     /// Path length in surface interactions: 1 = direct lighting only (the paper's main
     /// mode); `k > 1` = global illumination: a BSDF sample that hits another surface
@@ -56,6 +67,9 @@ pub struct RenderOptions {
     /// `f · cos θo / pdf`), up to `k` interactions. Unbiased for the light carried by paths of
     /// at most `k` interactions; no Russian roulette.
     pub max_bounces: u32,
+    /// Pixels per wavefront of [`crate::render_wavefront()`] (consecutive pixels in row-major
+    /// order, one sample each per step); ignored by the scalar integrator.
+    pub wavefront_pixels: usize,
 }
 
 impl RenderOptions {
@@ -70,7 +84,25 @@ impl RenderOptions {
             jitter: false,
             reuse_prepared: false,
             max_bounces: 1,
+            wavefront_pixels: WAVEFRONT_PIXELS,
         }
+    }
+
+    /// A copy with `spp ≥ 1` and the checkpoints sorted, deduplicated and within `1..=spp`.
+    pub(crate) fn normalised(&self) -> RenderOptions {
+        let mut o = self.clone();
+        o.spp = o.spp.max(1);
+        let spp = o.spp;
+        o.checkpoints.retain(|&s| s >= 1 && s <= spp);
+        o.checkpoints.sort_unstable();
+        o.checkpoints.dedup();
+        o.wavefront_pixels = o.wavefront_pixels.max(1);
+        o
+    }
+
+    /// Whether `prepare` is kept per pixel ([`RenderOptions::reuse_prepared`] without jitter).
+    pub(crate) fn reuses_prepared(&self) -> bool {
+        self.reuse_prepared && !self.jitter
     }
 }
 
@@ -89,7 +121,7 @@ pub fn powers_of_two(max: u32) -> Vec<u32> {
     v
 }
 
-/// The result of [`render`].
+/// The result of a render.
 #[derive(Clone, Debug)]
 pub struct Render {
     /// Mean of all samples.
@@ -109,22 +141,9 @@ pub struct Render {
     pub prepare_seconds: f64,
 }
 
-struct Ctx<'r, 'a, M: ?Sized, S> {
-    scene: &'r Scene,
-    surfaces: &'r [Surface<'a, M, S>],
-    opts: &'r RenderOptions,
-}
-
-struct RowOut {
-    mean: Vec<[f32; 3]>,
-    var: Vec<[f32; 3]>,
-    checkpoints: Vec<Vec<[f32; 3]>>,
-    mask: Vec<bool>,
-    prepare_seconds: f64,
-}
-
+/// The power heuristic's weight of a technique with density `a` against one with `b`.
 #[inline]
-fn power_heuristic(a: f32, b: f32) -> f32 {
+pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
     if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
         a2 / (a2 + b2)
@@ -135,251 +154,154 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     }
 }
 
-impl<'r, 'a, M: Material + ?Sized, S: Sampler> Ctx<'r, 'a, M, S> {
-    /// The surface at a path vertex, its shading frame, the local direction towards the
-    /// previous vertex and φ; `None` off every surface or seen from below.
-    #[allow(clippy::type_complexity)]
-    fn vertex(
-        &self,
-        ray: &Ray,
-        hit: &Hit,
-    ) -> Option<(&'r Surface<'a, M, S>, Frame, Vec3, [f32; FEATURE_DIM])> {
-        let surface = self.surfaces.get(hit.surface)?;
-        let frame = Frame::from_normal_tangent(hit.n, hit.tangent);
-        let wi = frame.to_local(-ray.d);
-        if !(wi.z > 0.0) {
-            return None;
-        }
-        let phi = surface.material.features(hit.uv);
-        Some((surface, frame, wi, phi))
-    }
+/// The random numbers one surface interaction draws, all at once (module docs, step 2).
+#[derive(Copy, Clone, Debug)]
+pub(crate) struct VertexRandoms {
+    /// The BSDF sample's `u`.
+    pub(crate) bsdf: Vec2,
+    /// With MIS: which part of the environment to sample.
+    pub(crate) env_pick: f32,
+    /// With MIS: the environment sample's `u`.
+    pub(crate) env: Vec2,
+}
 
-    /// Radiance leaving a secondary path vertex `hit` towards `-ray.d`, the vertex being the
-    /// `depth`-th surface interaction of the path.
-    fn radiance_at(&self, ray: &Ray, hit: &Hit, depth: u32, rng: &mut StreamRng) -> [f32; 3] {
-        let Some((surface, frame, wi, phi)) = self.vertex(ray, hit) else {
-            return [0.0; 3];
+impl VertexRandoms {
+    pub(crate) fn draw(rng: &mut StreamRng, mis: bool) -> VertexRandoms {
+        let bsdf = Vec2::new(rng.random::<f32>(), rng.random::<f32>());
+        let (env_pick, env) = if mis {
+            let pick = rng.random::<f32>();
+            (pick, Vec2::new(rng.random::<f32>(), rng.random::<f32>()))
+        } else {
+            (0.0, Vec2::ZERO)
         };
-        match surface.sampler.prepare(&phi, wi) {
-            Some(p) => self.shade(surface.material, &phi, hit, &frame, wi, &p, depth, rng),
-            None => [0.0; 3],
+        VertexRandoms {
+            bsdf,
+            env_pick,
+            env,
         }
     }
+}
 
-    /// Lighting at a shading point, one pixel sample: direct lighting, plus (while `depth <
-    /// max_bounces`) the light the BSDF sample brings from the surface it hits.
-    #[allow(clippy::too_many_arguments)]
-    fn shade<P: Prepared>(
-        &self,
-        material: &M,
-        phi: &[f32; FEATURE_DIM],
-        hit: &Hit,
-        frame: &Frame,
-        wi: Vec3,
-        prep: &P,
-        depth: u32,
-        rng: &mut StreamRng,
-    ) -> [f32; 3] {
-        let env = &self.scene.env;
-        let origin = hit.p + hit.n * RAY_EPSILON;
-        let mis = self.opts.estimator == Estimator::Mis;
-        let mut out = [0.0f32; 3];
-        // BSDF sample.
-        let u = Vec2::new(rng.random::<f32>(), rng.random::<f32>());
-        if let Some(s) = prep.sample(u) {
-            let wo_w = frame.from_local(s.wo).normalize();
-            // Does the sample see the environment? With bounces left, a surface it hits
-            // instead continues the path (surfaces do not emit: no MIS weight there).
-            let escaped = if depth < self.opts.max_bounces {
-                let ray = Ray { o: origin, d: wo_w };
-                match self.scene.intersect(&ray) {
-                    None => true,
-                    Some(next) => {
-                        let l = self.radiance_at(&ray, &next, depth + 1, rng);
-                        if l != [0.0; 3] {
-                            let f = material.eval(phi, wi, s.wo);
-                            let k = s.wo.z / s.pdf;
-                            for c in 0..3 {
-                                out[c] += f[c] * l[c] * k;
-                            }
-                        }
-                        false
-                    }
-                }
-            } else {
-                !self.scene.occluded(origin, wo_w)
-            };
-            if escaped {
-                let l = env.radiance(wo_w);
-                let f = material.eval(phi, wi, s.wo);
-                let w = if mis {
-                    power_heuristic(s.pdf, env.pdf(wo_w))
-                } else {
-                    1.0
-                };
-                let k = s.wo.z * w / s.pdf;
-                for c in 0..3 {
-                    out[c] += f[c] * l[c] * k;
-                }
-            }
-        }
-        if mis {
-            let pick: f32 = rng.random();
-            let u = Vec2::new(rng.random::<f32>(), rng.random::<f32>());
-            if let Some((d, pe)) = env.sample(pick, u) {
-                let wo = frame.to_local(d);
-                if wo.z > 0.0 && !self.scene.occluded(origin, d) {
-                    let f = material.eval(phi, wi, wo);
-                    let l = env.radiance(d);
-                    let w = power_heuristic(pe, prep.pdf(wo));
-                    let k = wo.z * w / pe;
-                    for c in 0..3 {
-                        out[c] += f[c] * l[c] * k;
-                    }
-                }
-            }
-        }
-        for v in &mut out {
-            if !v.is_finite() {
-                *v = 0.0;
-            }
-        }
-        out
+/// The pixel jitter of one sample (`(0.5, 0.5)` without jitter: nothing is drawn).
+pub(crate) fn jitter(rng: &mut StreamRng, on: bool) -> (f32, f32) {
+    if on {
+        (rng.random::<f32>(), rng.random::<f32>())
+    } else {
+        (0.5, 0.5)
     }
+}
 
-    fn row(&self, y: usize) -> RowOut {
-        let cam = &self.scene.camera;
-        let w = cam.width;
-        let spp = self.opts.spp.max(1);
-        let reuse = self.opts.reuse_prepared && !self.opts.jitter;
-        let mut out = RowOut {
-            mean: vec![[0.0; 3]; w],
-            var: vec![[0.0; 3]; w],
-            checkpoints: vec![vec![[0.0; 3]; w]; self.opts.checkpoints.len()],
-            mask: vec![false; w],
+/// `out += f · l · k` per channel, in the scalar integrator's operation order.
+#[inline]
+pub(crate) fn add_term(out: &mut [f32; 3], f: [f32; 3], l: [f32; 3], k: f32) {
+    for c in 0..3 {
+        out[c] += f[c] * l[c] * k;
+    }
+}
+
+/// Sets the non-finite channels of a vertex's radiance to 0.
+#[inline]
+pub(crate) fn finite_or_zero(mut v: [f32; 3]) -> [f32; 3] {
+    for x in &mut v {
+        if !x.is_finite() {
+            *x = 0.0;
+        }
+    }
+    v
+}
+
+/// The results of a run of consecutive pixels (a row, a wavefront tile).
+pub(crate) struct Span {
+    /// Index of the first pixel (row-major).
+    pub(crate) start: usize,
+    pub(crate) mean: Vec<[f32; 3]>,
+    pub(crate) var: Vec<[f32; 3]>,
+    pub(crate) checkpoints: Vec<Vec<[f32; 3]>>,
+    pub(crate) mask: Vec<bool>,
+    pub(crate) prepare_seconds: f64,
+    sums: Vec<([f64; 3], [f64; 3], usize)>,
+}
+
+impl Span {
+    pub(crate) fn new(start: usize, len: usize, checkpoints: usize) -> Span {
+        Span {
+            start,
+            mean: vec![[0.0; 3]; len],
+            var: vec![[0.0; 3]; len],
+            checkpoints: vec![vec![[0.0; 3]; len]; checkpoints],
+            mask: vec![false; len],
             prepare_seconds: 0.0,
-        };
-        for x in 0..w {
-            let mut rng = indexed_rng(self.opts.seed, y * w + x);
-            let (mut sum, mut sq) = ([0.0f64; 3], [0.0f64; 3]);
-            // Outer None: not prepared yet (reuse mode).
-            let mut cached: Option<Option<S::Prepared<'_>>> = None;
-            let mut next_cp = 0;
-            for s in 1..=spp {
-                let (jx, jy) = if self.opts.jitter {
-                    (rng.random::<f32>(), rng.random::<f32>())
-                } else {
-                    (0.5, 0.5)
-                };
-                let ray = cam.ray(x as f32 + jx, y as f32 + jy);
-                let v = match self.scene.intersect(&ray) {
-                    None => self.scene.env.radiance(ray.d),
-                    Some(hit) => {
-                        if s == 1 {
-                            out.mask[x] = true;
-                        }
-                        self.sample_hit(&ray, &hit, reuse, &mut cached, &mut rng, &mut out)
-                    }
-                };
+            sums: vec![([0.0; 3], [0.0; 3], 0); len],
+        }
+    }
+
+    /// The streams of the span's pixels.
+    pub(crate) fn streams(&self, seed: u64) -> Vec<StreamRng> {
+        (0..self.mean.len())
+            .map(|p| indexed_rng(seed, self.start + p))
+            .collect()
+    }
+
+    /// Adds sample `s` (1-based) of pixel `p` of the span.
+    pub(crate) fn add(&mut self, p: usize, s: u32, v: [f32; 3], checkpoints: &[u32]) {
+        let (sum, sq, next_cp) = &mut self.sums[p];
+        for c in 0..3 {
+            let vc = f64::from(v[c]);
+            sum[c] += vc;
+            sq[c] += vc * vc;
+        }
+        while *next_cp < checkpoints.len() && checkpoints[*next_cp] <= s {
+            if checkpoints[*next_cp] == s {
                 for c in 0..3 {
-                    let vc = f64::from(v[c]);
-                    sum[c] += vc;
-                    sq[c] += vc * vc;
-                }
-                while next_cp < self.opts.checkpoints.len() && self.opts.checkpoints[next_cp] <= s {
-                    if self.opts.checkpoints[next_cp] == s {
-                        for c in 0..3 {
-                            out.checkpoints[next_cp][x][c] = (sum[c] / f64::from(s)) as f32;
-                        }
-                    }
-                    next_cp += 1;
+                    self.checkpoints[*next_cp][p][c] = (sum[c] / f64::from(s)) as f32;
                 }
             }
-            let n = f64::from(spp);
+            *next_cp += 1;
+        }
+    }
+
+    /// Writes every pixel's mean and sample variance after `spp` samples.
+    pub(crate) fn finish(&mut self, spp: u32) {
+        let n = f64::from(spp);
+        for (p, (sum, sq, _)) in self.sums.iter().enumerate() {
             for c in 0..3 {
                 let mean = sum[c] / n;
-                out.mean[x][c] = mean as f32;
-                out.var[x][c] = if spp > 1 {
+                self.mean[p][c] = mean as f32;
+                self.var[p][c] = if spp > 1 {
                     ((sq[c] - n * mean * mean) / (n - 1.0)).max(0.0) as f32
                 } else {
                     0.0
                 };
             }
         }
-        out
-    }
-
-    fn sample_hit<'s>(
-        &'s self,
-        ray: &Ray,
-        hit: &Hit,
-        reuse: bool,
-        cached: &mut Option<Option<S::Prepared<'s>>>,
-        rng: &mut StreamRng,
-        out: &mut RowOut,
-    ) -> [f32; 3] {
-        let Some((surface, frame, wi, phi)) = self.vertex(ray, hit) else {
-            return [0.0; 3];
-        };
-        if reuse {
-            if cached.is_none() {
-                let t0 = Instant::now();
-                *cached = Some(surface.sampler.prepare(&phi, wi));
-                out.prepare_seconds += t0.elapsed().as_secs_f64();
-            }
-            match cached {
-                Some(Some(p)) => self.shade(surface.material, &phi, hit, &frame, wi, p, 1, rng),
-                _ => [0.0; 3],
-            }
-        } else {
-            match surface.sampler.prepare(&phi, wi) {
-                Some(p) => self.shade(surface.material, &phi, hit, &frame, wi, &p, 1, rng),
-                None => [0.0; 3],
-            }
-        }
     }
 }
 
-/// Renders `scene` with `surfaces` (indexed by [`crate::Object::surface`]) on the current
-/// rayon pool. Every pixel draws from its own stream ([`indexed_rng`] of the seed and the
-/// pixel index) and accumulates its samples in order, so the image is bit-identical for any
-/// number of threads.
-pub fn render<M: Material + Sync + ?Sized, S: Sampler + Sync>(
-    scene: &Scene,
-    surfaces: &[Surface<'_, M, S>],
+/// The image of a render from its spans (`seconds` measured from `t0`).
+pub(crate) fn assemble(
+    width: usize,
+    height: usize,
     opts: &RenderOptions,
+    spans: Vec<Span>,
+    t0: Instant,
 ) -> Render {
-    let t0 = Instant::now();
-    let mut opts = opts.clone();
-    opts.spp = opts.spp.max(1);
-    let spp = opts.spp;
-    opts.checkpoints.retain(|&s| s >= 1 && s <= spp);
-    opts.checkpoints.sort_unstable();
-    opts.checkpoints.dedup();
-    let opts = &opts;
-    let ctx = Ctx {
-        scene,
-        surfaces,
-        opts,
-    };
-    let (w, h) = (scene.camera.width, scene.camera.height);
-    let rows: Vec<RowOut> = (0..h).into_par_iter().map(|y| ctx.row(y)).collect();
     let seconds = t0.elapsed().as_secs_f64();
-    let mut image = Image::new(w, h);
-    let mut variance = Image::new(w, h);
-    let mut mask = vec![false; w * h];
+    let mut image = Image::new(width, height);
+    let mut variance = Image::new(width, height);
+    let mut mask = vec![false; width * height];
     let mut cps: Vec<(u32, Image)> = opts
         .checkpoints
         .iter()
-        .map(|&s| (s, Image::new(w, h)))
+        .map(|&s| (s, Image::new(width, height)))
         .collect();
     let mut prepare_seconds = 0.0;
-    for (y, r) in rows.into_iter().enumerate() {
-        image.data[y * w..(y + 1) * w].copy_from_slice(&r.mean);
-        variance.data[y * w..(y + 1) * w].copy_from_slice(&r.var);
-        mask[y * w..(y + 1) * w].copy_from_slice(&r.mask);
+    for r in spans {
+        let range = r.start..r.start + r.mean.len();
+        image.data[range.clone()].copy_from_slice(&r.mean);
+        variance.data[range.clone()].copy_from_slice(&r.var);
+        mask[range.clone()].copy_from_slice(&r.mask);
         for (k, cp) in r.checkpoints.iter().enumerate() {
-            cps[k].1.data[y * w..(y + 1) * w].copy_from_slice(cp);
+            cps[k].1.data[range.clone()].copy_from_slice(cp);
         }
         prepare_seconds += r.prepare_seconds;
     }
@@ -388,7 +310,7 @@ pub fn render<M: Material + Sync + ?Sized, S: Sampler + Sync>(
         variance,
         checkpoints: cps,
         mask,
-        spp: opts.spp.max(1),
+        spp: opts.spp,
         seconds,
         prepare_seconds,
     }

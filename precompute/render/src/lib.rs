@@ -2,16 +2,24 @@
 //!
 //! The evaluation renderer of *NeuSample* (paper §4: Figs. 1, 8, 9 and Tables 1–2). It links
 //! the runtime `neusample` and nothing of the training stack, and uses the runtime exactly as
-//! a user's renderer would: per shading point `sampler.prepare(φ, wi)`, then
-//! `prepared.sample(u)` for BSDF sampling and `prepared.pdf(wo)` (solid angle) for multiple
-//! importance sampling.
+//! a user's renderer would. Two integrators give the same image:
+//!
+//! * [`render_wavefront`] — the one the evaluation uses: tiles of pixels, one sample per
+//!   pixel per step, and at every path depth the tile's shading points go to the material and
+//!   the sampler as one batch per surface (`features_batch`, `prepare_batch`, `sample_batch`,
+//!   `eval_batch`, `pdf_batch`: core's [`neusample::wavefront`] API), as the paper ran its
+//!   samplers on a wavefront of rays;
+//! * [`render`] — one shading point at a time through the scalar API (`prepare`, `sample`,
+//!   `pdf`), the reference the wavefront is tested against, and the integrator for samplers
+//!   without a batched path (a tabulated oracle).
 //!
 //! ```text
 //! image ─┐
 //! geometry (Ray, Camera, Shape, Object) ─┐
 //! sky, envmap → environment (lighting + its sampling) ─┴→ scene (Scene, demo_scene)
-//! material (Material, Surface) ─────────────────────────→ integrator (render) → timing
-//! rng (per-item streams) ───────────────────────────────┘
+//! material (Material, Surface) ──→ integrator (options, per-pixel recipe, Render)
+//!                                    → scalar (render), wavefront (render_wavefront) → timing
+//! rng (per-item streams) ───────────┘
 //! ```
 //!
 //! # Scene
@@ -74,9 +82,11 @@ mod image;
 mod integrator;
 mod material;
 pub mod rng;
+mod scalar;
 mod scene;
 mod sky;
 pub mod timing;
+mod wavefront;
 
 pub use environment::Environment;
 pub use envmap::EnvMap;
@@ -84,8 +94,10 @@ pub use error::Error;
 pub use geometry::{Camera, Hit, Object, Ray, Shape};
 pub use glam;
 pub use image::Image;
-pub use integrator::{powers_of_two, render, Estimator, Render, RenderOptions};
-pub use material::{luminance, Material, Surface};
+pub use integrator::{powers_of_two, Estimator, Render, RenderOptions, WAVEFRONT_PIXELS};
+pub use material::{eval_per_lane, features_per_lane, luminance, Material, Surface};
+pub use scalar::render;
 pub use scene::{demo_scene, Scene, SceneParams};
 pub use sky::Sky;
-pub use timing::time_per_sample;
+pub use timing::{time_per_sample, time_per_sample_wavefront};
+pub use wavefront::render_wavefront;

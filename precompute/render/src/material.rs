@@ -1,6 +1,7 @@
 //! What the renderer needs of a material, and a material paired with its sampler.
 
 use glam::{Vec2, Vec3};
+use neusample::wavefront::{Features, FeaturesMut, RgbMut, Vec2s, Vec3s};
 use neusample::{NeuralMaterial, Weights, FEATURE_DIM};
 
 /// A spatially varying BRDF as the renderer sees it: per-texel features φ(uv) and the BRDF
@@ -16,6 +17,51 @@ pub trait Material {
 
     /// `f(φ, wi, wo)` in linear RGB, without the cosine.
     fn eval(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> [f32; 3];
+
+    /// [`Material::features`] of every `uv[i]` (structure of arrays), the wavefront
+    /// integrator's call. The default loops over [`Material::features`]; a material with a
+    /// batched path (core's [`NeuralMaterial`]) overrides it. Every slice has the same
+    /// length (the integrator guarantees it).
+    fn features_batch(&self, uv: Vec2s<'_>, phi: FeaturesMut<'_>) {
+        features_per_lane(|uv| self.features(uv), uv, phi);
+    }
+
+    /// [`Material::eval`] of every `(phi[i], wi[i], wo[i])` (structure of arrays); as
+    /// [`Material::features_batch`], the default loops over the scalar call.
+    fn eval_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, wo: Vec3s<'_>, out: RgbMut<'_>) {
+        eval_per_lane(|phi, wi, wo| self.eval(phi, wi, wo), phi, wi, wo, out);
+    }
+}
+
+/// A batched `features` by a scalar one, lane by lane (the default of
+/// [`Material::features_batch`], for materials without a batched path).
+pub fn features_per_lane(
+    features: impl Fn(Vec2) -> [f32; FEATURE_DIM],
+    uv: Vec2s<'_>,
+    phi: FeaturesMut<'_>,
+) {
+    let FeaturesMut { channels } = phi;
+    for i in 0..uv.len() {
+        for (c, x) in features(uv.at(i)).into_iter().enumerate() {
+            channels[c][i] = x;
+        }
+    }
+}
+
+/// A batched `eval` by a scalar one, lane by lane (the default of [`Material::eval_batch`]).
+pub fn eval_per_lane(
+    eval: impl Fn(&[f32; FEATURE_DIM], Vec3, Vec3) -> [f32; 3],
+    phi: Features<'_>,
+    wi: Vec3s<'_>,
+    wo: Vec3s<'_>,
+    out: RgbMut<'_>,
+) {
+    for i in 0..wi.len() {
+        let [r, g, b] = eval(&phi.at(i), wi.at(i), wo.at(i));
+        out.r[i] = r;
+        out.g[i] = g;
+        out.b[i] = b;
+    }
 }
 
 /// Core's neural material: the bilinear feature lookup and the decoder.
@@ -26,6 +72,15 @@ impl<W: Weights> Material for NeuralMaterial<W> {
 
     fn eval(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> [f32; 3] {
         NeuralMaterial::eval(self, phi, wi, wo)
+    }
+
+    fn features_batch(&self, uv: Vec2s<'_>, phi: FeaturesMut<'_>) {
+        // Lengths agree by the trait's contract; a mismatch would leave `phi` as it was.
+        let _ = NeuralMaterial::features_batch(self, uv, phi);
+    }
+
+    fn eval_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, wo: Vec3s<'_>, out: RgbMut<'_>) {
+        let _ = NeuralMaterial::eval_batch(self, phi, wi, wo, out);
     }
 }
 

@@ -117,7 +117,8 @@ pub fn markdown(r: &Report) -> String {
                 "Neural material (feature texture + decoder, NEURAL.md) fitted to `{}`: relative RGB error {:.1} % \
                  (wo on the disk), {:.1} % (around the mirror direction), albedo error {:.1} %, \
                  KL(p*_source ‖ p*_neural) = {:.4} nats (cosine sampling: {:.4}). Evaluation cost: {:.0} ns \
-                 (source {:.0} ns), feature lookup {:.0} ns (source {:.0} ns). The samplers are trained on the \
+                 per lane batched ({} lanes per call), {:.0} ns one at a time (source {:.0} ns); feature lookup \
+                 {:.0} ns batched, {:.0} ns one at a time (source {:.0} ns). The samplers are trained on the \
                  neural material (φ = learned features, p* from the decoder); `KL(p*_src‖p)` measures them \
                  against the source material.\n",
                 n.source,
@@ -126,28 +127,36 @@ pub fn markdown(r: &Report) -> String {
                 100.0 * n.fit.albedo_relative_error,
                 n.fit.kl_pstar,
                 n.fit.kl_pstar_vs_cosine,
+                n.cost.eval_batch_ns,
+                crate::eval::COST_BATCH,
                 n.cost.eval_ns,
                 n.source_cost.eval_ns,
+                n.cost.features_batch_ns,
                 n.cost.features_ns,
                 n.source_cost.features_ns,
             );
         }
         let _ = writeln!(
             s,
-            "### pdf fit and cost (Table 1 ratio: sampling cost / material evaluation)\n"
+            "### pdf fit and cost (Table 1 ratio: sampling cost / material evaluation)\n\n\
+             Costs are single-thread ns per shading point through the batched API ({} lanes per \
+             call, the path the renderer uses), the material's evaluation likewise; the scalar \
+             column is prepare + sample + pdf one shading point at a time. The oracle has no \
+             batched path (its figures are scalar).\n",
+            crate::eval::COST_BATCH
         );
         let _ = writeln!(
             s,
-            "| method | KL(p*‖p) | KL(p*_src‖p) | pdf MSE | mass in disk | prepare ns | sample ns | pdf ns | prepare+sample+pdf ns | material eval ns | ×material eval | train s | blob bytes |"
+            "| method | KL(p*‖p) | KL(p*_src‖p) | pdf MSE | mass in disk | prepare ns | sample ns | pdf ns | prepare+sample+pdf ns | scalar ns | material eval ns | ×material eval | train s | blob bytes |"
         );
         let _ = writeln!(
             s,
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         );
         for x in &m.methods {
             let _ = writeln!(
                 s,
-                "| {} | {:.4} | {} | {:.3e} | {:.4} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {} |",
+                "| {} | {:.4} | {} | {:.3e} | {:.4} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {} |",
                 x.method,
                 x.kl_divergence,
                 x.kl_vs_source
@@ -158,6 +167,7 @@ pub fn markdown(r: &Report) -> String {
                 x.cost.sample_ns,
                 x.cost.pdf_ns,
                 x.cost.total_ns,
+                x.cost.scalar_total_ns,
                 x.cost.material_eval_ns,
                 x.cost_vs_material_eval,
                 x.train_seconds,

@@ -153,7 +153,7 @@ pub fn run(a: &DemoConfig) -> Result<()> {
             let blob = Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
             let sampler = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
             let (fit, kl_src) = fits(&sampler, m.as_ref(), src, &p, a.seed);
-            let cost = eval::cost(&sampler, m.as_ref(), p.cost_n, p.cost_passes);
+            let cost = eval::cost_any(&sampler, m.as_ref(), p.cost_n, p.cost_passes);
             methods.push(method_report(
                 method_name,
                 secs,
@@ -171,7 +171,7 @@ pub fn run(a: &DemoConfig) -> Result<()> {
         pb.set_message(format!("{mname}/{ORACLE}"));
         let oracle = OracleSampler::new(m.as_ref(), p.settings.oracle_res);
         let (fit, kl_src) = fits(&oracle, m.as_ref(), src, &p, a.seed);
-        let cost = eval::cost(&oracle, m.as_ref(), p.oracle_cost_n, p.cost_passes.min(3));
+        let cost = eval::cost_scalar(&oracle, m.as_ref(), p.oracle_cost_n, p.cost_passes.min(3));
         methods.push(method_report(ORACLE, 0.0, None, 0, None, fit, cost));
         methods.last_mut().expect("pushed").kl_vs_source = kl_src;
         pb.inc(1);

@@ -9,12 +9,17 @@
 //!   variance `σ²_ref/N_ref` per pixel, which adds its mean to every measured MSE; it is
 //!   subtracted ([`Reference::noise`]), so the reported MSE estimates the error against the
 //!   true image.
+//! * **Renders** — every runtime sampler renders with the wavefront integrator
+//!   ([`render::render_wavefront`]: tiles of pixels, one batch per surface and path depth
+//!   through the batched API, as the paper ran its samplers); the oracle, whose `prepare` is
+//!   a table build, with the scalar integrator. Both give the same image for the same
+//!   sampler.
 //! * **Time per sample** ([`TechniqueEval::ns_per_sample`]) — the single-thread wall time of
 //!   the whole render loop (primary ray, features, `prepare`, `sample`, material evaluation,
 //!   shadow ray, environment lookup, and with MIS the environment sample and `pdf`) divided by
-//!   the number of pixel samples of the image (background pixels included), the fastest of a
-//!   few passes interleaved over the techniques ([`render::time_per_sample`]; other
-//!   processes on the machine only ever add time). The oracle is timed in one pass on a
+//!   the number of pixel samples of the image (background pixels included), the median of a
+//!   few passes interleaved over the techniques ([`render::time_per_sample_wavefront`];
+//!   other processes on the machine only ever add time). The oracle is timed in one pass on a
 //!   quarter-resolution view at 16× the spp (the same number of samples). For the oracle, the
 //!   per-pixel table build is **excluded** (the table is built once per pixel and its time subtracted): the oracle is
 //!   a limit of sampling quality, not a practical method.
@@ -34,10 +39,12 @@
 //! * **Equal time** — every technique gets the time the baseline needs for `N` spp:
 //!   `spp_m = round(N · t_b / t_m)` (at least 1) and is rendered with a fresh seed.
 
-use neusample::AnySampler;
+use neusample::wavefront::BatchSampler;
+use neusample::{AnySampler, Sampler};
 use neusample_render::{self as render, Estimator, Image, Render, RenderOptions, Scene, Surface};
 use serde::{Deserialize, Serialize};
 
+use super::concrete::{with_concrete, WithSampler};
 use super::oracle::OracleSampler;
 use crate::materials::Material;
 use crate::util::json::f64_or_nan;
@@ -59,17 +66,27 @@ impl Technique<'_> {
         o
     }
 
-    /// Renders `scene` with this technique on every object.
+    /// Renders `scene` with this technique on every object: a runtime sampler with the
+    /// wavefront integrator (its concrete type's batched path), the oracle with the scalar
+    /// one (its `prepare` is a table build, done once per pixel).
     #[must_use]
     pub fn render(&self, scene: &Scene, material: &dyn Material, opts: &RenderOptions) -> Render {
         let o = self.options(opts);
         match self {
-            Technique::Blob(s) => render::render(scene, &[Surface::new(material, *s)], &o),
+            Technique::Blob(s) => with_concrete(
+                *s,
+                Wavefront {
+                    scene,
+                    material,
+                    opts: &o,
+                },
+            ),
             Technique::Oracle(s) => render::render(scene, &[Surface::new(material, *s)], &o),
         }
     }
 
-    /// Single-thread ns per pixel sample ([`render::time_per_sample`]).
+    /// Single-thread ns per pixel sample ([`render::time_per_sample_wavefront`] for a
+    /// runtime sampler, [`render::time_per_sample`] for the oracle).
     pub fn time_per_sample(
         &self,
         scene: &Scene,
@@ -79,13 +96,55 @@ impl Technique<'_> {
     ) -> anyhow::Result<f64> {
         let o = self.options(opts);
         Ok(match self {
-            Technique::Blob(s) => {
-                render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
-            }
+            Technique::Blob(s) => with_concrete(
+                *s,
+                WavefrontTime {
+                    scene,
+                    material,
+                    opts: &o,
+                    passes,
+                },
+            )?,
             Technique::Oracle(s) => {
                 render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
             }
         })
+    }
+}
+
+/// A wavefront render of one concrete sampler.
+struct Wavefront<'r> {
+    scene: &'r Scene,
+    material: &'r dyn Material,
+    opts: &'r RenderOptions,
+}
+
+impl WithSampler for Wavefront<'_> {
+    type Output = Render;
+    fn run<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Render
+    where
+        S::Lane: Send,
+    {
+        render::render_wavefront(self.scene, &[Surface::new(self.material, s)], self.opts)
+    }
+}
+
+/// The wavefront render's time per sample with one concrete sampler.
+struct WavefrontTime<'r> {
+    scene: &'r Scene,
+    material: &'r dyn Material,
+    opts: &'r RenderOptions,
+    passes: usize,
+}
+
+impl WithSampler for WavefrontTime<'_> {
+    type Output = Result<f64, render::Error>;
+    fn run<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Self::Output
+    where
+        S::Lane: Send,
+    {
+        let surfaces = [Surface::new(self.material, s)];
+        render::time_per_sample_wavefront(self.scene, &surfaces, self.opts, self.passes)
     }
 }
 

@@ -2,17 +2,21 @@
 //!
 //! * `fit` — a sampler's density against the ground truth p* ([`fit()`], [`fit_to`]), and a
 //!   neural material against its source ([`fit_report`]);
-//! * `cost` — single-thread ns per call of a sampler's hot path ([`cost()`]) and of a
-//!   material's evaluation ([`eval_cost`]);
+//! * `cost` — single-thread ns per shading point of a sampler's hot path, batched and scalar
+//!   ([`cost()`]), and of a material's evaluation ([`eval_cost`]), with the timing
+//!   primitives `neusample bench` shares;
+//! * `concrete` — a blob's sampler as its concrete type ([`with_concrete`]);
 //! * `oracle` — the tabulated near-optimal sampler ([`OracleSampler`], paper Fig. 10);
 //! * [`metrics`] — rendering metrics with `neusample_render` (paper §4: MSE at equal spp and
 //!   equal time, convergence, speed-up over the improved baseline).
 
-mod cost;
+mod concrete;
+pub mod cost;
 mod fit;
 pub mod metrics;
 mod oracle;
 
-pub use cost::{cost, eval_cost, Cost, EvalCost};
+pub use concrete::{with_concrete, WithSampler};
+pub use cost::{cost, cost_any, cost_scalar, eval_cost, Cost, EvalCost, COST_BATCH};
 pub use fit::{fit, fit_report, fit_to, Fit, FitReport};
 pub use oracle::{OraclePrepared, OracleSampler};

@@ -12,13 +12,14 @@ use std::hint::black_box;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use neusample::wavefront::{
-    self, BatchSampler, Features, FeaturesMut, Isa, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut,
-};
-use neusample::{AnySampler, Blob, NeuralMaterial, Prepared, Sampler, Tensor, Vec2, Vec3};
+use neusample::wavefront::{self, BatchSampler, Isa};
+use neusample::{Blob, NeuralMaterial, Sampler, Tensor, TensorRole, Vec3, Weights};
 use serde::{Deserialize, Serialize};
 
-use crate::util::timing::{median_of_passes, ns_per_call};
+use crate::bake;
+use crate::eval::cost::{self, batched_split, scalar_split, time_per, Inputs, Rows, Split};
+use crate::eval::{with_concrete, WithSampler};
+use crate::materials::neural::NeuralMaterialModel;
 
 /// The batch sizes measured.
 pub const BATCH_SIZES: [usize; 4] = [1, 8, 64, 1024];
@@ -51,19 +52,6 @@ impl BenchConfig {
             passes: 7,
         }
     }
-}
-
-/// Per-shading-point costs of one call sequence, in ns.
-#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq)]
-pub struct Split {
-    /// `prepare` (or `prepare_batch` per lane).
-    pub prepare_ns: f64,
-    /// `sample`.
-    pub sample_ns: f64,
-    /// `pdf` of another direction (the MIS query).
-    pub pdf_ns: f64,
-    /// The sum: one shading point's prepare + sample + pdf.
-    pub total_ns: f64,
 }
 
 /// The batched API at one batch size.
@@ -134,246 +122,249 @@ pub struct BenchReport {
     pub neural_material: MaterialCost,
     /// The dense layers.
     pub dense: DenseThroughput,
+    /// The histogram mixture's table layouts (when the folder has one).
+    pub tables: Option<TableLayouts>,
 }
 
-/// The median over `passes` of `f`'s ns per `per` calls, after one warm-up pass.
-fn time_per(passes: usize, per: usize, mut f: impl FnMut()) -> f64 {
-    f();
-    median_of_passes(passes, || [ns_per_call(per, &mut f)])[0]
+/// One table layout of the folder's histogram mixture.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LayoutCost {
+    /// `values` (f32 densities + f32 running sums) or `compact` (u16 row CDFs).
+    pub layout: String,
+    /// Bytes of the four or five table tensors.
+    pub table_bytes: usize,
+    /// Batched prepare + sample + pdf at N = 64 (dispatched), ns per shading point.
+    pub batched: Split,
+    /// Mean KL(p* ‖ p) against the neural material's ground truth, nats.
+    pub kl: f64,
 }
 
-/// The inputs every measurement cycles through.
-struct Inputs {
-    conds: Vec<([f32; 8], Vec3)>,
-    us: Vec<Vec2>,
-    wos: Vec<Vec3>,
-    uvs: Vec<Vec2>,
+/// The row search of the compact tables: the binary search the sampler runs against a guide
+/// table (pbrt's `PiecewiseConstant1D` shortcut: per row, the first cell of each of N equal
+/// slices of the CDF, then a short linear scan). An alias table would be O(1) too but is not
+/// monotone, so it would break `invert` and stratification; it is not a candidate.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct RowSearch {
+    /// Cells per row.
+    pub resolution: usize,
+    /// Binary search over the u16 row CDF, ns per lookup.
+    pub binary_ns: f64,
+    /// Guide table + linear scan, ns per lookup.
+    pub guide_ns: f64,
 }
 
-impl Inputs {
-    /// `n` lanes from the folder's conditions, with seeded `u`, MIS directions and uv.
-    fn new(blobs: &Path, n: usize) -> Result<Inputs> {
-        let text = std::fs::read_to_string(blobs.join("conditions.txt"))
-            .with_context(|| format!("{}: no conditions.txt", blobs.display()))?;
-        let base: Vec<([f32; 8], Vec3)> = text
-            .lines()
-            .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
-            .map(|l| -> Result<_> {
-                let v: Vec<f32> = l
-                    .split_whitespace()
-                    .map(str::parse)
-                    .collect::<Result<_, _>>()
-                    .with_context(|| format!("bad line in conditions.txt: {l}"))?;
-                if v.len() != 11 {
-                    bail!("bad line in conditions.txt: {l}");
-                }
-                let mut phi = [0.0f32; 8];
-                phi.copy_from_slice(&v[..8]);
-                Ok((phi, Vec3::new(v[8], v[9], v[10])))
-            })
-            .collect::<Result<_>>()?;
-        if base.is_empty() {
-            bail!("{}: conditions.txt lists no condition", blobs.display());
+/// The histogram mixture in both table layouts.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct TableLayouts {
+    /// `values` and `compact`.
+    pub layouts: Vec<LayoutCost>,
+    /// Conditions of the KL figures (each tabulated at 64², 2 × 2 points per cell).
+    pub kl_conditions: usize,
+    /// Row search, on the compact tables' rows.
+    pub search: RowSearch,
+}
+
+/// Conditions of the table layouts' KL figures.
+const KL_CONDITIONS: usize = 64;
+
+/// Bytes of the histogram-mixture table tensors of `blob`.
+fn table_bytes(blob: &Blob<'_>) -> usize {
+    [
+        TensorRole::Mass,
+        TensorRole::Table,
+        TensorRole::Marginal,
+        TensorRole::Conditional,
+    ]
+    .into_iter()
+    .filter_map(|r| blob.tensor(r))
+    .map(|t| t.len() as usize * t.dtype().size())
+    .sum()
+}
+
+/// The folder's histogram mixture in both layouts (`None` without one).
+fn table_layouts(cfg: &BenchConfig, rows: &Rows) -> Result<Option<TableLayouts>> {
+    let path = cfg.blobs.join("histogram-mixture.nsb");
+    let Ok(stored) = std::fs::read(&path) else {
+        return Ok(None);
+    };
+    let blob = Blob::open(&stored).with_context(|| path.display().to_string())?;
+    let (values, compact) = if blob.is_compact() {
+        bail!(
+            "{}: the bench compares layouts from a blob that stores values",
+            path.display()
+        );
+    } else {
+        (stored.clone(), bake::compact_blob(&stored)?)
+    };
+    let material = NeuralMaterialModel::load(&cfg.material)?;
+    let mut layouts = Vec::new();
+    let mut search = None;
+    for (layout, bytes) in [("values", &values), ("compact", &compact)] {
+        let blob = Blob::open(bytes).with_context(|| format!("{layout} tables"))?;
+        let s = blob.sampler()?;
+        let batched = with_concrete(
+            s,
+            BatchedAt {
+                rows,
+                n: 64,
+                passes: cfg.passes,
+            },
+        );
+        let fit = crate::eval::fit(&s, &material, KL_CONDITIONS, 64, 0xF17);
+        layouts.push(LayoutCost {
+            layout: layout.to_string(),
+            table_bytes: table_bytes(&blob),
+            batched,
+            kl: fit.kl_divergence,
+        });
+        if blob.is_compact() {
+            search = Some(row_search(&blob, cfg.passes)?);
         }
-        // A fixed low-discrepancy-ish sequence: reproducible without an RNG dependency.
-        let frac = |x: f64| (x - x.floor()) as f32;
-        let (g1, g2) = (0.754_877_666_246_692_8, 0.569_840_290_998_053_2);
-        let us: Vec<Vec2> = (0..n)
-            .map(|i| Vec2::new(frac(0.5 + g1 * i as f64), frac(0.5 + g2 * i as f64)))
-            .collect();
-        let wos = us
-            .iter()
-            .map(|u| {
-                let (r, a) = (0.98 * u.y.sqrt(), std::f32::consts::TAU * u.x);
-                Vec3::new(r * a.cos(), r * a.sin(), (1.0 - r * r).sqrt())
-            })
-            .collect();
-        let uvs = us.iter().map(|u| Vec2::new(u.y * 3.0, u.x * 2.0)).collect();
-        Ok(Inputs {
-            conds: (0..n).map(|i| base[i % base.len()]).collect(),
-            us,
-            wos,
-            uvs,
+    }
+    Ok(Some(TableLayouts {
+        layouts,
+        kl_conditions: KL_CONDITIONS,
+        search: search.context("no compact tables")?,
+    }))
+}
+
+/// [`batched_split`] at one batch size through the concrete sampler type.
+struct BatchedAt<'r> {
+    rows: &'r Rows,
+    n: usize,
+    passes: usize,
+}
+
+impl WithSampler for BatchedAt<'_> {
+    type Output = Split;
+    fn run<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Split
+    where
+        S::Lane: Send,
+    {
+        batched_split(&s, self.rows, self.n, self.passes)
+    }
+}
+
+/// Times [`RowSearch`] on the compact blob's row CDFs.
+fn row_search(blob: &Blob<'_>, passes: usize) -> Result<RowSearch> {
+    let t = blob
+        .tensor(TensorRole::Conditional)
+        .context("no conditional tensor")?;
+    let n = blob.header().resolution as usize;
+    let cdf: Vec<u16> = (0..t.len()).map(|i| t.at(i) as u16).collect();
+    let rows: Vec<&[u16]> = cdf
+        .chunks_exact(n)
+        .filter(|r| r.last() == Some(&u16::MAX))
+        .collect();
+    if rows.is_empty() {
+        bail!("the compact tables have no non-empty row");
+    }
+    // Guides: for slice g of N, the first cell whose CDF exceeds g/N of the row.
+    let guides: Vec<Vec<u16>> = rows
+        .iter()
+        .map(|r| {
+            (0..n)
+                .map(|g| {
+                    let target = (g as u64 * u64::from(u16::MAX) / n as u64) as u16;
+                    r.partition_point(|&c| c <= target) as u16
+                })
+                .collect()
         })
-    }
-}
-
-/// Structure-of-arrays rows of the inputs.
-struct Rows {
-    phi: Vec<Vec<f32>>,
-    wi: [Vec<f32>; 3],
-    u: [Vec<f32>; 2],
-    wo: [Vec<f32>; 3],
-    uv: [Vec<f32>; 2],
-}
-
-impl Rows {
-    fn new(inp: &Inputs) -> Rows {
-        Rows {
-            phi: (0..8)
-                .map(|c| inp.conds.iter().map(|x| x.0[c]).collect())
-                .collect(),
-            wi: [0, 1, 2].map(|k| inp.conds.iter().map(|x| x.1[k]).collect()),
-            u: [0, 1].map(|k| inp.us.iter().map(|x| x[k]).collect()),
-            wo: [0, 1, 2].map(|k| inp.wos.iter().map(|x| x[k]).collect()),
-            uv: [0, 1].map(|k| inp.uvs.iter().map(|x| x[k]).collect()),
-        }
-    }
-    fn phi(&self, a: usize, b: usize) -> Features<'_> {
-        Features {
-            channels: std::array::from_fn(|c| &self.phi[c][a..b]),
-        }
-    }
-    fn wi(&self, a: usize, b: usize) -> Vec3s<'_> {
-        Vec3s {
-            x: &self.wi[0][a..b],
-            y: &self.wi[1][a..b],
-            z: &self.wi[2][a..b],
-        }
-    }
-    fn wo(&self, a: usize, b: usize) -> Vec3s<'_> {
-        Vec3s {
-            x: &self.wo[0][a..b],
-            y: &self.wo[1][a..b],
-            z: &self.wo[2][a..b],
-        }
-    }
-    fn u(&self, a: usize, b: usize) -> Vec2s<'_> {
-        Vec2s {
-            x: &self.u[0][a..b],
-            y: &self.u[1][a..b],
-        }
-    }
-}
-
-/// The scalar API's split: each call cycles through the lanes.
-fn scalar_split<S: Sampler>(s: &S, inp: &Inputs, passes: usize) -> Split {
-    let n = inp.conds.len();
-    let prepare_ns = time_per(passes, n, || {
-        for (phi, wi) in &inp.conds {
-            black_box(s.prepare(black_box(phi), *wi).is_some());
+        .collect();
+    // Lookups: a fixed sequence of (row, target).
+    let lookups: Vec<(usize, u16)> = (0..1usize << 16)
+        .map(|i| {
+            let h = crate::util::rng::splitmix64(i as u64);
+            ((h >> 32) as usize % rows.len(), h as u16)
+        })
+        .collect();
+    let binary_ns = time_per(passes, lookups.len(), || {
+        for &(r, x) in &lookups {
+            black_box(rows[r].partition_point(|&c| c <= x));
         }
     });
-    let prepared: Vec<_> = inp.conds.iter().map(|(p, w)| s.prepare(p, *w)).collect();
-    let sample_ns = time_per(passes, n, || {
-        for (p, u) in prepared.iter().zip(&inp.us) {
-            if let Some(p) = p {
-                black_box(p.sample(*u));
+    let guide_ns = time_per(passes, lookups.len(), || {
+        for &(r, x) in &lookups {
+            let row = rows[r];
+            let g = (usize::from(x) * n) >> 16;
+            let mut i = usize::from(guides[r][g]);
+            while i + 1 < n && row[i] <= x {
+                i += 1;
             }
+            black_box(i);
         }
     });
-    let pdf_ns = time_per(passes, n, || {
-        for (p, wo) in prepared.iter().zip(&inp.wos) {
-            if let Some(p) = p {
-                black_box(p.pdf(*wo));
-            }
-        }
-    });
-    Split {
-        prepare_ns,
-        sample_ns,
-        pdf_ns,
-        total_ns: prepare_ns + sample_ns + pdf_ns,
-    }
+    Ok(RowSearch {
+        resolution: n,
+        binary_ns,
+        guide_ns,
+    })
 }
 
-/// The batched API's split at `n` lanes per call over all of `rows`.
-fn batched_split<S: BatchSampler>(s: &S, rows: &Rows, n: usize, passes: usize) -> Split {
-    let total = rows.wi[0].len();
-    let mut lanes = vec![S::Lane::default(); total];
-    let mut wo = [0, 1, 2].map(|_| vec![0.0f32; total]);
-    let mut pdf = vec![0.0f32; total];
-    let mut pdf2 = vec![0.0f32; total];
-    let starts: Vec<usize> = (0..total).step_by(n).collect();
-    let prepare_ns = time_per(passes, total, || {
-        for &a in &starts {
-            let b = (a + n).min(total);
-            s.prepare_batch(rows.phi(a, b), rows.wi(a, b), &mut lanes[a..b])
-                .expect("lengths agree");
-        }
-    });
-    let sample_ns = time_per(passes, total, || {
-        let [x, y, z] = &mut wo;
-        for &a in &starts {
-            let b = (a + n).min(total);
-            let out = SamplesMut {
-                wo: Vec3sMut {
-                    x: &mut x[a..b],
-                    y: &mut y[a..b],
-                    z: &mut z[a..b],
-                },
-                pdf: &mut pdf[a..b],
-            };
-            s.sample_batch(&lanes[a..b], rows.u(a, b), out)
-                .expect("lengths agree");
-        }
-    });
-    let pdf_ns = time_per(passes, total, || {
-        for &a in &starts {
-            let b = (a + n).min(total);
-            s.pdf_batch(&lanes[a..b], rows.wo(a, b), &mut pdf2[a..b])
-                .expect("lengths agree");
-        }
-    });
-    black_box((&pdf, &pdf2));
-    Split {
-        prepare_ns,
-        sample_ns,
-        pdf_ns,
-        total_ns: prepare_ns + sample_ns + pdf_ns,
+/// The folder's conditions (`conditions.txt`: φ then wi per line).
+fn read_conditions(blobs: &Path) -> Result<Vec<([f32; 8], Vec3)>> {
+    let text = std::fs::read_to_string(blobs.join("conditions.txt"))
+        .with_context(|| format!("{}: no conditions.txt", blobs.display()))?;
+    let base: Vec<([f32; 8], Vec3)> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| -> Result<_> {
+            let v: Vec<f32> = l
+                .split_whitespace()
+                .map(str::parse)
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("bad line in conditions.txt: {l}"))?;
+            if v.len() != 11 {
+                bail!("bad line in conditions.txt: {l}");
+            }
+            let mut phi = [0.0f32; 8];
+            phi.copy_from_slice(&v[..8]);
+            Ok((phi, Vec3::new(v[8], v[9], v[10])))
+        })
+        .collect::<Result<_>>()?;
+    if base.is_empty() {
+        bail!("{}: conditions.txt lists no condition", blobs.display());
     }
+    Ok(base)
 }
 
 /// Both splits of a concrete sampler type at every batch size.
-fn batched_all<S: BatchSampler>(s: &S, rows: &Rows, passes: usize) -> Vec<Batched> {
-    BATCH_SIZES
-        .iter()
-        .map(|&n| {
-            wavefront::prefer_isa(Some(Isa::Portable));
-            let portable = batched_split(s, rows, n, passes);
-            wavefront::prefer_isa(None);
-            let dispatched = batched_split(s, rows, n, passes);
-            Batched {
-                n,
-                dispatched,
-                portable,
-            }
-        })
-        .collect()
+struct BatchedAll<'r> {
+    rows: &'r Rows,
+    passes: usize,
 }
 
-/// [`batched_all`] through the blob's concrete sampler type (its own lanes).
-fn batched_any(s: &AnySampler<'_>, rows: &Rows, passes: usize) -> Vec<Batched> {
-    match s {
-        AnySampler::Cosine(x) => batched_all(x, rows, passes),
-        AnySampler::ImprovedBaseline(x) => batched_all(x, rows, passes),
-        AnySampler::AnalyticMixture(x) => batched_all(x, rows, passes),
-        AnySampler::Flow(x) => batched_all(x, rows, passes),
-        AnySampler::AffineFlow(x) => batched_all(x, rows, passes),
-        AnySampler::DirectHistogram(x) => batched_all(x, rows, passes),
-        AnySampler::HistogramMixture(x) => batched_all(x, rows, passes),
+impl WithSampler for BatchedAll<'_> {
+    type Output = Vec<Batched>;
+    fn run<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Vec<Batched>
+    where
+        S::Lane: Send,
+    {
+        BATCH_SIZES
+            .iter()
+            .map(|&n| {
+                wavefront::prefer_isa(Some(Isa::Portable));
+                let portable = batched_split(&s, self.rows, n, self.passes);
+                wavefront::prefer_isa(None);
+                let dispatched = batched_split(&s, self.rows, n, self.passes);
+                Batched {
+                    n,
+                    dispatched,
+                    portable,
+                }
+            })
+            .collect()
     }
 }
 
-/// `eval_batch` ns per lane at `n` lanes per call.
+/// `eval_batch` of the neural material, ns per lane at `n` lanes per call.
 fn eval_batch_ns(m: &NeuralMaterial<Tensor<'_>>, rows: &Rows, n: usize, passes: usize) -> f64 {
-    let total = rows.wi[0].len();
-    let mut rgb = vec![0.0f32; 3 * total];
-    let starts: Vec<usize> = (0..total).step_by(n).collect();
-    time_per(passes, total, || {
-        let (r, gb) = rgb.split_at_mut(total);
-        let (g, bl) = gb.split_at_mut(total);
-        for &a in &starts {
-            let b = (a + n).min(total);
-            let out = RgbMut {
-                r: &mut r[a..b],
-                g: &mut g[a..b],
-                b: &mut bl[a..b],
-            };
-            m.eval_batch(rows.phi(a, b), rows.wi(a, b), rows.wo(a, b), out)
-                .expect("lengths agree");
-        }
-    })
+    cost::eval_batch_ns(
+        |phi, wi, wo, out| m.eval_batch(phi, wi, wo, out).expect("lengths agree"),
+        rows,
+        n,
+        passes,
+    )
 }
 
 /// The measured multiply-add peak of one core, 10⁹/s: independent multiply-add chains on the
@@ -410,7 +401,7 @@ fn peak_gmacs(passes: usize) -> f64 {
 
 /// Runs the benchmark.
 pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
-    let inp = Inputs::new(&cfg.blobs, cfg.lanes_per_pass)?;
+    let inp = Inputs::cycling(&read_conditions(&cfg.blobs)?, cfg.lanes_per_pass.max(1));
     let rows = Rows::new(&inp);
     let passes = cfg.passes;
     let mbytes = std::fs::read(&cfg.material)
@@ -431,19 +422,12 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
             black_box(m.eval(phi, *wi, *wo));
         }
     });
-    let total = inp.uvs.len();
-    let mut phi_rows = vec![0.0f32; 8 * total];
-    let features_batch_ns = time_per(passes, total, || {
-        let phi = FeaturesMut::from_rows(&mut phi_rows, total).expect("sized");
-        m.features_batch(
-            Vec2s {
-                x: &rows.uv[0],
-                y: &rows.uv[1],
-            },
-            phi,
-        )
-        .expect("lengths agree");
-    });
+    let features_batch_ns = cost::features_batch_ns(
+        |uv, phi| m.features_batch(uv, phi).expect("lengths agree"),
+        &rows,
+        rows.len(),
+        passes,
+    );
     let mut eval_batch = Vec::new();
     let mut eval_portable = Vec::new();
     for &n in &BATCH_SIZES {
@@ -476,7 +460,13 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
         let blob = Blob::open(&bytes).with_context(|| path.display().to_string())?;
         let s = blob.sampler().with_context(|| path.display().to_string())?;
         let scalar = scalar_split(&s, &inp, passes);
-        let batched = batched_any(&s, &rows, passes);
+        let batched = with_concrete(
+            s,
+            BatchedAll {
+                rows: &rows,
+                passes,
+            },
+        );
         let b64 = batched
             .iter()
             .find(|b| b.n == 64)
@@ -506,6 +496,7 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
             peak_gmacs: peak,
             fraction_of_peak: decoder_gmacs / peak,
         },
+        tables: table_layouts(cfg, &rows)?,
     })
 }
 
@@ -594,6 +585,31 @@ pub fn text(r: &BenchReport) -> String {
         d.peak_gmacs,
         d.decoder_gmacs_portable
     );
+    if let Some(t) = &r.tables {
+        let _ = writeln!(
+            s,
+            "\nhistogram mixture, table layouts (batched N = 64; KL over {} conditions):",
+            t.kl_conditions
+        );
+        for l in &t.layouts {
+            let _ = writeln!(
+                s,
+                "  {:<8} tables {:>9} B  prepare {:.0}  sample {:.0}  pdf {:.0}  total {:.0} ns  KL {:.4}",
+                l.layout,
+                l.table_bytes,
+                l.batched.prepare_ns,
+                l.batched.sample_ns,
+                l.batched.pdf_ns,
+                l.batched.total_ns,
+                l.kl
+            );
+        }
+        let _ = writeln!(
+            s,
+            "  row search ({} cells): binary {:.1} ns, guide table {:.1} ns per lookup",
+            t.search.resolution, t.search.binary_ns, t.search.guide_ns
+        );
+    }
     s
 }
 

@@ -1,6 +1,7 @@
 //! The material interface: a feature texture φ(uv) and a decoder f(φ, wi, wo).
 
 use glam::{Vec2, Vec3};
+use neusample::wavefront::{Features, FeaturesMut, RgbMut, Vec2s, Vec3s};
 
 pub use neusample_render::luminance;
 
@@ -27,6 +28,18 @@ pub trait Material: Send + Sync {
     fn reciprocal(&self) -> bool {
         true
     }
+
+    /// [`Material::features`] of every `uv[i]` (structure of arrays, equal lengths); by
+    /// default lane by lane. The neural material runs core's batched path.
+    fn features_batch(&self, uv: Vec2s<'_>, phi: FeaturesMut<'_>) {
+        neusample_render::features_per_lane(|uv| self.features(uv), uv, phi);
+    }
+
+    /// [`Material::eval`] of every `(phi[i], wi[i], wo[i])` (structure of arrays, equal
+    /// lengths); by default lane by lane. The neural material runs core's batched path.
+    fn eval_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, wo: Vec3s<'_>, out: RgbMut<'_>) {
+        neusample_render::eval_per_lane(|phi, wi, wo| self.eval(phi, wi, wo), phi, wi, wo, out);
+    }
 }
 
 /// Every material renders: the renderer's view is `features` and `eval`.
@@ -37,5 +50,13 @@ impl neusample_render::Material for dyn Material + '_ {
 
     fn eval(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> [f32; 3] {
         Material::eval(self, phi, wi, wo)
+    }
+
+    fn features_batch(&self, uv: Vec2s<'_>, phi: FeaturesMut<'_>) {
+        Material::features_batch(self, uv, phi);
+    }
+
+    fn eval_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, wo: Vec3s<'_>, out: RgbMut<'_>) {
+        Material::eval_batch(self, phi, wi, wo, out);
     }
 }

@@ -34,7 +34,8 @@ pub struct TrainArgs {
     /// With `--method all`: evaluation conditions for KL(p*‖p) and pdf MSE (grid 64²).
     #[arg(long, default_value_t = 24)]
     eval_conditions: usize,
-    /// Store weights (and the histogram table) as f16 instead of f32.
+    /// Store the network weights as f16 instead of f32 (histogram-mixture tables are stored
+    /// as compact u16 row CDFs either way).
     #[arg(long)]
     f16: bool,
     /// A short run (seconds) instead of the default (about a minute).

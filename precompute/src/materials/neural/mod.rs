@@ -19,6 +19,7 @@ use neusample::neural_material::{
     texture_len, NeuralMaterial, DECODER_HIDDEN, DECODER_INPUTS, DECODER_OUTPUTS,
     DECODER_PARAM_COUNT, MAX_TEXTURE_SIZE,
 };
+use neusample::wavefront::{Features, FeaturesMut, RgbMut, Vec2s, Vec3s};
 use neusample::DType;
 use neusample::{Blob, BlobWriter, SamplerKind, TensorRole};
 
@@ -186,6 +187,13 @@ impl Material for NeuralMaterialModel {
     }
     fn reciprocal(&self) -> bool {
         false
+    }
+    fn features_batch(&self, uv: Vec2s<'_>, phi: FeaturesMut<'_>) {
+        // Lengths agree by the trait's contract; a mismatch leaves `phi` as it was.
+        let _ = self.parts.material().features_batch(uv, phi);
+    }
+    fn eval_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, wo: Vec3s<'_>, out: RgbMut<'_>) {
+        let _ = self.parts.material().eval_batch(phi, wi, wo, out);
     }
 }
 

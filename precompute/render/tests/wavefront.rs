@@ -1,0 +1,144 @@
+//! The wavefront integrator against the scalar one: the same image, variance, checkpoints and
+//! mask bit for bit, on the committed fixture samplers and neural material, with and without
+//! MIS, jitter and global illumination, with tiles that do not divide the image, and with
+//! two surfaces in one scene; and independent of the number of threads.
+
+use std::path::{Path, PathBuf};
+
+use neusample::{AnySampler, Blob, NeuralMaterial, Tensor};
+use neusample_render::{
+    demo_scene, render, render_wavefront, Estimator, Render, RenderOptions, Scene, SceneParams,
+    Surface,
+};
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures")
+}
+
+fn read(path: &Path) -> Vec<u8> {
+    std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The sampler blobs of the goat-leather fixture, and the cosine blob.
+fn sampler_blobs() -> Vec<(String, Vec<u8>)> {
+    let dir = fixtures().join("blobs/goat_leather_neural");
+    let mut v: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "nsb"))
+        .collect();
+    v.sort();
+    v.push(fixtures().join("blobs/cosine.nsb"));
+    v.into_iter()
+        .map(|p| {
+            (
+                p.file_name().unwrap().to_string_lossy().into_owned(),
+                read(&p),
+            )
+        })
+        .collect()
+}
+
+fn bits(r: &Render) -> Vec<u32> {
+    let mut v = Vec::new();
+    for img in [&r.image, &r.variance]
+        .into_iter()
+        .chain(r.checkpoints.iter().map(|(_, i)| i))
+    {
+        v.extend(img.data.iter().flat_map(|c| c.map(f32::to_bits)));
+    }
+    v.extend(r.mask.iter().map(|&b| u32::from(b)));
+    v
+}
+
+fn assert_same(a: &Render, b: &Render, what: &str) {
+    assert_eq!(a.checkpoints.len(), b.checkpoints.len(), "{what}");
+    let (x, y) = (bits(a), bits(b));
+    let differ = x.iter().zip(&y).filter(|(p, q)| p != q).count();
+    assert_eq!(differ, 0, "{what}: {differ} of {} values differ", x.len());
+}
+
+/// The option sets compared: the paper's mode, MIS with jitter, and three-bounce global
+/// illumination with MIS, each with a tile size that does not divide the image.
+fn option_sets() -> Vec<(&'static str, RenderOptions)> {
+    let mut v = Vec::new();
+    let mut o = RenderOptions::new(4, 11);
+    o.wavefront_pixels = 37;
+    v.push(("bsdf", o.clone()));
+    o.estimator = Estimator::Mis;
+    o.jitter = true;
+    o.wavefront_pixels = 100;
+    v.push(("mis+jitter", o.clone()));
+    o.max_bounces = 3;
+    o.wavefront_pixels = 64;
+    v.push(("mis+gi", o));
+    v
+}
+
+fn scene() -> Scene {
+    demo_scene(&SceneParams {
+        width: 24,
+        height: 18,
+        ..SceneParams::default()
+    })
+}
+
+fn material(bytes: &[u8]) -> NeuralMaterial<Tensor<'_>> {
+    Blob::open(bytes).unwrap().neural_material().unwrap()
+}
+
+#[test]
+fn wavefront_equals_scalar_for_every_fixture_sampler() {
+    let mbytes = read(&fixtures().join("materials/neural/goat_leather_neural.nsb"));
+    let m = material(&mbytes);
+    let scene = scene();
+    for (name, bytes) in sampler_blobs() {
+        let blob = Blob::open(&bytes).unwrap();
+        let s = blob.sampler().unwrap();
+        for (what, o) in option_sets() {
+            let surfaces = [Surface::new(&m, s)];
+            let a = render(&scene, &surfaces, &o);
+            let b = render_wavefront(&scene, &surfaces, &o);
+            assert!(a.mask.iter().any(|&h| h), "{name}: nothing hit");
+            assert_same(&a, &b, &format!("{name} {what}"));
+        }
+    }
+}
+
+#[test]
+fn wavefront_equals_scalar_with_two_surfaces() {
+    let mbytes = read(&fixtures().join("materials/neural/goat_leather_neural.nsb"));
+    let m = material(&mbytes);
+    let dir = fixtures().join("blobs/goat_leather_neural");
+    let flow = read(&dir.join("flow.nsb"));
+    let mixture = read(&dir.join("histogram-mixture.nsb"));
+    let (flow, mixture) = (Blob::open(&flow).unwrap(), Blob::open(&mixture).unwrap());
+    let samplers: [AnySampler<'_>; 2] = [flow.sampler().unwrap(), mixture.sampler().unwrap()];
+    let mut scene = scene();
+    scene.objects[1].surface = 1;
+    let surfaces = samplers.map(|s| Surface::new(&m, s));
+    for (what, o) in option_sets() {
+        let a = render(&scene, &surfaces, &o);
+        let b = render_wavefront(&scene, &surfaces, &o);
+        assert_same(&a, &b, &format!("two surfaces, {what}"));
+    }
+}
+
+#[test]
+fn wavefront_is_independent_of_the_thread_count() {
+    let mbytes = read(&fixtures().join("materials/neural/goat_leather_neural.nsb"));
+    let m = material(&mbytes);
+    let bytes = read(&fixtures().join("blobs/goat_leather_neural/flow.nsb"));
+    let blob = Blob::open(&bytes).unwrap();
+    let surfaces = [Surface::new(&m, blob.sampler().unwrap())];
+    let scene = scene();
+    let (_, o) = option_sets().pop().unwrap();
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| render_wavefront(&scene, &surfaces, &o))
+    };
+    assert_same(&run(1), &run(3), "1 vs 3 threads");
+}
