@@ -102,6 +102,26 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
                 assert!(finite(v, &format!("{what}.render.{field}")) > 0.0);
             }
             assert!(rr.equal_time_spp >= 1);
+            // Intervals: the value inside, positive bounds, one speed-up for both fields.
+            for (field, e) in [
+                ("speedup", rr.speedup),
+                ("mse_ratio", rr.mse_ratio),
+                ("variance", rr.variance),
+                ("mse_equal_spp_interval", rr.mse_equal_spp_interval),
+            ] {
+                assert!(
+                    e.lo > 0.0 && e.lo <= e.value && e.value <= e.hi && e.hi.is_finite(),
+                    "{what}.render.{field} = {e:?}"
+                );
+            }
+            assert_eq!(rr.speedup.value, rr.speedup_vs_baseline, "{what}");
+            assert_eq!(rr.blocks, setup.settings.blocks.min(max_spp), "{what}");
+            assert!(
+                (rr.mse_equal_spp_interval.value * f64::from(max_spp) / rr.variance.value - 1.0)
+                    .abs()
+                    < 1e-12,
+                "{what}"
+            );
             assert_eq!(
                 rr.convergence.iter().map(|c| c.spp).collect::<Vec<_>>(),
                 [1, 2, 4, 8]
@@ -167,6 +187,18 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
             let p = dir.path().join(f);
             let bytes = std::fs::read(&p).unwrap();
             assert_eq!(&bytes[1..4], b"PNG", "{}", p.display());
+        }
+        // The verdict names a practical method with the largest speed-up.
+        let v = m.verdict.as_ref().expect("verdict");
+        assert_ne!(v.best, ORACLE);
+        assert_eq!(v.clear, v.tied_with.is_empty());
+        let best = m.methods.iter().find(|x| x.method == v.best).unwrap();
+        for x in m.methods.iter().filter(|x| x.method != ORACLE) {
+            assert!(
+                x.speedup_vs_baseline <= best.speedup_vs_baseline,
+                "{name}: {}",
+                x.method
+            );
         }
         let reference = m.reference.as_ref().expect("reference");
         assert!(finite(reference.noise, "noise") >= 0.0);

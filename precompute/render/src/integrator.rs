@@ -70,6 +70,11 @@ pub struct RenderOptions {
     /// Pixels per wavefront of [`crate::render_wavefront()`] (consecutive pixels in row-major
     /// order, one sample each per step); ignored by the scalar integrator.
     pub wavefront_pixels: usize,
+    /// Independent blocks of consecutive samples whose mean images are kept
+    /// ([`Render::blocks`]; at most `spp`); 0 keeps none. Every pixel's samples are
+    /// independent, so block images are independent renders of `spp / blocks` samples: the
+    /// evaluation's intervals resample them.
+    pub blocks: u32,
 }
 
 impl RenderOptions {
@@ -85,6 +90,7 @@ impl RenderOptions {
             reuse_prepared: false,
             max_bounces: 1,
             wavefront_pixels: WAVEFRONT_PIXELS,
+            blocks: 0,
         }
     }
 
@@ -97,6 +103,7 @@ impl RenderOptions {
         o.checkpoints.sort_unstable();
         o.checkpoints.dedup();
         o.wavefront_pixels = o.wavefront_pixels.max(1);
+        o.blocks = o.blocks.min(spp);
         o
     }
 
@@ -131,6 +138,9 @@ pub struct Render {
     pub variance: Image,
     /// The running mean at each checkpoint, ascending.
     pub checkpoints: Vec<(u32, Image)>,
+    /// With [`RenderOptions::blocks`] = B: the mean image of each block of samples, block k
+    /// holding the samples `s` (1-based) with `⌊(s − 1) · B / spp⌋ = k` of every pixel.
+    pub blocks: Vec<Image>,
     /// Whether the pixel's primary ray hits an object (from its first sample).
     pub mask: Vec<bool>,
     /// Samples per pixel.
@@ -139,6 +149,25 @@ pub struct Render {
     pub seconds: f64,
     /// Time spent in `prepare` when it was reused per pixel (summed over threads), else 0.
     pub prepare_seconds: f64,
+}
+
+impl Render {
+    /// Samples per pixel of each of [`Render::blocks`].
+    #[must_use]
+    pub fn block_samples(&self) -> Vec<u32> {
+        block_counts(self.spp, self.blocks.len() as u32)
+    }
+}
+
+/// Samples in each of `blocks` blocks of `spp` samples ([`block_of`]).
+fn block_counts(spp: u32, blocks: u32) -> Vec<u32> {
+    let mut counts = vec![0u32; blocks as usize];
+    if blocks > 0 {
+        for s in 1..=spp {
+            counts[block_of(s, spp, blocks)] += 1;
+        }
+    }
+    counts
 }
 
 /// The power heuristic's weight of a technique with density `a` against one with `b`.
@@ -219,19 +248,26 @@ pub(crate) struct Span {
     pub(crate) checkpoints: Vec<Vec<[f32; 3]>>,
     pub(crate) mask: Vec<bool>,
     pub(crate) prepare_seconds: f64,
+    /// Per block, the block mean of each pixel (filled by [`Span::finish`]).
+    pub(crate) blocks: Vec<Vec<[f32; 3]>>,
     sums: Vec<([f64; 3], [f64; 3], usize)>,
+    /// Per block and pixel, the sum of the block's samples.
+    block_sums: Vec<Vec<[f64; 3]>>,
 }
 
 impl Span {
-    pub(crate) fn new(start: usize, len: usize, checkpoints: usize) -> Span {
+    pub(crate) fn new(start: usize, len: usize, opts: &RenderOptions) -> Span {
+        let blocks = opts.blocks as usize;
         Span {
             start,
             mean: vec![[0.0; 3]; len],
             var: vec![[0.0; 3]; len],
-            checkpoints: vec![vec![[0.0; 3]; len]; checkpoints],
+            checkpoints: vec![vec![[0.0; 3]; len]; opts.checkpoints.len()],
             mask: vec![false; len],
             prepare_seconds: 0.0,
+            blocks: vec![vec![[0.0; 3]; len]; blocks],
             sums: vec![([0.0; 3], [0.0; 3], 0); len],
+            block_sums: vec![vec![[0.0; 3]; len]; blocks],
         }
     }
 
@@ -242,13 +278,20 @@ impl Span {
             .collect()
     }
 
-    /// Adds sample `s` (1-based) of pixel `p` of the span.
-    pub(crate) fn add(&mut self, p: usize, s: u32, v: [f32; 3], checkpoints: &[u32]) {
+    /// Adds sample `s` (1-based, of `opts.spp`) of pixel `p` of the span.
+    pub(crate) fn add(&mut self, p: usize, s: u32, v: [f32; 3], opts: &RenderOptions) {
+        let checkpoints = &opts.checkpoints;
         let (sum, sq, next_cp) = &mut self.sums[p];
         for c in 0..3 {
             let vc = f64::from(v[c]);
             sum[c] += vc;
             sq[c] += vc * vc;
+        }
+        if !self.block_sums.is_empty() {
+            let k = block_of(s, opts.spp, opts.blocks);
+            for c in 0..3 {
+                self.block_sums[k][p][c] += f64::from(v[c]);
+            }
         }
         while *next_cp < checkpoints.len() && checkpoints[*next_cp] <= s {
             if checkpoints[*next_cp] == s {
@@ -260,8 +303,17 @@ impl Span {
         }
     }
 
-    /// Writes every pixel's mean and sample variance after `spp` samples.
-    pub(crate) fn finish(&mut self, spp: u32) {
+    /// Writes every pixel's mean and sample variance after `opts.spp` samples, and the
+    /// block means.
+    pub(crate) fn finish(&mut self, opts: &RenderOptions) {
+        let spp = opts.spp;
+        let counts = block_counts(spp, self.blocks.len() as u32);
+        for ((means, sums), &count) in self.blocks.iter_mut().zip(&self.block_sums).zip(&counts) {
+            let count = f64::from(count.max(1));
+            for (m, s) in means.iter_mut().zip(sums) {
+                *m = s.map(|x| (x / count) as f32);
+            }
+        }
         let n = f64::from(spp);
         for (p, (sum, sq, _)) in self.sums.iter().enumerate() {
             for c in 0..3 {
@@ -275,6 +327,13 @@ impl Span {
             }
         }
     }
+}
+
+/// The block of sample `s` (1-based) of `spp` samples in `blocks ≥ 1` blocks:
+/// `⌊(s − 1) · blocks / spp⌋`.
+#[inline]
+fn block_of(s: u32, spp: u32, blocks: u32) -> usize {
+    (u64::from(s - 1) * u64::from(blocks) / u64::from(spp)) as usize
 }
 
 /// The image of a render from its spans (`seconds` measured from `t0`).
@@ -294,6 +353,7 @@ pub(crate) fn assemble(
         .iter()
         .map(|&s| (s, Image::new(width, height)))
         .collect();
+    let mut blocks = vec![Image::new(width, height); opts.blocks as usize];
     let mut prepare_seconds = 0.0;
     for r in spans {
         let range = r.start..r.start + r.mean.len();
@@ -303,12 +363,16 @@ pub(crate) fn assemble(
         for (k, cp) in r.checkpoints.iter().enumerate() {
             cps[k].1.data[range.clone()].copy_from_slice(cp);
         }
+        for (img, b) in blocks.iter_mut().zip(&r.blocks) {
+            img.data[range.clone()].copy_from_slice(b);
+        }
         prepare_seconds += r.prepare_seconds;
     }
     Render {
         image,
         variance,
         checkpoints: cps,
+        blocks,
         mask,
         spp: opts.spp,
         seconds,

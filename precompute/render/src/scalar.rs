@@ -130,7 +130,7 @@ impl<'r, 'a, M: Material + ?Sized, S: Sampler> Ctx<'r, 'a, M, S> {
         let spp = self.opts.spp;
         let reuse = self.opts.reuses_prepared();
         let mis = self.opts.estimator == Estimator::Mis;
-        let mut out = Span::new(y * w, w, self.opts.checkpoints.len());
+        let mut out = Span::new(y * w, w, self.opts);
         let mut streams = out.streams(self.opts.seed);
         for (x, rng) in streams.iter_mut().enumerate() {
             // Outer None: not prepared yet (reuse mode).
@@ -165,10 +165,10 @@ impl<'r, 'a, M: Material + ?Sized, S: Sampler> Ctx<'r, 'a, M, S> {
                         }
                     }
                 };
-                out.add(x, s, v, &self.opts.checkpoints);
+                out.add(x, s, v, self.opts);
             }
         }
-        out.finish(spp);
+        out.finish(self.opts);
         out
     }
 }

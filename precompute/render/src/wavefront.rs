@@ -339,7 +339,7 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
         let w = cam.width;
         let opts = self.opts;
         let depths = opts.max_bounces.max(1);
-        let mut out = Span::new(start, len, opts.checkpoints.len());
+        let mut out = Span::new(start, len, opts);
         let mut streams = out.streams(opts.seed);
         let mut values = vec![[0.0f32; 3]; len];
         let mut primary = vec![false; len];
@@ -380,10 +380,10 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
                     }
                     values[slot] = l;
                 }
-                out.add(slot, s, values[slot], &opts.checkpoints);
+                out.add(slot, s, values[slot], opts);
             }
         }
-        out.finish(opts.spp);
+        out.finish(opts);
         out
     }
 }

@@ -7,7 +7,7 @@ use anyhow::Result;
 use neusample::SamplerKind;
 use neusample_render::{EnvMap, Estimator, SceneParams};
 
-use crate::eval::metrics::RenderSettings;
+use crate::eval::metrics::{self, RenderSettings};
 use crate::materials::neural::{is_blob_file, label_field, NeuralParts};
 use crate::materials::{self, Material};
 use crate::util::io;
@@ -223,6 +223,7 @@ pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
                 Estimator::Bsdf
             },
             seed: a.seed,
+            blocks: metrics::DEFAULT_BLOCKS,
         },
         pdf_conditions: if q { 2 } else { 4 },
         pdf_res: 64,

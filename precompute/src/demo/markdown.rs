@@ -5,8 +5,8 @@ use std::fmt::Write;
 
 use neusample_render::Estimator;
 
-use super::config::ORACLE;
 use super::report::Report;
+use crate::util::stats::Estimate;
 
 fn fmt_x(v: Option<f64>) -> String {
     match v {
@@ -18,6 +18,25 @@ fn fmt_x(v: Option<f64>) -> String {
             }
         }
         _ => "—".to_string(),
+    }
+}
+
+/// `2.49× [1.90–3.10]`: a ratio with its 95 % interval (the interval left out when unknown).
+fn fmt_x_interval(e: &Estimate) -> String {
+    let v = fmt_x(Some(e.value));
+    if e.lo.is_finite() && e.hi.is_finite() {
+        format!("{v} [{:.2}–{:.2}]", e.lo, e.hi)
+    } else {
+        v
+    }
+}
+
+/// `1.2e-3 [0.9e-3–1.6e-3]`: an MSE with its 95 % interval.
+fn fmt_e_interval(e: &Estimate) -> String {
+    if e.lo.is_finite() && e.hi.is_finite() {
+        format!("{:.2e} [{:.2e}–{:.2e}]", e.value, e.lo, e.hi)
+    } else {
+        format!("{:.2e}", e.value)
     }
 }
 
@@ -82,30 +101,34 @@ pub fn markdown(r: &Report) -> String {
         let _ = writeln!(
             s,
             "Paper: best method per material 1.28×–6.78×, mean 2.58×; flow 1.17–6.78×, histogram mixture 1.07–6.12×, cosine 0.05–0.88×. \
-             The best practical method (oracle excluded) is in bold.\n"
+             In brackets the 95 % interval (bootstrap over {} independent sample blocks per render, median of means; README \
+             \"Statistics\"). The best practical method (oracle excluded) is in bold when its interval clears every other \
+             method's; otherwise the verdict column names the tie.\n",
+            r.render.as_ref().map_or(0, |rs| rs.settings.blocks)
         );
-        let _ = writeln!(s, "| material | {} |", methods.join(" | "));
-        let _ = writeln!(s, "|---|{}", "---:|".repeat(methods.len()));
+        let _ = writeln!(s, "| material | {} | verdict |", methods.join(" | "));
+        let _ = writeln!(s, "|---|{}---|", "---:|".repeat(methods.len()));
         for m in &r.materials {
-            let best = m
-                .methods
-                .iter()
-                .filter(|x| x.method != ORACLE)
-                .filter_map(|x| x.speedup_vs_baseline.filter(|v| v.is_finite()))
-                .fold(f64::NEG_INFINITY, f64::max);
             let cells: Vec<String> = m
                 .methods
                 .iter()
                 .map(|x| {
-                    let t = fmt_x(x.speedup_vs_baseline);
-                    if x.method != ORACLE && x.speedup_vs_baseline == Some(best) {
-                        format!("**{t}**")
-                    } else {
-                        t
+                    let t = x.render.as_ref().map_or_else(
+                        || fmt_x(x.speedup_vs_baseline),
+                        |rr| fmt_x_interval(&rr.speedup),
+                    );
+                    match &m.verdict {
+                        Some(v) if v.clear && v.best == x.method => format!("**{t}**"),
+                        _ => t,
                     }
                 })
                 .collect();
-            let _ = writeln!(s, "| {} | {} |", m.material, cells.join(" | "));
+            let verdict = match &m.verdict {
+                Some(v) if v.clear => format!("{} (clear)", v.best),
+                Some(v) => format!("tie: {}, {}", v.best, v.tied_with.join(", ")),
+                None => "—".to_string(),
+            };
+            let _ = writeln!(s, "| {} | {} | {verdict} |", m.material, cells.join(" | "));
         }
         let _ = writeln!(s);
     }
@@ -179,23 +202,23 @@ pub fn markdown(r: &Report) -> String {
             let _ = writeln!(s, "### Rendering\n");
             let _ = writeln!(
                 s,
-                "| method | render ns/sample | ×cosine time | MSE @ N spp | expected MSE @ N spp | MSE ratio vs baseline (N spp) | equal-time spp | MSE @ equal time | speed-up vs baseline | speed-up (measured MSE) |"
+                "| method | render ns/sample | ×cosine time | MSE @ N spp (image) | MSE @ N spp (blocks) | MSE ratio vs baseline (N spp) | equal-time spp | MSE @ equal time | speed-up vs baseline | speed-up (image MSE) |"
             );
             let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
             for x in &m.methods {
                 if let Some(rr) = &x.render {
                     let _ = writeln!(
                         s,
-                        "| {} | {:.0} | {:.2} | {:.3e} | {:.3e} | {} | {} | {:.3e} | {} | {} |",
+                        "| {} | {:.0} | {:.2} | {:.3e} | {} | {} | {} | {} | {} | {} |",
                         x.method,
                         rr.ns_per_sample,
                         rr.time_vs_cosine,
                         rr.mse_equal_spp,
-                        rr.mse_expected_equal_spp,
-                        fmt_x(Some(rr.mse_ratio_equal_spp)),
+                        fmt_e_interval(&rr.mse_equal_spp_interval),
+                        fmt_x_interval(&rr.mse_ratio),
                         rr.equal_time_spp,
-                        rr.mse_equal_time,
-                        fmt_x(Some(rr.speedup_vs_baseline)),
+                        fmt_e_interval(&rr.mse_equal_time_interval),
+                        fmt_x_interval(&rr.speedup),
                         fmt_x(Some(rr.speedup_measured_mse)),
                     );
                 }

@@ -189,7 +189,17 @@ pub fn run(a: &DemoConfig) -> Result<()> {
             reference,
             figures,
             equal_time_budget_seconds: budget,
+            verdict: None,
         });
+        let last = report.materials.last_mut().expect("pushed");
+        last.verdict = metrics::verdict(
+            &last
+                .methods
+                .iter()
+                .filter(|x| x.method != ORACLE)
+                .filter_map(|x| Some((x.method.clone(), x.render.as_ref()?.speedup)))
+                .collect::<Vec<_>>(),
+        );
     }
     pb.finish_with_message("done");
     report.seconds = started.elapsed().as_secs_f64();
@@ -304,17 +314,30 @@ fn render_material(
                 format!("{} spp · MSE {:.2e}", e.equal_spp.spp, e.mse_equal_spp),
             ],
         ));
+        // The resampling stream of this method: the seed mixed with the method's name.
+        let name_key = e.name.bytes().fold(0xCBF2_9CE4_8422_2325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x100_0000_01B3)
+        });
+        let seed = crate::util::rng::mix_seed(p.settings.seed ^ 0xB007, name_key);
+        let speedup = metrics::speedup(e, &evals[base], seed);
+        let mse_ratio = metrics::variance_ratio(e, &evals[base], seed);
         let r = RenderReport {
+            blocks: e.equal_spp.blocks.len() as u32,
+            variance: e.variance,
+            mse_equal_spp_interval: e.mse_at(e.equal_spp.spp),
+            mse_equal_time_interval: e.mse_equal_time_estimate(seed),
+            speedup,
+            mse_ratio,
             ns_per_sample: e.ns_per_sample,
             time_vs_cosine: e.ns_per_sample / cosine_ns,
             equal_spp: e.equal_spp.spp,
             mse_equal_spp: e.mse_equal_spp,
             equal_time_spp: e.equal_time_spp,
             mse_equal_time: e.mse_equal_time,
-            speedup_vs_baseline: metrics::speedup(e, &evals[base]),
+            speedup_vs_baseline: speedup.value,
             speedup_measured_mse: metrics::speedup_measured(e, &evals[base]),
             mse_expected_equal_spp: e.mse_expected_equal_spp,
-            mse_ratio_equal_spp: metrics::variance_ratio(e, &evals[base]),
+            mse_ratio_equal_spp: mse_ratio.value,
             convergence: e.convergence.clone(),
             equal_time_exr: et_exr,
             equal_time_png: et_png,

@@ -5,12 +5,13 @@
 use neusample_render::Estimator;
 use serde::{Deserialize, Serialize};
 
-use crate::eval::metrics::{ConvergencePoint, RenderSettings};
+use crate::eval::metrics::{ConvergencePoint, RenderSettings, Verdict};
 use crate::eval::{Cost, EvalCost, Fit, FitReport};
 use crate::util::json::f64_or_nan;
+use crate::util::stats::Estimate;
 
 /// Schema version of `report.json` (README.md documents it).
-pub const REPORT_SCHEMA: u32 = 3;
+pub const REPORT_SCHEMA: u32 = 4;
 
 /// Rendering results of one method on one material (see [`crate::eval::metrics`]).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -31,20 +32,37 @@ pub struct RenderReport {
     /// MSE of the equal-time render.
     #[serde(deserialize_with = "f64_or_nan")]
     pub mse_equal_time: f64,
-    /// Speed-up over the improved baseline at equal quality (Table 2).
+    /// Speed-up over the improved baseline at equal quality (Table 2): the value of
+    /// `speedup`.
     #[serde(deserialize_with = "f64_or_nan")]
     pub speedup_vs_baseline: f64,
     /// The same speed-up from the measured MSEs against the reference (noisier).
     #[serde(deserialize_with = "f64_or_nan")]
     pub speedup_measured_mse: f64,
-    /// Expected MSE at `equal_spp` from the per-pixel sample variances (what the speed-up
-    /// uses).
+    /// Expected MSE at `equal_spp` from the per-pixel sample variances (`mean σ²/N`, a
+    /// plain mean dominated by rare bright samples; the speed-up uses `variance` instead).
     #[serde(deserialize_with = "f64_or_nan")]
     pub mse_expected_equal_spp: f64,
     /// Expected-MSE ratio baseline / method at equal spp (the speed-up if sampling cost
     /// nothing: the paper's "sampling rate" view).
     #[serde(deserialize_with = "f64_or_nan")]
     pub mse_ratio_equal_spp: f64,
+    /// Independent sample blocks of the equal-spp render (the units the intervals resample).
+    pub blocks: u32,
+    /// Per-sample variance `V`: the median of means over the blocks of
+    /// `(block MSE − reference noise) · block spp`, with its 95 % bootstrap interval.
+    pub variance: Estimate,
+    /// Expected MSE at `equal_spp`, `V / N`, with its interval.
+    pub mse_equal_spp_interval: Estimate,
+    /// The equal-time render's MSE from its own blocks, with its interval (the interval is
+    /// null with fewer than two blocks).
+    pub mse_equal_time_interval: Estimate,
+    /// Speed-up over the improved baseline with its 95 % interval (`speedup_vs_baseline` is
+    /// its value).
+    pub speedup: Estimate,
+    /// MSE ratio baseline / method at equal spp with its interval (`mse_ratio_equal_spp` is
+    /// its value).
+    pub mse_ratio: Estimate,
     /// MSE vs spp and vs single-thread time.
     pub convergence: Vec<ConvergencePoint>,
     /// Equal-time image, linear (relative to the output folder).
@@ -165,6 +183,10 @@ pub struct MaterialReport {
     pub figures: Option<FigureReport>,
     /// Single-thread time budget of the equal-time renders, seconds per image.
     pub equal_time_budget_seconds: Option<f64>,
+    /// The best practical method at equal quality and whether its interval clears the
+    /// others' (null without rendering).
+    #[serde(default)]
+    pub verdict: Option<Verdict>,
 }
 
 /// Rendering setup shared by all materials.

@@ -48,7 +48,7 @@ use super::concrete::{with_concrete, WithSampler};
 use super::oracle::OracleSampler;
 use crate::materials::Material;
 use crate::util::json::f64_or_nan;
-use crate::util::stats::ratio;
+use crate::util::stats::{bootstrap, median_of_means, ratio, Estimate};
 
 /// A sampling technique of the evaluation.
 #[derive(Clone, Copy, Debug)]
@@ -169,7 +169,21 @@ pub struct RenderSettings {
     pub estimator: Estimator,
     /// Seed.
     pub seed: u64,
+    /// Independent sample blocks of every equal-spp and equal-time render (at most its spp),
+    /// the units the intervals resample ([`block_variances`]).
+    #[serde(default = "default_blocks")]
+    pub blocks: u32,
 }
+
+/// Sample blocks per render of the evaluation ([`RenderSettings::blocks`]).
+pub const DEFAULT_BLOCKS: u32 = 16;
+
+fn default_blocks() -> u32 {
+    DEFAULT_BLOCKS
+}
+
+/// Groups of the median of means over a render's blocks ([`variance`]).
+pub const MOM_GROUPS: usize = 4;
 
 /// The reference image of a material's scene.
 #[derive(Clone, Debug)]
@@ -260,6 +274,36 @@ pub fn pixel_average(r: &Render, mask: &[bool]) -> ([f64; 3], [f64; 3]) {
     (m, se)
 }
 
+/// Per block `k` of `r` (`n_k` samples per pixel, [`Render::block_samples`]):
+/// `(MSE(block_k, reference) − reference noise) · n_k`. For an unbiased technique each is an
+/// unbiased estimate of the per-sample variance `V` (mean over masked pixels and channels),
+/// and the blocks are independent: every pixel's samples are.
+#[must_use]
+pub fn block_variances(r: &Render, reference: &Reference) -> Vec<f64> {
+    let mask = &reference.render.mask;
+    r.blocks
+        .iter()
+        .zip(r.block_samples())
+        .map(|(img, n)| {
+            (mse(img, &reference.render.image, mask) - reference.noise) * f64::from(n.max(1))
+        })
+        .collect()
+}
+
+/// The per-sample variance `V` from a render's [`block_variances`]: the median of means over
+/// [`MOM_GROUPS`] groups of blocks (robust to the rare very bright samples that dominate a
+/// plain mean), with a 95 % bootstrap interval over the blocks (seeded by `seed`).
+#[must_use]
+pub fn variance(blocks: &[f64], seed: u64) -> Estimate {
+    bootstrap([blocks], seed, |[b]| robust_variance(b))
+}
+
+/// The median of means of block variances, kept above [`MSE_FLOOR`] (a block's MSE minus the
+/// reference noise may come out below zero for a near-exact technique).
+fn robust_variance(blocks: &[f64]) -> f64 {
+    median_of_means(blocks, MOM_GROUPS).max(MSE_FLOOR)
+}
+
 /// One point of a convergence curve.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ConvergencePoint {
@@ -297,6 +341,28 @@ pub struct TechniqueEval {
     pub equal_time: Render,
     /// MSE of [`Self::equal_time`].
     pub mse_equal_time: f64,
+    /// [`block_variances`] of [`Self::equal_spp`].
+    pub block_variances: Vec<f64>,
+    /// The per-sample variance from them ([`variance`]).
+    pub variance: Estimate,
+    /// [`block_variances`] of [`Self::equal_time`].
+    pub equal_time_block_variances: Vec<f64>,
+}
+
+impl TechniqueEval {
+    /// The expected MSE at `spp` samples per pixel, `V / spp`, with its interval.
+    #[must_use]
+    pub fn mse_at(&self, spp: u32) -> Estimate {
+        self.variance.scaled(1.0 / f64::from(spp.max(1)))
+    }
+
+    /// The equal-time render's MSE from its blocks (`V / spp`), with its interval (NaN with
+    /// fewer than two blocks).
+    #[must_use]
+    pub fn mse_equal_time_estimate(&self, seed: u64) -> Estimate {
+        variance(&self.equal_time_block_variances, seed)
+            .scaled(1.0 / f64::from(self.equal_time_spp.max(1)))
+    }
 }
 
 /// Renders and measures every technique against `reference`. `baseline` names the technique
@@ -315,6 +381,7 @@ pub fn evaluate(
     let pixels = (scene.camera.width * scene.camera.height) as f64;
     let mut base = RenderOptions::new(s.max_spp.max(1), s.seed);
     base.estimator = s.estimator;
+    base.blocks = s.blocks;
 
     // 1. Time per sample, single thread: passes interleaved over the techniques (so that a
     // change of machine load hits all of them alike), the fastest pass kept (interference
@@ -325,6 +392,7 @@ pub fn evaluate(
     let mut times = vec![f64::INFINITY; techniques.len()];
     let mut o = base.clone();
     o.spp = s.timing_spp.max(1);
+    o.blocks = 0;
     let mut small = scene.clone();
     small.camera.width = (scene.camera.width / 4).max(8);
     small.camera.height = (scene.camera.height / 4).max(6);
@@ -387,7 +455,12 @@ pub fn evaluate(
         let rt = t.render(scene, material, &o);
         let mse_equal_time =
             (mse(&rt.image, &reference.render.image, mask) - reference.noise).max(MSE_FLOOR);
+        let blocks = block_variances(&r, reference);
+        let seed = crate::util::rng::mix_seed(s.seed, out.len() as u64);
         out.push(TechniqueEval {
+            variance: variance(&blocks, seed),
+            block_variances: blocks,
+            equal_time_block_variances: block_variances(&rt, reference),
             name: name.clone(),
             ns_per_sample: ns,
             convergence,
@@ -402,18 +475,20 @@ pub fn evaluate(
     Ok(out)
 }
 
-/// Speed-up of `m` over `b` at equal quality (module docs), from the expected MSEs at equal
-/// spp ([`TechniqueEval::mse_expected_equal_spp`]): `(e_b · t_b) / (e_m · t_m)`.
+/// Speed-up of `m` over `b` at equal quality (module docs): `(V_b · t_b) / (V_m · t_m)` with
+/// the per-sample variances `V` of [`variance`] (median of means over blocks), and a 95 %
+/// bootstrap interval that resamples the blocks of both renders independently (the times,
+/// medians of interleaved passes, are taken as exact). `seed` seeds the resampling.
 #[must_use]
-pub fn speedup(m: &TechniqueEval, b: &TechniqueEval) -> f64 {
-    ratio(
-        b.mse_expected_equal_spp * b.ns_per_sample,
-        m.mse_expected_equal_spp * m.ns_per_sample,
-    )
+pub fn speedup(m: &TechniqueEval, b: &TechniqueEval, seed: u64) -> Estimate {
+    let (tb, tm) = (b.ns_per_sample, m.ns_per_sample);
+    bootstrap([&b.block_variances, &m.block_variances], seed, |[vb, vm]| {
+        ratio(robust_variance(vb) * tb, robust_variance(vm) * tm)
+    })
 }
 
-/// The same speed-up from the measured MSEs against the reference
-/// ([`TechniqueEval::mse_equal_spp`]); noisier, but it would also see a bias.
+/// The speed-up from the measured MSEs of the whole equal-spp images against the reference
+/// ([`TechniqueEval::mse_equal_spp`]: plain means, no interval); it would also see a bias.
 #[must_use]
 pub fn speedup_measured(m: &TechniqueEval, b: &TechniqueEval) -> f64 {
     ratio(
@@ -422,9 +497,47 @@ pub fn speedup_measured(m: &TechniqueEval, b: &TechniqueEval) -> f64 {
     )
 }
 
-/// The MSE ratio at equal spp (`e_b / e_m`, expected MSEs): the speed-up if every technique
-/// cost the same per sample (the paper's "sampling rate" view).
+/// The MSE ratio at equal spp, `V_b / V_m`, with its interval as [`speedup`]: the speed-up if
+/// every technique cost the same per sample (the paper's "sampling rate" view).
 #[must_use]
-pub fn variance_ratio(m: &TechniqueEval, b: &TechniqueEval) -> f64 {
-    ratio(b.mse_expected_equal_spp, m.mse_expected_equal_spp)
+pub fn variance_ratio(m: &TechniqueEval, b: &TechniqueEval, seed: u64) -> Estimate {
+    bootstrap([&b.block_variances, &m.block_variances], seed, |[vb, vm]| {
+        ratio(robust_variance(vb), robust_variance(vm))
+    })
+}
+
+/// Which practical technique is best at equal quality: the largest speed-up, called
+/// **clear** only when its interval's lower end lies above every other technique's upper end;
+/// otherwise a tie with the techniques whose intervals reach its lower end.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Verdict {
+    /// The technique with the largest speed-up.
+    pub best: String,
+    /// Whether its interval clears every other technique's.
+    pub clear: bool,
+    /// The techniques it ties with (empty when clear).
+    pub tied_with: Vec<String>,
+}
+
+/// The [`Verdict`] over `(name, speed-up)` pairs (non-finite values ignored); `None` when no
+/// technique has a finite speed-up.
+#[must_use]
+pub fn verdict(speedups: &[(String, Estimate)]) -> Option<Verdict> {
+    let best = speedups
+        .iter()
+        .filter(|(_, e)| e.value.is_finite())
+        .max_by(|a, b| a.1.value.total_cmp(&b.1.value))?;
+    let lo = best.1.lo;
+    let tied_with: Vec<String> = speedups
+        .iter()
+        .filter(|(n, e)| n != &best.0 && e.value.is_finite())
+        // An unknown interval never clears: NaN bounds count as overlapping.
+        .filter(|(_, e)| !(e.hi < lo))
+        .map(|(n, _)| n.clone())
+        .collect();
+    Some(Verdict {
+        best: best.0.clone(),
+        clear: tied_with.is_empty(),
+        tied_with,
+    })
 }
