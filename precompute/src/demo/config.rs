@@ -215,7 +215,7 @@ pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
             ref_res: if q { 32 } else { 40 },
             oracle_res: if q { 24 } else { 32 },
             timing_spp: 1,
-            timing_passes: 3,
+            timing_passes: if q { 5 } else { 15 },
             max_equal_time_spp: 64 * spp,
             estimator: if a.mis {
                 Estimator::Mis

@@ -49,6 +49,7 @@ use super::oracle::OracleSampler;
 use crate::materials::Material;
 use crate::util::json::f64_or_nan;
 use crate::util::stats::{bootstrap, median_of_means, ratio, Estimate};
+use crate::util::timing::median;
 
 /// A sampling technique of the evaluation.
 #[derive(Clone, Copy, Debug)]
@@ -161,7 +162,8 @@ pub struct RenderSettings {
     pub oracle_res: usize,
     /// Samples per pixel of each timing pass.
     pub timing_spp: u32,
-    /// Timing passes (interleaved over the techniques; the fastest is kept).
+    /// Timing passes (interleaved over the techniques; the median is the time per sample and
+    /// the intervals resample them).
     pub timing_passes: usize,
     /// Cap on the samples per pixel of an equal-time render.
     pub max_equal_time_spp: u32,
@@ -323,8 +325,11 @@ pub struct ConvergencePoint {
 pub struct TechniqueEval {
     /// Technique name.
     pub name: String,
-    /// Single-thread render-loop time per pixel sample, ns (module docs).
+    /// Single-thread render-loop time per pixel sample, ns (module docs): the median of
+    /// [`Self::ns_passes`].
     pub ns_per_sample: f64,
+    /// The time per sample of each timing pass, ns.
+    pub ns_passes: Vec<f64>,
     /// MSE at 1, 2, 4, … spp up to [`RenderSettings::max_spp`].
     pub convergence: Vec<ConvergencePoint>,
     /// The equal-spp render at [`RenderSettings::max_spp`].
@@ -360,8 +365,12 @@ impl TechniqueEval {
     /// fewer than two blocks).
     #[must_use]
     pub fn mse_equal_time_estimate(&self, seed: u64) -> Estimate {
-        variance(&self.equal_time_block_variances, seed)
-            .scaled(1.0 / f64::from(self.equal_time_spp.max(1)))
+        let mut e = variance(&self.equal_time_block_variances, seed)
+            .scaled(1.0 / f64::from(self.equal_time_spp.max(1)));
+        if self.equal_time_block_variances.len() < 2 {
+            (e.lo, e.hi) = (f64::NAN, f64::NAN);
+        }
+        e
     }
 }
 
@@ -384,12 +393,12 @@ pub fn evaluate(
     base.blocks = s.blocks;
 
     // 1. Time per sample, single thread: passes interleaved over the techniques (so that a
-    // change of machine load hits all of them alike), the fastest pass kept (interference
-    // only ever adds time). The oracle's passes mostly rebuild its (excluded) tables: one.
+    // change of machine load hits all of them alike); the median pass is the time, and the
+    // intervals resample the passes. The oracle's passes mostly rebuild its (excluded) tables: one.
     // The oracle is timed once, on a quarter-resolution view of the same scene: its per-pixel
     // table builds (excluded from its time, but paid single-threaded here) would otherwise
     // dominate the whole evaluation.
-    let mut times = vec![f64::INFINITY; techniques.len()];
+    let mut passes: Vec<Vec<f64>> = vec![Vec::new(); techniques.len()];
     let mut o = base.clone();
     o.spp = s.timing_spp.max(1);
     o.blocks = 0;
@@ -412,9 +421,10 @@ pub fn evaluate(
             } else {
                 t.time_per_sample(scene, material, &o, 1)?
             };
-            times[i] = times[i].min(timed);
+            passes[i].push(timed);
         }
     }
+    let times: Vec<f64> = passes.iter().map(|p| median(p.clone())).collect();
     let b = techniques
         .iter()
         .position(|(n, _)| n == baseline)
@@ -422,7 +432,7 @@ pub fn evaluate(
     let budget_ns = times.get(b).copied().unwrap_or(1.0) * f64::from(s.max_spp.max(1));
 
     let mut out = Vec::with_capacity(techniques.len());
-    for ((name, t), &ns) in techniques.iter().zip(&times) {
+    for (((name, t), &ns), ns_passes) in techniques.iter().zip(&times).zip(passes) {
         // 2. Equal spp, with the convergence checkpoints.
         progress(&format!("equal spp {name}"));
         let r = t.render(scene, material, &base);
@@ -463,6 +473,7 @@ pub fn evaluate(
             equal_time_block_variances: block_variances(&rt, reference),
             name: name.clone(),
             ns_per_sample: ns,
+            ns_passes,
             convergence,
             equal_spp: r,
             mse_equal_spp,
@@ -476,14 +487,21 @@ pub fn evaluate(
 }
 
 /// Speed-up of `m` over `b` at equal quality (module docs): `(V_b · t_b) / (V_m · t_m)` with
-/// the per-sample variances `V` of [`variance`] (median of means over blocks), and a 95 %
-/// bootstrap interval that resamples the blocks of both renders independently (the times,
-/// medians of interleaved passes, are taken as exact). `seed` seeds the resampling.
+/// the per-sample variances `V` of [`variance`] (median of means over blocks) and the times
+/// `t` (medians of the timing passes), and a 95 % bootstrap interval that resamples the
+/// blocks and the timing passes of both techniques independently. `seed` seeds the
+/// resampling.
 #[must_use]
 pub fn speedup(m: &TechniqueEval, b: &TechniqueEval, seed: u64) -> Estimate {
-    let (tb, tm) = (b.ns_per_sample, m.ns_per_sample);
-    bootstrap([&b.block_variances, &m.block_variances], seed, |[vb, vm]| {
-        ratio(robust_variance(vb) * tb, robust_variance(vm) * tm)
+    let sets = [
+        b.block_variances.as_slice(),
+        &m.block_variances,
+        &b.ns_passes,
+        &m.ns_passes,
+    ];
+    bootstrap(sets, seed, |[vb, vm, tb, tm]| {
+        let t = |p: &[f64]| median(p.to_vec());
+        ratio(robust_variance(vb) * t(tb), robust_variance(vm) * t(tm))
     })
 }
 

@@ -81,8 +81,9 @@ pub const BOOTSTRAP_RESAMPLES: usize = 2000;
 /// `stat` of `sets` with a 95 % percentile-bootstrap interval (Efron & Tibshirani 1993): each
 /// set is resampled with replacement, independently of the others, [`BOOTSTRAP_RESAMPLES`]
 /// times from a stream seeded by `seed`, and the interval is the 2.5th to 97.5th percentile
-/// of `stat` over the resamples (non-finite values dropped). The interval is NaN when a set
-/// has fewer than two values (nothing to resample), everything when one is empty.
+/// of `stat` over the resamples (non-finite values dropped); a set of one value stays as it
+/// is. The interval is NaN when no set has two values (nothing to resample), everything when
+/// a set is empty.
 pub fn bootstrap<const K: usize>(
     sets: [&[f64]; K],
     seed: u64,
@@ -93,7 +94,7 @@ pub fn bootstrap<const K: usize>(
         return Estimate::NAN;
     }
     let value = stat(sets);
-    if sets.iter().any(|s| s.len() < 2) {
+    if sets.iter().all(|s| s.len() < 2) {
         return Estimate {
             value,
             lo: f64::NAN,
