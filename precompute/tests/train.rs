@@ -410,3 +410,37 @@ fn histogram_mixture_diagnostics() {
         }
     }
 }
+
+/// Baking writes compact histogram-mixture tables by default; both layouts reproduce the
+/// trained model (`bake::verify`), and a blob that stores values converts to the compact
+/// layout (`bake::compact_blob`), which also reproduces it.
+#[test]
+fn histogram_mixture_bakes_compact_tables_that_verify() {
+    use neusample::distrib::table2d::TableLayout;
+    use neusample::{Blob, DType};
+    use neusample_precompute::bake;
+
+    let t = quick(SamplerKind::HistogramMixture);
+    let m = neusample_precompute::materials::builtin("goat_leather").unwrap();
+    let compact = bake::blob_bytes(&t, DType::F32, "test").unwrap();
+    assert!(Blob::open(&compact).unwrap().is_compact());
+    let v = bake::verify(&t, &compact, m.as_ref(), 8, 1).unwrap();
+    assert_eq!(v.tolerance, bake::COMPACT_TOLERANCE);
+    let values = bake::blob_bytes_with(&t, DType::F32, TableLayout::Values, "test").unwrap();
+    assert!(!Blob::open(&values).unwrap().is_compact());
+    let v = bake::verify(&t, &values, m.as_ref(), 8, 1).unwrap();
+    assert_eq!(v.tolerance, bake::F32_TOLERANCE);
+    assert!(
+        compact.len() < values.len() / 2,
+        "{} vs {}",
+        compact.len(),
+        values.len()
+    );
+    let converted = bake::compact_blob(&values).unwrap();
+    assert!(Blob::open(&converted).unwrap().is_compact());
+    bake::verify(&t, &converted, m.as_ref(), 8, 2).unwrap();
+    // Nothing to convert: compact already, or another kind.
+    assert!(bake::compact_blob(&compact).is_err());
+    let flow = bake::blob_bytes(&quick(SamplerKind::Flow), DType::F32, "test").unwrap();
+    assert!(bake::compact_blob(&flow).is_err());
+}
