@@ -48,7 +48,7 @@ pub fn markdown(r: &Report) -> String {
     let _ = writeln!(
         s,
         "{} run, {}, seed {}, {:.0} s. Fit: mean over {} random conditions (φ, wi), ground truth on a {}² grid. \
-         Cost: single thread, ns per call (median of passes).\n",
+         Cost: single thread, ns per shading point through the batched API ({} lanes per call), median of passes.\n",
         if r.quick { "Quick" } else { "Full" },
         match (r.fixtures, r.steps_scale) {
             (true, _) => "committed fixture blobs".to_string(),
@@ -58,7 +58,8 @@ pub fn markdown(r: &Report) -> String {
         r.seed,
         r.seconds,
         r.eval_conditions,
-        r.eval_res
+        r.eval_res,
+        crate::eval::COST_BATCH
     );
     if let Some(rs) = &r.render {
         let st = &rs.settings;
@@ -69,10 +70,12 @@ pub fn markdown(r: &Report) -> String {
              MSE over the pixels that hit an object, minus the reference's own noise. \
              Time per sample: single-thread wall time of the whole render loop per pixel sample \
              (oracle: per-pixel table build excluded — it is a limit, not a method). \
-             Speed-up (Table 2): (MSE·time of the improved baseline) / (MSE·time of the method) at N = {} spp, \
-             i.e. the relative time the baseline needs for the same quality, with the expected MSE σ²/N from the \
-             per-pixel sample variances (the speed-up from the measured MSE against the reference is shown beside it). Equal time: every method gets \
-             the baseline's time for {} spp.\n",
+             Runtime samplers render on the wavefront (batched) path, the oracle on the scalar one (the two integrators give the same image). \
+             Speed-up (Table 2): (V·time of the improved baseline) / (V·time of the method), i.e. the relative time the \
+             baseline needs for the same quality, with V the per-sample variance from independent sample blocks of the \
+             N = {} spp renders (median of means) and time the median of interleaved single-thread passes; 95 % bootstrap \
+             intervals over blocks and passes (the speed-up from the whole image's MSE against the reference is shown \
+             beside it). Equal time: every method gets the baseline's time for {} spp.\n",
             rs.width,
             rs.height,
             match (&rs.env_map, rs.uniform_light) {
