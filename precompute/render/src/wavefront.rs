@@ -204,7 +204,8 @@ struct Tile<'r, 'a, M: ?Sized, S: BatchSampler> {
     randoms: Vec<VertexRandoms>,
     /// Per depth and slot.
     terms: Vec<Vec<VertexTerms>>,
-    /// Per slot: where a continuing path goes next (filled while a depth is shaded).
+    /// Per slot: where a continuing path goes next (filled while a depth is shaded, taken
+    /// when it ends, so `None` between depths).
     next: Vec<Option<(Ray, Hit)>>,
     batch: Batch<S::Lane>,
 }
@@ -230,7 +231,6 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
         // Every vertex draws its random numbers first (the recipe's step 2).
         for (slot, hit) in hits.iter().enumerate() {
             terms[slot] = VertexTerms::default();
-            next[slot] = None;
             if hit.is_some() {
                 randoms[slot] = VertexRandoms::draw(&mut streams[slot], mis);
             }
@@ -308,16 +308,17 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
                 if !b.lanes[i].is_prepared() {
                     continue;
                 }
+                let origin = hit.p + hit.n * RAY_EPSILON;
                 let t = &mut terms[slot];
                 t.present = true;
-                let (bsdf, cont) = bsdf_term(scene, opts, b, i, hit, depth);
+                let (bsdf, cont) = bsdf_term(scene, opts, b, i, origin, depth);
                 t.bsdf = bsdf;
                 if let Some(c) = cont {
                     t.continues = true;
                     next[slot] = Some(c);
                 }
                 if mis {
-                    t.env = env_term(scene, b, i, hit);
+                    t.env = env_term(scene, b, i, origin);
                 }
             }
         }
@@ -395,7 +396,7 @@ fn bsdf_term<L>(
     opts: &RenderOptions,
     b: &Batch<L>,
     i: usize,
-    hit: &Hit,
+    origin: Vec3,
     depth: u32,
 ) -> (Term, Option<(Ray, Hit)>) {
     let pdf = b.pdf[i];
@@ -404,7 +405,6 @@ fn bsdf_term<L>(
     }
     let wo = b.wo.vec3(i);
     let f = b.f.at(i);
-    let origin = hit.p + hit.n * RAY_EPSILON;
     let wo_w = b.frames[i].from_local(wo).normalize();
     let escaped = if depth < opts.max_bounces {
         let ray = Ray { o: origin, d: wo_w };
@@ -442,12 +442,11 @@ fn bsdf_term<L>(
 }
 
 /// The environment sample's term of lane `i` of `b` (MIS).
-fn env_term<L>(scene: &Scene, b: &Batch<L>, i: usize, hit: &Hit) -> Term {
+fn env_term<L>(scene: &Scene, b: &Batch<L>, i: usize, origin: Vec3) -> Term {
     let Some((dir, pe)) = b.env[i] else {
         return Term::default();
     };
     let wo = b.env_wo.vec3(i);
-    let origin = hit.p + hit.n * RAY_EPSILON;
     if !(wo.z > 0.0) || scene.occluded(origin, dir) {
         return Term::default();
     }

@@ -187,15 +187,17 @@ fn table_layouts(cfg: &BenchConfig, rows: &Rows) -> Result<Option<TableLayouts>>
     let Ok(stored) = std::fs::read(&path) else {
         return Ok(None);
     };
-    let blob = Blob::open(&stored).with_context(|| path.display().to_string())?;
-    let (values, compact) = if blob.is_compact() {
+    if Blob::open(&stored)
+        .with_context(|| path.display().to_string())?
+        .is_compact()
+    {
         bail!(
             "{}: the bench compares layouts from a blob that stores values",
             path.display()
         );
-    } else {
-        (stored.clone(), bake::compact_blob(&stored)?)
-    };
+    }
+    let compact = bake::compact_blob(&stored)?;
+    let values = stored;
     let material = NeuralMaterialModel::load(&cfg.material)?;
     let mut layouts = Vec::new();
     let mut search = None;
