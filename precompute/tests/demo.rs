@@ -1,4 +1,4 @@
-//! `neusample demo --quick --use-fixtures` end to end (on the committed neural materials, the
+//! `neusample demo --smoke` end to end (on the committed neural materials, the
 //! demo's default setting): the report, read back into its typed schema, its required fields
 //! and the relations between them, the fit against the source materials, the images and
 //! plots.
@@ -36,6 +36,9 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
     let r = read_report(dir.path());
     assert_eq!(r.schema, demo::REPORT_SCHEMA);
     assert!(r.quick && r.fixtures && r.steps_scale.is_none());
+    // A smoke test says so before anything else.
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert!(md.starts_with(demo::SMOKE_LINE), "{}", &md[..200.min(md.len())]);
     let setup = r.render.as_ref().expect("rendered");
     let max_spp = setup.settings.max_spp;
     assert_eq!(r.materials.len(), demo::DEFAULT_MATERIALS.len());

@@ -32,12 +32,16 @@ pub const ORACLE: &str = "oracle";
 /// What `neusample demo` runs (the command line's options, typed).
 #[derive(Clone, Debug, PartialEq)]
 pub struct DemoConfig {
-    /// CI-sized run: short training, fewer evaluation conditions, a small image.
+    /// CI-sized smoke test (`--smoke`): a small image, few samples and conditions, short
+    /// training; the report's first line says its numbers are not results.
     pub quick: bool,
     /// Output folder (created; files are replaced atomically).
     pub out: PathBuf,
-    /// Use the committed fixture blobs instead of training.
+    /// Use the committed pretrained blobs (`fixtures/`, the default) instead of training.
     pub use_fixtures: bool,
+    /// With `use_fixtures`: read `<blobs>/<material>/<method>.nsb` from this folder instead of
+    /// the committed `fixtures/blobs/`.
+    pub blobs: Option<PathBuf>,
     /// Materials (built-in names or files, `.nsb` neural materials included); default: the
     /// neural versions of the three demo materials (or the procedural ones with
     /// `procedural`).
@@ -52,7 +56,7 @@ pub struct DemoConfig {
     /// fit: 1 gives the better samplers of `neusample train`). Not used with `quick` or
     /// `use_fixtures`.
     pub steps_scale: f64,
-    /// Image width in pixels (height = 3/4 of it); default 160, 64 with `quick`.
+    /// Image width in pixels (height = 3/4 of it); default 128, 64 with `quick`.
     pub width: Option<usize>,
     /// Equal-spp sample count N (convergence up to it; the baseline's equal-time budget);
     /// default 32, 8 with `quick`.
@@ -64,8 +68,9 @@ pub struct DemoConfig {
     /// An equirectangular OpenEXR environment map (z-up, see `render::EnvMap`) instead of the
     /// procedural sky; the sun is added unless --sun-radiance is 0.
     pub envmap: Option<PathBuf>,
-    /// Uniform white lighting instead of the sky (no sun): the render variance then measures
-    /// the BSDF sampler alone (the paper's uniformly lit scenes).
+    /// Uniform white lighting (the default) instead of the sky with its sun: the render
+    /// variance then measures the BSDF sampler alone (the paper's uniformly lit scenes).
+    /// Ignored with `envmap`.
     pub uniform_light: bool,
     /// Combine BSDF sampling with environment sampling (MIS, power heuristic) instead of
     /// BSDF sampling alone.
@@ -81,7 +86,8 @@ impl DemoConfig {
         DemoConfig {
             quick: false,
             out: out.into(),
-            use_fixtures: false,
+            use_fixtures: true,
+            blobs: None,
             materials: Vec::new(),
             procedural: false,
             seed: 1,
@@ -91,7 +97,7 @@ impl DemoConfig {
             sun_radiance: 60.0,
             sun_size: 4.0,
             envmap: None,
-            uniform_light: false,
+            uniform_light: true,
             mis: false,
             no_render: false,
         }
@@ -169,7 +175,7 @@ pub(crate) struct Preset {
 }
 
 pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
-    let width = a.width.unwrap_or(if a.quick { 64 } else { 160 });
+    let width = a.width.unwrap_or(if a.quick { 64 } else { 128 });
     anyhow::ensure!(
         (8..=4096).contains(&width),
         "--width must be in 8..=4096, got {width}"
@@ -206,7 +212,7 @@ pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
             sun_radiance: a.sun_radiance,
             sun_radius_deg: a.sun_size,
             env_map,
-            uniform_light: a.uniform_light,
+            uniform_light: a.uniform_light && a.envmap.is_none(),
             ..SceneParams::default()
         },
         settings: RenderSettings {

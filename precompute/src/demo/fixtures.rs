@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use neusample::DType;
 use neusample::{BlobWriter, SamplerKind};
 
-use super::config::{DEFAULT_MATERIALS, NEURAL_SUFFIX};
+use super::config::NEURAL_SUFFIX;
 use crate::bake;
 use crate::groundtruth;
 use crate::jobs::material::{train_material, TrainMaterialJob};
@@ -70,15 +70,16 @@ impl std::str::FromStr for FixtureSet {
     }
 }
 
-/// `neusample fixtures`: trains every method on the default materials with fixed seeds and
+/// `neusample fixtures`: trains every method on the built-ins `names` with fixed seeds and
 /// writes `<out>/<material>/<method>.nsb` (f32, histogram tables T = 8, N = 32) plus
-/// `<out>/cosine.nsb`; for the neural set, first fits the neural version of each default
+/// `<out>/cosine.nsb`; for the neural set, first fits the neural version of each
 /// material (`train-material` defaults, seed 1, f32) into `<materials>/<name>_neural.nsb`
 /// and then trains the samplers on it into `<out>/<name>_neural/`.
 pub fn regenerate_fixtures(
     out: &Path,
     materials_out: &Path,
     set: FixtureSet,
+    names: &[&str],
     quick: bool,
 ) -> Result<()> {
     io::atomic_write(
@@ -86,24 +87,37 @@ pub fn regenerate_fixtures(
         &BlobWriter::new(SamplerKind::Cosine, DType::F32, "cosine").to_bytes(),
     )?;
     if set != FixtureSet::Neural {
-        for name in DEFAULT_MATERIALS {
+        for name in names {
             fixture_samplers(out, materials::builtin(name)?.as_ref(), quick)?;
         }
     }
     if set != FixtureSet::Procedural {
-        for name in DEFAULT_MATERIALS {
-            let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
-            let mut job = TrainMaterialJob::new(name, path.clone());
-            if quick {
-                job.training = NeuralTrainConfig::quick();
-            }
-            job.training.progress = true;
-            train_material(&job).with_context(|| format!("neural fixture of {name}"))?;
-            let m = NeuralMaterialModel::load(&path)?;
-            fixture_samplers(out, &m, quick)?;
-        }
+        neural_fixtures(out, materials_out, names, quick)?;
     }
     eprintln!("fixtures written to {}", out.display());
+    Ok(())
+}
+
+/// The neural version of each built-in in `names` (`train-material` defaults, seed 1) into
+/// `<materials_out>/<name>_neural.nsb`, then every method trained on it into
+/// `<out>/<name>_neural/`.
+pub(crate) fn neural_fixtures(
+    out: &Path,
+    materials_out: &Path,
+    names: &[&str],
+    quick: bool,
+) -> Result<()> {
+    for name in names {
+        let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
+        let mut job = TrainMaterialJob::new(*name, path.clone());
+        if quick {
+            job.training = NeuralTrainConfig::quick();
+        }
+        job.training.progress = true;
+        train_material(&job).with_context(|| format!("neural fixture of {name}"))?;
+        let m = NeuralMaterialModel::load(&path)?;
+        fixture_samplers(out, &m, quick)?;
+    }
     Ok(())
 }
 

@@ -40,18 +40,28 @@ fn fmt_e_interval(e: &Estimate) -> String {
     }
 }
 
+/// The first line of a smoke-test report (`--smoke`), also printed at the end of the run.
+pub const SMOKE_LINE: &str = "**Smoke test (`--smoke`): CI-sized run — its numbers check that the \
+pipeline works and are not results; drop `--smoke` for the evaluation.**";
+
 /// The Markdown report.
 #[must_use]
 pub fn markdown(r: &Report) -> String {
     let mut s = String::new();
+    if r.quick {
+        let _ = writeln!(s, "{SMOKE_LINE}\n");
+    }
     let _ = writeln!(s, "# neusample report\n");
     let _ = writeln!(
         s,
         "{} run, {}, seed {}, {:.0} s. Fit: mean over {} random conditions (φ, wi), ground truth on a {}² grid. \
          Cost: single thread, ns per shading point through the batched API ({} lanes per call), median of passes.\n",
-        if r.quick { "Quick" } else { "Full" },
+        if r.quick { "Smoke-test" } else { "Full" },
         match (r.fixtures, r.steps_scale) {
-            (true, _) => "committed fixture blobs".to_string(),
+            (true, _) => r.blobs.as_ref().map_or_else(
+                || "committed pretrained samplers (fixtures/blobs)".to_string(),
+                |b| format!("pretrained samplers from {b}"),
+            ),
             (false, Some(f)) => format!("freshly trained samplers ({f}× the default training steps)"),
             (false, None) => "freshly trained samplers (quick training)".to_string(),
         },

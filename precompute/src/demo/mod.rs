@@ -18,7 +18,8 @@
 //!
 //! Files: `config` (names, [`DemoConfig`], run sizes, the materials evaluated), `pipeline`
 //! ([`run`]), `fixtures` ([`regenerate_fixtures`]), `report` (the JSON schema), `markdown`
-//! ([`markdown()`]) and [`figures`].
+//! ([`markdown()`]), [`figures`] and [`table`] (every built-in material under two lightings,
+//! `neusample table`).
 
 mod config;
 pub mod figures;
@@ -26,14 +27,16 @@ mod fixtures;
 mod markdown;
 mod pipeline;
 mod report;
+pub mod table;
 
 pub use config::{
     neural_fixture, resolve_demo_material, DemoConfig, DemoMaterial, BASELINE, COSINE,
     DEFAULT_MATERIALS, NEURAL_SUFFIX, ORACLE,
 };
 pub use fixtures::{fixtures_dir, regenerate_fixtures, FixtureSet};
-pub use markdown::markdown;
+pub use markdown::{markdown, SMOKE_LINE};
 pub use pipeline::run;
+pub use table::{Lighting, TableConfig};
 pub use report::{
     FigureReport, MaterialReport, MethodReport, NeuralReport, ReferenceReport, RenderReport,
     RenderSetup, Report, REPORT_SCHEMA,

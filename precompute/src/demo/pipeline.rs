@@ -66,6 +66,11 @@ pub fn run(a: &DemoConfig) -> Result<()> {
         schema: REPORT_SCHEMA,
         quick: a.quick,
         fixtures: a.use_fixtures,
+        blobs: a
+            .blobs
+            .as_ref()
+            .filter(|_| a.use_fixtures)
+            .map(|b| b.display().to_string()),
         seed: a.seed,
         steps_scale: (!a.quick && !a.use_fixtures).then_some(a.steps_scale),
         eval_conditions: p.eval_conditions,
@@ -76,13 +81,14 @@ pub fn run(a: &DemoConfig) -> Result<()> {
             sun_radiance: p.scene.sun_radiance,
             sun_radius_deg: p.scene.sun_radius_deg,
             env_map: a.envmap.as_ref().map(|e| e.display().to_string()),
-            uniform_light: a.uniform_light,
+            uniform_light: p.scene.uniform_light,
             settings: p.settings.clone(),
         }),
         seconds: 0.0,
         materials: Vec::new(),
     };
     for name in &names {
+        let material_started = Instant::now();
         let DemoMaterial {
             material: m,
             source,
@@ -120,7 +126,8 @@ pub fn run(a: &DemoConfig) -> Result<()> {
             let method_name = method.name();
             pb.set_message(format!("{mname}/{method_name}"));
             let (bytes, secs, loss, check) = if a.use_fixtures {
-                let path = fixture_path(&fixtures_dir(), &slug(&mname), method_name);
+                let dir = a.blobs.clone().unwrap_or_else(fixtures_dir);
+                let path = fixture_path(&dir, &slug(&mname), method_name);
                 (io::read_blob(&path)?, 0.0, None, None)
             } else {
                 let mut cfg = if a.quick {
@@ -176,12 +183,18 @@ pub fn run(a: &DemoConfig) -> Result<()> {
         methods.last_mut().expect("pushed").kl_vs_source = kl_src;
         pb.inc(1);
 
+        let fit_seconds = material_started.elapsed().as_secs_f64();
         let (reference, figures, budget) = if a.no_render {
             (None, None, None)
         } else {
             let (r, f, b) = render_material(&out, m.as_ref(), &blobs, &p, &pb, &mut methods)?;
             (Some(r), Some(f), Some(b))
         };
+        pb.println(format!(
+            "{mname}: {:.0} s training, fits and costs, {:.0} s rendering",
+            fit_seconds,
+            material_started.elapsed().as_secs_f64() - fit_seconds
+        ));
         report.materials.push(MaterialReport {
             material: mname,
             neural,
@@ -207,6 +220,9 @@ pub fn run(a: &DemoConfig) -> Result<()> {
     let json = serde_json::to_string_pretty(&report)?;
     io::atomic_write(&out.join("report.json"), json.as_bytes())?;
     io::atomic_write(&out.join("report.md"), markdown(&report).as_bytes())?;
+    if a.quick {
+        eprintln!("{}", super::markdown::SMOKE_LINE.replace("**", ""));
+    }
     eprintln!(
         "neusample demo finished in {:.0} s: {}",
         report.seconds,

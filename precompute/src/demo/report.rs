@@ -213,13 +213,16 @@ pub struct RenderSetup {
 pub struct Report {
     /// Schema version of this JSON ([`REPORT_SCHEMA`]).
     pub schema: u32,
-    /// Whether the run was `--quick`.
+    /// Whether the run was a smoke test (`--smoke`): its numbers are not results.
     pub quick: bool,
     /// Whether fixture blobs were used instead of training.
     pub fixtures: bool,
+    /// The folder the pretrained blobs came from when not the committed fixtures.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blobs: Option<String>,
     /// Seed.
     pub seed: u64,
-    /// Training steps relative to `neusample train`'s defaults (null with --quick or
+    /// Training steps relative to `neusample train`'s defaults (null with a smoke test or
     /// fixtures).
     pub steps_scale: Option<f64>,
     /// Evaluation conditions per material and method.

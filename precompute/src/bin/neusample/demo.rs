@@ -5,20 +5,25 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::Args;
-use neusample_precompute::demo::{self, DemoConfig, FixtureSet};
+use neusample_precompute::demo::{self, DemoConfig, FixtureSet, TableConfig, DEFAULT_MATERIALS};
 
 /// Options of `neusample demo`.
 #[derive(Args, Clone, Debug)]
 pub struct DemoArgs {
-    /// CI-sized run: short training, fewer evaluation conditions, a small image.
-    #[arg(long)]
-    pub quick: bool,
+    /// CI-sized smoke test: a small image, few samples and conditions (and, with --train,
+    /// short training); its report says in its first line that its numbers are not results.
+    #[arg(long, alias = "quick")]
+    pub smoke: bool,
     /// Output folder (created; files are replaced atomically).
     #[arg(long, default_value = "neusample-report")]
     pub out: PathBuf,
-    /// Use the committed fixture blobs instead of training.
+    /// Train every sampler instead of using the committed pretrained blobs (`fixtures/`).
     #[arg(long)]
-    pub use_fixtures: bool,
+    pub train: bool,
+    /// Pretrained blobs from this folder (`<material>/<method>.nsb`) instead of the committed
+    /// `fixtures/blobs/`.
+    #[arg(long, conflicts_with = "train")]
+    pub blobs: Option<PathBuf>,
     /// Materials (built-in names or files, `.nsb` neural materials included); default: the
     /// neural versions of the three demo materials (or the procedural ones with
     /// --procedural).
@@ -33,18 +38,18 @@ pub struct DemoArgs {
     pub seed: u64,
     /// Multiplies every method's default training steps (1 = the defaults of `neusample
     /// train`; the demo's 0.5 keeps the full run within ten minutes on 2 cores, at some cost in
-    /// fit: 1 gives the better samplers of `neusample train`). Not used with --quick or
-    /// --use-fixtures.
+    /// fit: 1 gives the better samplers of `neusample train`). Used with --train only, and
+    /// not with --smoke.
     #[arg(long, default_value_t = 0.5)]
     pub steps_scale: f64,
-    /// Image width in pixels (height = 3/4 of it); default 160, 64 with --quick.
+    /// Image width in pixels (height = 3/4 of it); default 128, 64 with --smoke.
     #[arg(long)]
     pub width: Option<usize>,
     /// Equal-spp sample count N (convergence up to it; the baseline's equal-time budget);
-    /// default 32, 8 with --quick.
+    /// default 32, 8 with --smoke.
     #[arg(long)]
     pub spp: Option<u32>,
-    /// Radiance of the sun disc (0: sky only).
+    /// Radiance of the sun disc (0: sky only); with --sky or --envmap.
     #[arg(long, default_value_t = 60.0)]
     pub sun_radiance: f32,
     /// Angular radius of the sun, degrees.
@@ -54,10 +59,12 @@ pub struct DemoArgs {
     /// instead of the procedural sky; the sun is added unless --sun-radiance is 0.
     #[arg(long)]
     pub envmap: Option<PathBuf>,
-    /// Uniform white lighting instead of the sky (no sun): the render variance then measures
-    /// the BSDF sampler alone (the paper's uniformly lit scenes).
+    /// Light the scene with the procedural sky and its small bright sun instead of uniform
+    /// white light (the default, under which the render variance measures the BSDF sampler
+    /// alone, as in the paper's uniformly lit scenes). Under the sun, BSDF sampling must also
+    /// find the light, which no sampler does well for broad lobes.
     #[arg(long)]
-    pub uniform_light: bool,
+    pub sky: bool,
     /// Combine BSDF sampling with environment sampling (MIS, power heuristic) instead of
     /// BSDF sampling alone.
     #[arg(long)]
@@ -70,9 +77,10 @@ pub struct DemoArgs {
 impl From<DemoArgs> for DemoConfig {
     fn from(a: DemoArgs) -> Self {
         DemoConfig {
-            quick: a.quick,
+            quick: a.smoke,
             out: a.out,
-            use_fixtures: a.use_fixtures,
+            use_fixtures: !a.train,
+            blobs: a.blobs,
             materials: a.materials,
             procedural: a.procedural,
             seed: a.seed,
@@ -82,7 +90,7 @@ impl From<DemoArgs> for DemoConfig {
             sun_radiance: a.sun_radiance,
             sun_size: a.sun_size,
             envmap: a.envmap,
-            uniform_light: a.uniform_light,
+            uniform_light: !a.sky && a.envmap.is_none(),
             mis: a.mis,
             no_render: a.no_render,
         }
@@ -102,6 +110,9 @@ pub struct FixturesArgs {
     /// their samplers, or all.
     #[arg(long, default_value = "all", value_parser = fixture_set_parser())]
     pub set: FixtureSet,
+    /// Built-in materials (default: the three demo materials).
+    #[arg(long, value_delimiter = ',', default_values_t = DEFAULT_MATERIALS.map(String::from))]
+    pub materials: Vec<String>,
     /// Quick training (for tests of the command itself).
     #[arg(long)]
     pub quick: bool,
@@ -115,5 +126,46 @@ fn fixture_set_parser() -> impl TypedValueParser<Value = FixtureSet> {
 
 /// `neusample fixtures`.
 pub fn fixtures(a: &FixturesArgs) -> Result<()> {
-    demo::regenerate_fixtures(&a.out, &a.materials_out, a.set, a.quick)
+    let names: Vec<&str> = a.materials.iter().map(String::as_str).collect();
+    demo::regenerate_fixtures(&a.out, &a.materials_out, a.set, &names, a.quick)
+}
+
+/// Options of `neusample table`.
+#[derive(Args, Clone, Debug)]
+pub struct TableArgs {
+    /// Output folder: one demo report per lighting and `table.md`.
+    #[arg(long, default_value = "neusample-table")]
+    pub out: PathBuf,
+    /// Built-in materials (default: all thirteen); their neural versions are evaluated, and
+    /// trained into `fixtures/` first where they are not committed.
+    #[arg(long, value_delimiter = ',')]
+    pub materials: Vec<String>,
+    /// Seed of the evaluation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Image width in pixels (height = 3/4 of it).
+    #[arg(long, default_value_t = 128)]
+    pub width: usize,
+    /// Equal-spp sample count N.
+    #[arg(long, default_value_t = 32)]
+    pub spp: u32,
+    /// Only rewrite `table.md` from the reports already in the output folder.
+    #[arg(long)]
+    pub markdown_only: bool,
+    /// The demo's CI-sized smoke test per lighting (numbers are not results).
+    #[arg(long)]
+    pub smoke: bool,
+}
+
+impl From<TableArgs> for TableConfig {
+    fn from(a: TableArgs) -> Self {
+        let mut c = TableConfig::new(a.out);
+        c.materials = a.materials;
+        c.seed = a.seed;
+        c.width = a.width;
+        c.spp = a.spp;
+        c.markdown_only = a.markdown_only;
+        c.smoke = a.smoke;
+        c
+    }
 }

@@ -50,8 +50,12 @@ enum Command {
     },
     /// Regenerate the committed fixture blobs (deterministic).
     Fixtures(demo::FixturesArgs),
-    /// The main job: train every method on the default materials, evaluate, report.
+    /// The main job: evaluate every method on the default materials (committed pretrained
+    /// samplers, or --train), report with intervals.
     Demo(demo::DemoArgs),
+    /// Table 2 and Table 1 over every built-in material under two lightings (the demo
+    /// pipeline on each neural version, committed samplers).
+    Table(demo::TableArgs),
     /// Fit a neural material (feature texture + decoder) to a material (NEURAL.md).
     TrainMaterial(material::TrainMaterialArgs),
     /// Import a neural material from safetensors (NEURAL.md).
@@ -86,6 +90,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Fixtures(a) => demo::fixtures(&a),
         Command::Demo(a) => neusample_precompute::demo::run(&a.into()),
+        Command::Table(a) => neusample_precompute::demo::table::run(&a.into()),
         Command::TrainMaterial(a) => material::train_material(&a),
         Command::ImportMaterial(a) => material::import_material(&a),
         Command::MaterialCost(a) => material::material_cost(&a),

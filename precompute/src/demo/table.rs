@@ -1,0 +1,476 @@
+//! The evaluation over every built-in material (`neusample table`): the demo pipeline on the
+//! neural version of each built-in with the committed samplers, under two lightings, and one
+//! Markdown file with the paper's Table 2 (speed-up over the improved baseline, with intervals)
+//! and Table 1 (time per sample: tracing and shading, material evaluation, sampling) for both.
+//!
+//! Two lightings, because they measure different things: under **uniform white light** the
+//! render's variance comes from the BSDF sampler alone (the paper's uniformly lit scenes);
+//! under the **sky with a small bright sun** BSDF sampling must also find the light, which
+//! for broad lobes no sampler can do well (the paper's environment-lit scenes). The table
+//! keeps them apart instead of averaging them.
+
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+
+use super::config::{neural_fixture, DemoConfig, BASELINE, COSINE, ORACLE};
+use super::fixtures::{fixture_path, fixtures_dir, neural_fixtures};
+use super::pipeline;
+use super::report::{MaterialReport, Report};
+use crate::materials;
+use crate::train::METHODS;
+use crate::util::io::{self, slug};
+use crate::util::stats::Estimate;
+
+/// A lighting of the table.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Lighting {
+    /// Uniform white light: the variance measures the sampler.
+    Uniform,
+    /// The procedural sky with a small bright sun (the demo's default).
+    SkySun,
+}
+
+impl Lighting {
+    /// Both, in the order of the table.
+    pub const ALL: [Lighting; 2] = [Lighting::Uniform, Lighting::SkySun];
+
+    /// Folder name and label.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Lighting::Uniform => "uniform",
+            Lighting::SkySun => "sky-sun",
+        }
+    }
+
+    const fn title(self) -> &'static str {
+        match self {
+            Lighting::Uniform => "uniform white light",
+            Lighting::SkySun => "sky with a small bright sun",
+        }
+    }
+}
+
+/// What `neusample table` runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TableConfig {
+    /// Output folder: `<out>/<lighting>/` holds each lighting's demo report, `<out>/table.md`
+    /// the combined tables.
+    pub out: PathBuf,
+    /// Built-in material names (their neural versions are evaluated); default: all.
+    pub materials: Vec<String>,
+    /// Seed of the evaluation.
+    pub seed: u64,
+    /// Image width (height = 3/4 of it).
+    pub width: usize,
+    /// Equal-spp sample count N.
+    pub spp: u32,
+    /// Only rewrite `table.md` from the reports already in `out`.
+    pub markdown_only: bool,
+    /// The demo's CI-sized smoke test for each lighting (its numbers are not results).
+    pub smoke: bool,
+}
+
+impl TableConfig {
+    /// The defaults of the command line, writing to `out`.
+    #[must_use]
+    pub fn new(out: impl Into<PathBuf>) -> Self {
+        TableConfig {
+            out: out.into(),
+            materials: Vec::new(),
+            seed: 1,
+            width: 128,
+            spp: 32,
+            markdown_only: false,
+            smoke: false,
+        }
+    }
+
+    fn names(&self) -> Vec<String> {
+        if self.materials.is_empty() {
+            materials::builtin_names()
+                .iter()
+                .map(|s| s.to_string())
+                .collect()
+        } else {
+            self.materials.clone()
+        }
+    }
+
+    /// The demo run of one lighting.
+    fn demo(&self, lighting: Lighting) -> DemoConfig {
+        let mut d = DemoConfig::new(self.out.join(lighting.name()));
+        d.use_fixtures = true;
+        d.quick = self.smoke;
+        d.seed = self.seed;
+        if !self.smoke {
+            d.width = Some(self.width);
+            d.spp = Some(self.spp);
+        }
+        d.uniform_light = lighting == Lighting::Uniform;
+        d.materials = self
+            .names()
+            .iter()
+            .map(|n| neural_fixture(n).to_string_lossy().into_owned())
+            .collect();
+        d
+    }
+}
+
+/// `neusample table`: regenerates the neural fixtures that are not committed (training, slow),
+/// runs the demo pipeline for both lightings and writes `<out>/table.md`.
+pub fn run(cfg: &TableConfig) -> Result<()> {
+    let names = cfg.names();
+    for n in &names {
+        materials::builtin(n).with_context(|| format!("`{n}` is not a built-in material"))?;
+    }
+    let mut seconds = Vec::new();
+    if !cfg.markdown_only {
+        let missing: Vec<&str> = names
+            .iter()
+            .map(String::as_str)
+            .filter(|n| !fixtures_complete(n))
+            .collect();
+        if !missing.is_empty() {
+            eprintln!(
+                "neusample table: training the neural fixtures not committed: {}",
+                missing.join(", ")
+            );
+            neural_fixtures(&fixtures_dir(), &neural_dir(), &missing, false)?;
+        }
+        for lighting in Lighting::ALL {
+            let t = Instant::now();
+            pipeline::run(&cfg.demo(lighting))
+                .with_context(|| format!("the {} run", lighting.name()))?;
+            seconds.push(t.elapsed().as_secs_f64());
+        }
+    }
+    let mut reports = Vec::new();
+    for lighting in Lighting::ALL {
+        let path = cfg.out.join(lighting.name()).join("report.json");
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let r: Report = serde_json::from_str(&text)
+            .with_context(|| format!("{} is not a demo report", path.display()))?;
+        reports.push((lighting, r));
+    }
+    let md = table_markdown(&reports, cfg);
+    io::atomic_write(&cfg.out.join("table.md"), md.as_bytes())?;
+    if !seconds.is_empty() {
+        eprintln!(
+            "neusample table: {} materials, {:.0} s ({} s uniform, {:.0} s sky-sun); {}",
+            names.len(),
+            seconds.iter().sum::<f64>(),
+            seconds[0].round(),
+            seconds[1],
+            cfg.out.join("table.md").display()
+        );
+    }
+    Ok(())
+}
+
+fn neural_dir() -> PathBuf {
+    neural_fixture("x")
+        .parent()
+        .map_or_else(PathBuf::new, Path::to_path_buf)
+}
+
+/// Whether the neural version of `name` and every sampler trained on it are committed.
+fn fixtures_complete(name: &str) -> bool {
+    let dir = fixtures_dir();
+    let neural = format!("{}{}", slug(name), super::config::NEURAL_SUFFIX);
+    neural_fixture(name).exists()
+        && METHODS
+            .iter()
+            .all(|m| fixture_path(&dir, &neural, m.name()).exists())
+}
+
+fn fmt_x(v: f64) -> String {
+    if !v.is_finite() {
+        "—".to_string()
+    } else if v >= 10.0 {
+        format!("{v:.1}×")
+    } else {
+        format!("{v:.2}×")
+    }
+}
+
+fn fmt_interval(e: &Estimate) -> String {
+    if e.lo.is_finite() && e.hi.is_finite() {
+        format!("{} [{:.2}–{:.2}]", fmt_x(e.value), e.lo, e.hi)
+    } else {
+        fmt_x(e.value)
+    }
+}
+
+/// The best practical method of a material (largest speed-up, oracle excluded) and its
+/// speed-up.
+fn best_practical(m: &MaterialReport) -> Option<(&str, f64)> {
+    m.methods
+        .iter()
+        .filter(|x| x.method != ORACLE)
+        .filter_map(|x| Some((x.method.as_str(), x.render.as_ref()?.speedup.value)))
+        .filter(|(_, v)| v.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+fn speedup(m: &MaterialReport, method: &str) -> Option<Estimate> {
+    m.methods
+        .iter()
+        .find(|x| x.method == method)
+        .and_then(|x| x.render.as_ref())
+        .map(|r| r.speedup)
+}
+
+/// The combined Markdown: Table 2 per lighting, a summary of which methods win, the equal-spp
+/// error ratios, Table 1 and links to the convergence plots.
+#[must_use]
+pub fn table_markdown(reports: &[(Lighting, Report)], cfg: &TableConfig) -> String {
+    let mut s = String::new();
+    if cfg.smoke {
+        let _ = writeln!(s, "{}\n", super::markdown::SMOKE_LINE);
+    }
+    let _ = writeln!(
+        s,
+        "# neusample over every built-in material (Table 2 and Table 1)\n\n\
+         `neusample table --out {}` (seed {}, {}×{} pixels, N = {} spp): the neural version of \
+         each built-in material with its committed samplers (`fixtures/`), rendered through the \
+         batched path on one patch and sphere, **direct lighting by BSDF sampling** under two \
+         lightings. Each lighting's full report (fits, costs, images, convergence plots, \
+         `report.json`) is in its folder. Speed-up = `(V·t)_baseline / (V·t)_method`: V the \
+         per-sample variance (median of means over independent sample blocks), t the \
+         single-thread time per sample including the neural material's evaluation; in brackets \
+         the 95 % bootstrap interval. **Bold**: best with confidence (its interval clears every \
+         other practical method's); otherwise the verdict names the tie. The oracle (a \
+         per-shading-point table of p*) is a limit, not a method.\n",
+        cfg.out.display(),
+        cfg.seed,
+        cfg.width,
+        cfg.width * 3 / 4,
+        cfg.spp
+    );
+    for (lighting, r) in reports {
+        let _ = writeln!(
+            s,
+            "Run time, {}: {:.0} s on this machine.",
+            lighting.title(),
+            r.seconds
+        );
+    }
+    let _ = writeln!(s);
+    for (lighting, r) in reports {
+        table2(&mut s, *lighting, r);
+    }
+    let _ = writeln!(s, "## Error at equal sample count (MSE ratio, baseline = 1)\n");
+    let _ = writeln!(
+        s,
+        "How much of the baseline's variance each method removes at equal spp, time left out: \
+         the fit's side of Table 2 (point values; intervals in the reports).\n"
+    );
+    for (lighting, r) in reports {
+        mse_ratios(&mut s, *lighting, r);
+    }
+    if let Some((_, r)) = reports.first() {
+        table1(&mut s, r);
+    }
+    let _ = writeln!(s, "## Convergence plots (Fig. 8 style)\n");
+    let _ = writeln!(
+        s,
+        "MSE against time per method, one plot per material and lighting:\n"
+    );
+    let _ = writeln!(s, "| material | {} |", {
+        let v: Vec<&str> = reports.iter().map(|(l, _)| l.title()).collect();
+        v.join(" | ")
+    });
+    let _ = writeln!(s, "|---|{}", "---|".repeat(reports.len()));
+    if let Some((_, first)) = reports.first() {
+        for (i, m) in first.materials.iter().enumerate() {
+            let cells: Vec<String> = reports
+                .iter()
+                .map(|(l, r)| {
+                    r.materials
+                        .get(i)
+                        .and_then(|m| m.figures.as_ref())
+                        .map_or_else(
+                            || "—".to_string(),
+                            |f| format!("[plot]({}/{})", l.name(), f.convergence),
+                        )
+                })
+                .collect();
+            let _ = writeln!(s, "| {} | {} |", m.material, cells.join(" | "));
+        }
+    }
+    let _ = writeln!(s);
+    s
+}
+
+fn method_names(r: &Report) -> Vec<String> {
+    r.materials
+        .first()
+        .map(|m| m.methods.iter().map(|x| x.method.clone()).collect())
+        .unwrap_or_default()
+}
+
+fn table2(s: &mut String, lighting: Lighting, r: &Report) {
+    let methods = method_names(r);
+    let _ = writeln!(s, "## Table 2, {}\n", lighting.title());
+    let _ = writeln!(s, "| material | {} | verdict |", methods.join(" | "));
+    let _ = writeln!(s, "|---|{}---|", "---:|".repeat(methods.len()));
+    let mut best_sum = 0.0;
+    let mut best_n = 0usize;
+    let mut wins: Vec<(String, usize, usize)> = methods
+        .iter()
+        .filter(|m| m.as_str() != ORACLE)
+        .map(|m| (m.clone(), 0, 0))
+        .collect();
+    for m in &r.materials {
+        let cells: Vec<String> = methods
+            .iter()
+            .map(|name| {
+                let t = speedup(m, name).map_or_else(|| "—".to_string(), |e| fmt_interval(&e));
+                match &m.verdict {
+                    Some(v) if v.clear && &v.best == name => format!("**{t}**"),
+                    _ => t,
+                }
+            })
+            .collect();
+        let verdict = match &m.verdict {
+            Some(v) if v.clear => {
+                if let Some(w) = wins.iter_mut().find(|w| w.0 == v.best) {
+                    w.1 += 1;
+                }
+                format!("{} (clear)", v.best)
+            }
+            Some(v) => {
+                for name in std::iter::once(&v.best).chain(&v.tied_with) {
+                    if let Some(w) = wins.iter_mut().find(|w| &w.0 == name) {
+                        w.2 += 1;
+                    }
+                }
+                format!("tie: {}, {}", v.best, v.tied_with.join(", "))
+            }
+            None => "—".to_string(),
+        };
+        if let Some((_, v)) = best_practical(m) {
+            best_sum += v;
+            best_n += 1;
+        }
+        let _ = writeln!(s, "| {} | {} | {verdict} |", m.material, cells.join(" | "));
+    }
+    let _ = writeln!(
+        s,
+        "\nMean over materials of the best practical method's speed-up (point values): **{}** \
+         (paper: 2.58× over its twelve materials). Best with confidence / among the tied best, \
+         per method: {}.\n",
+        fmt_x(if best_n > 0 {
+            best_sum / best_n as f64
+        } else {
+            f64::NAN
+        }),
+        wins.iter()
+            .map(|(n, c, t)| format!("{n} {c} / {t}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+}
+
+fn mse_ratios(s: &mut String, lighting: Lighting, r: &Report) {
+    let methods = method_names(r);
+    let _ = writeln!(s, "**{}**\n", lighting.title());
+    let _ = writeln!(s, "| material | {} |", methods.join(" | "));
+    let _ = writeln!(s, "|---|{}", "---:|".repeat(methods.len()));
+    for m in &r.materials {
+        let cells: Vec<String> = methods
+            .iter()
+            .map(|name| {
+                m.methods
+                    .iter()
+                    .find(|x| &x.method == name)
+                    .and_then(|x| x.render.as_ref())
+                    .map_or_else(|| "—".to_string(), |rr| fmt_x(rr.mse_ratio.value))
+            })
+            .collect();
+        let _ = writeln!(s, "| {} | {} |", m.material, cells.join(" | "));
+    }
+    let _ = writeln!(s);
+}
+
+/// Table 1: the time per sample of each method split into the neural material's evaluation,
+/// sampling (prepare + sample + pdf, batched) and the rest (tracing, shading frames, light
+/// lookups, the integrator), as medians over the materials.
+fn table1(s: &mut String, r: &Report) {
+    let methods: Vec<String> = method_names(r)
+        .into_iter()
+        .filter(|m| m != ORACLE)
+        .collect();
+    let _ = writeln!(s, "## Table 1: where the time per sample goes\n");
+    let _ = writeln!(
+        s,
+        "Single thread, ns per pixel sample, median over the {} materials of the first lighting's \
+         run (ranges in brackets). *Render* is the measured time per sample of the whole render \
+         loop; *material eval* the neural material's batched evaluation per call and *sampling* \
+         the method's batched prepare + sample + pdf per shading point, both measured apart \
+         (`report.json` `cost`); *rest* = render − eval − sampling: tracing, frames, the light, \
+         the integrator. The paper's Table 1 gives sampling as 5–26 % of the material's \
+         evaluation on its GPU.\n",
+        r.materials.len()
+    );
+    let _ = writeln!(
+        s,
+        "| method | render | material eval | sampling | rest | sampling ÷ eval |"
+    );
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|");
+    for name in &methods {
+        let mut render = Vec::new();
+        let mut eval = Vec::new();
+        let mut samp = Vec::new();
+        let mut rest = Vec::new();
+        let mut ratio = Vec::new();
+        for m in &r.materials {
+            let Some(x) = m.methods.iter().find(|x| &x.method == name) else {
+                continue;
+            };
+            let Some(rr) = &x.render else { continue };
+            let e = m
+                .neural
+                .as_ref()
+                .map_or(x.cost.material_eval_ns, |n| n.cost.eval_batch_ns);
+            render.push(rr.ns_per_sample);
+            eval.push(e);
+            samp.push(x.cost.total_ns);
+            rest.push(rr.ns_per_sample - e - x.cost.total_ns);
+            ratio.push(x.cost.total_ns / e.max(1e-9));
+        }
+        let _ = writeln!(
+            s,
+            "| {name} | {} | {} | {} | {} | {} |",
+            med_range(&mut render, 0),
+            med_range(&mut eval, 0),
+            med_range(&mut samp, 0),
+            med_range(&mut rest, 0),
+            med_range(&mut ratio, 2),
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n{COSINE} and {BASELINE} bound the range: everything above the cosine row's render \
+         time is what a method's sampling and its effect on the path cost.\n"
+    );
+}
+
+fn med_range(v: &mut Vec<f64>, digits: usize) -> String {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return "—".to_string();
+    }
+    v.sort_by(f64::total_cmp);
+    let med = v[v.len() / 2];
+    format!(
+        "{med:.digits$} ({:.digits$}–{:.digits$})",
+        v[0],
+        v[v.len() - 1]
+    )
+}
