@@ -16,7 +16,8 @@
 //! ```text
 //! image ─┐
 //! geometry (Ray, Camera, Shape, Object) ─┐
-//! sky, envmap → environment (lighting + its sampling) ─┴→ scene (Scene, demo_scene)
+//! sky, envmap → environment (lighting + its sampling) ─┴→ scene (Scene, demo_scene,
+//!                                                          showcase_scene)
 //! material (Material, Surface) ──→ integrator (options, per-pixel recipe, Render)
 //!                                    → scalar (render), wavefront (render_wavefront) → timing
 //! rng (per-item streams) ───────────┘
@@ -28,7 +29,9 @@
 //! planar patch and a sphere: [`Shape`]) each naming a [`Surface`] (a [`Material`] and its
 //! [`neusample::Sampler`]), and an [`Environment`]: a procedural sky with a sun ([`Sky`]; the
 //! small, very bright sun is what makes sampling quality matter) or an equirectangular map
-//! ([`EnvMap`]), plus the sun.
+//! ([`EnvMap`]), plus the sun. Two presets: [`demo_scene`] (a patch and a sphere of one
+//! material, the evaluation scene) and [`showcase_scene`] (a floor and four spheres, each
+//! object with its own surface, close enough to light each other).
 //!
 //! Texture coordinates: the patch maps its square to `[0, 1)²` times its tiling scale; the
 //! sphere uses `u = φ/2π` (times twice the scale, so texels stay square at the equator) and
@@ -97,7 +100,7 @@ pub use image::Image;
 pub use integrator::{powers_of_two, Estimator, Render, RenderOptions, WAVEFRONT_PIXELS};
 pub use material::{eval_per_lane, features_per_lane, luminance, Material, Surface};
 pub use scalar::render;
-pub use scene::{demo_scene, Scene, SceneParams};
+pub use scene::{demo_scene, showcase_scene, Scene, SceneParams, ShowcaseParams, SHOWCASE_OBJECTS};
 pub use sky::Sky;
 pub use timing::{time_per_sample, time_per_sample_wavefront};
 pub use wavefront::render_wavefront;

@@ -104,3 +104,37 @@ fn environment_sampling_is_consistent() {
     eprintln!("E[L/pdf] = {est:.5}, quadrature {quad:.5}");
     assert!((est - quad).abs() < 0.01 * quad, "{est} vs {quad}");
 }
+
+/// The showcase frames its objects: the floor fills the background (every primary ray hits
+/// something), every surface is seen, and the spheres stand apart on the floor.
+#[test]
+fn showcase_scene_frames_every_surface() {
+    let p = neusample_render::ShowcaseParams::default();
+    let scene = neusample_render::showcase_scene(&p);
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let mut seen = vec![0usize; p.surfaces];
+    for y in 0..h {
+        for x in 0..w {
+            let r = scene.camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+            let hit = scene
+                .intersect(&r)
+                .expect("every pixel sees the floor or a sphere");
+            seen[hit.surface] += 1;
+        }
+    }
+    assert!(seen.iter().all(|&n| n > 0), "{seen:?}");
+    let spheres: Vec<(Vec3, f32)> = scene
+        .objects
+        .iter()
+        .filter_map(|o| match o.shape {
+            Shape::Sphere { center, radius } => Some((center, radius)),
+            Shape::Patch { .. } => None,
+        })
+        .collect();
+    for (i, a) in spheres.iter().enumerate() {
+        assert!((a.0.z - a.1).abs() < 1e-6, "sphere {i} stands on the floor");
+        for b in &spheres[i + 1..] {
+            assert!(a.0.distance(b.0) > a.1 + b.1, "spheres overlap");
+        }
+    }
+}

@@ -22,7 +22,7 @@ fn fmt_x(v: Option<f64>) -> String {
 }
 
 /// `2.49× [1.90–3.10]`: a ratio with its 95 % interval (the interval left out when unknown).
-fn fmt_x_interval(e: &Estimate) -> String {
+pub(super) fn fmt_x_interval(e: &Estimate) -> String {
     let v = fmt_x(Some(e.value));
     if e.lo.is_finite() && e.hi.is_finite() {
         format!("{v} [{:.2}–{:.2}]", e.lo, e.hi)
@@ -32,7 +32,7 @@ fn fmt_x_interval(e: &Estimate) -> String {
 }
 
 /// `1.2e-3 [0.9e-3–1.6e-3]`: an MSE with its 95 % interval.
-fn fmt_e_interval(e: &Estimate) -> String {
+pub(super) fn fmt_e_interval(e: &Estimate) -> String {
     if e.lo.is_finite() && e.hi.is_finite() {
         format!("{:.2e} [{:.2e}–{:.2e}]", e.value, e.lo, e.hi)
     } else {

@@ -16,6 +16,9 @@
 //! It writes `report.md`, `report.json` (schema in README.md and [`Report`]), `images/`,
 //! `plots/` and `blobs/` into the output folder, every file atomically.
 //!
+//! [`showcase`] is `neusample scene`: several neural materials in one scene, the baseline
+//! against the best sampler per material at equal time.
+//!
 //! Files: `config` (names, [`DemoConfig`], run sizes, the materials evaluated), `pipeline`
 //! ([`run`]), `fixtures` ([`regenerate_fixtures`]), `report` (the JSON schema), `markdown`
 //! ([`markdown()`]), [`figures`] and [`table`] (every built-in material under two lightings,
@@ -28,6 +31,7 @@ mod markdown;
 mod pipeline;
 mod report;
 pub mod table;
+pub mod showcase;
 
 pub use config::{
     neural_fixture, resolve_demo_material, DemoConfig, DemoMaterial, BASELINE, COSINE,

@@ -300,9 +300,11 @@ pub fn variance(blocks: &[f64], seed: u64) -> Estimate {
     bootstrap([blocks], seed, |[b]| robust_variance(b))
 }
 
-/// The median of means of block variances, kept above [`MSE_FLOOR`] (a block's MSE minus the
-/// reference noise may come out below zero for a near-exact technique).
-fn robust_variance(blocks: &[f64]) -> f64 {
+/// The median of means of block variances over [`MOM_GROUPS`] groups, kept above
+/// [`MSE_FLOOR`] (a block's MSE minus the reference noise may come out below zero for a
+/// near-exact technique): the statistic of [`variance`].
+#[must_use]
+pub fn robust_variance(blocks: &[f64]) -> f64 {
     median_of_means(blocks, MOM_GROUPS).max(MSE_FLOOR)
 }
 

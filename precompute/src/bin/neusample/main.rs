@@ -6,6 +6,7 @@ mod bench;
 mod demo;
 mod material;
 mod output;
+mod scene;
 mod train;
 
 use std::path::PathBuf;
@@ -56,6 +57,9 @@ enum Command {
     /// Table 2 and Table 1 over every built-in material under two lightings (the demo
     /// pipeline on each neural version, committed samplers).
     Table(demo::TableArgs),
+    /// Several neural materials in one scene (sky, MIS, global illumination): the baseline
+    /// against the best sampler per material at equal time, with a reference.
+    Scene(scene::SceneArgs),
     /// Fit a neural material (feature texture + decoder) to a material (NEURAL.md).
     TrainMaterial(material::TrainMaterialArgs),
     /// Import a neural material from safetensors (NEURAL.md).
@@ -91,6 +95,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Fixtures(a) => demo::fixtures(&a),
         Command::Demo(a) => neusample_precompute::demo::run(&a.into()),
         Command::Table(a) => neusample_precompute::demo::table::run(&a.into()),
+        Command::Scene(a) => neusample_precompute::demo::showcase::run(&a.into()),
         Command::TrainMaterial(a) => material::train_material(&a),
         Command::ImportMaterial(a) => material::import_material(&a),
         Command::MaterialCost(a) => material::material_cost(&a),
