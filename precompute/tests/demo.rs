@@ -38,7 +38,11 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
     assert!(r.quick && r.fixtures && r.steps_scale.is_none());
     // A smoke test says so before anything else.
     let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
-    assert!(md.starts_with(demo::SMOKE_LINE), "{}", &md[..200.min(md.len())]);
+    assert!(
+        md.starts_with(demo::SMOKE_LINE),
+        "{}",
+        &md[..200.min(md.len())]
+    );
     let setup = r.render.as_ref().expect("rendered");
     let max_spp = setup.settings.max_spp;
     assert_eq!(r.materials.len(), demo::DEFAULT_MATERIALS.len());

@@ -77,6 +77,10 @@ pub struct DemoConfig {
     pub mis: bool,
     /// Skip the rendering evaluation (fit and cost only).
     pub no_render: bool,
+    /// Random conditions of the fit measures; default 64, 24 with `quick`.
+    pub eval_conditions: Option<usize>,
+    /// Interleaved single-thread timing passes per method; default 11, 5 with `quick`.
+    pub timing_passes: Option<usize>,
 }
 
 impl DemoConfig {
@@ -100,6 +104,8 @@ impl DemoConfig {
             uniform_light: true,
             mis: false,
             no_render: false,
+            eval_conditions: None,
+            timing_passes: None,
         }
     }
 }
@@ -201,7 +207,7 @@ pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
     };
     let q = a.quick;
     Ok(Preset {
-        eval_conditions: if q { 24 } else { 128 },
+        eval_conditions: a.eval_conditions.unwrap_or(if q { 24 } else { 64 }),
         eval_res: if q { 64 } else { 96 },
         cost_n: if q { 2000 } else { 10000 },
         cost_passes: if q { 3 } else { 5 },
@@ -221,7 +227,7 @@ pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
             ref_res: if q { 32 } else { 40 },
             oracle_res: if q { 24 } else { 32 },
             timing_spp: 1,
-            timing_passes: if q { 5 } else { 15 },
+            timing_passes: a.timing_passes.unwrap_or(if q { 5 } else { 11 }),
             max_equal_time_spp: 64 * spp,
             estimator: if a.mis {
                 Estimator::Mis

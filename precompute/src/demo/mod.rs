@@ -30,8 +30,8 @@ mod fixtures;
 mod markdown;
 mod pipeline;
 mod report;
-pub mod table;
 pub mod showcase;
+pub mod table;
 
 pub use config::{
     neural_fixture, resolve_demo_material, DemoConfig, DemoMaterial, BASELINE, COSINE,
@@ -40,8 +40,8 @@ pub use config::{
 pub use fixtures::{fixtures_dir, regenerate_fixtures, FixtureSet};
 pub use markdown::{markdown, SMOKE_LINE};
 pub use pipeline::run;
-pub use table::{Lighting, TableConfig};
 pub use report::{
     FigureReport, MaterialReport, MethodReport, NeuralReport, ReferenceReport, RenderReport,
     RenderSetup, Report, REPORT_SCHEMA,
 };
+pub use table::{Lighting, TableConfig};

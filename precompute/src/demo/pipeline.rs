@@ -190,11 +190,11 @@ pub fn run(a: &DemoConfig) -> Result<()> {
             let (r, f, b) = render_material(&out, m.as_ref(), &blobs, &p, &pb, &mut methods)?;
             (Some(r), Some(f), Some(b))
         };
-        pb.println(format!(
+        eprintln!(
             "{mname}: {:.0} s training, fits and costs, {:.0} s rendering",
             fit_seconds,
             material_started.elapsed().as_secs_f64() - fit_seconds
-        ));
+        );
         report.materials.push(MaterialReport {
             material: mname,
             neural,

@@ -90,9 +90,11 @@ impl From<DemoArgs> for DemoConfig {
             sun_radiance: a.sun_radiance,
             sun_size: a.sun_size,
             envmap: a.envmap,
-            uniform_light: !a.sky && a.envmap.is_none(),
+            uniform_light: !a.sky,
             mis: a.mis,
             no_render: a.no_render,
+            eval_conditions: None,
+            timing_passes: None,
         }
     }
 }
