@@ -56,7 +56,7 @@ pub struct DemoConfig {
     /// fit: 1 gives the better samplers of `neusample train`). Not used with `quick` or
     /// `use_fixtures`.
     pub steps_scale: f64,
-    /// Image width in pixels (height = 3/4 of it); default 128, 64 with `quick`.
+    /// Image width in pixels (height = 3/4 of it); default 112, 64 with `quick`.
     pub width: Option<usize>,
     /// Equal-spp sample count N (convergence up to it; the baseline's equal-time budget);
     /// default 32, 8 with `quick`.
@@ -181,7 +181,7 @@ pub(crate) struct Preset {
 }
 
 pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
-    let width = a.width.unwrap_or(if a.quick { 64 } else { 128 });
+    let width = a.width.unwrap_or(if a.quick { 64 } else { 112 });
     anyhow::ensure!(
         (8..=4096).contains(&width),
         "--width must be in 8..=4096, got {width}"

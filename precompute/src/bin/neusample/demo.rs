@@ -42,7 +42,7 @@ pub struct DemoArgs {
     /// not with --smoke.
     #[arg(long, default_value_t = 0.5)]
     pub steps_scale: f64,
-    /// Image width in pixels (height = 3/4 of it); default 128, 64 with --smoke.
+    /// Image width in pixels (height = 3/4 of it); default 112, 64 with --smoke.
     #[arg(long)]
     pub width: Option<usize>,
     /// Equal-spp sample count N (convergence up to it; the baseline's equal-time budget);
