@@ -58,14 +58,18 @@ pub enum FixtureSet {
     Neural,
     /// Both.
     All,
+    /// Only the `conditions.txt` files of the neural versions' sampler folders (for the
+    /// runtime's statistical tests), without training.
+    Conditions,
 }
 
 impl FixtureSet {
     /// Every set with its command-line name.
-    pub const NAMES: [(&'static str, FixtureSet); 3] = [
+    pub const NAMES: [(&'static str, FixtureSet); 4] = [
         ("procedural", FixtureSet::Procedural),
         ("neural", FixtureSet::Neural),
         ("all", FixtureSet::All),
+        ("conditions", FixtureSet::Conditions),
     ];
 }
 
@@ -76,7 +80,9 @@ impl std::str::FromStr for FixtureSet {
             .iter()
             .find(|(n, _)| *n == s)
             .map(|&(_, set)| set)
-            .ok_or_else(|| anyhow::anyhow!("unknown fixture set `{s}` (procedural, neural, all)"))
+            .ok_or_else(|| {
+                anyhow::anyhow!("unknown fixture set `{s}` (procedural, neural, all, conditions)")
+            })
     }
 }
 
@@ -96,6 +102,13 @@ pub fn regenerate_fixtures(
         &out.join("cosine.nsb"),
         &BlobWriter::new(SamplerKind::Cosine, DType::F32, "cosine").to_bytes(),
     )?;
+    if set == FixtureSet::Conditions {
+        for name in names {
+            let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
+            write_conditions(out, &NeuralMaterialModel::load(&path)?)?;
+        }
+        return Ok(());
+    }
     if set != FixtureSet::Neural {
         for name in names {
             fixture_samplers(out, materials::builtin(name)?.as_ref(), quick)?;
@@ -131,12 +144,10 @@ pub(crate) fn neural_fixtures(
     Ok(())
 }
 
-/// Every method trained on `m` into `<out>/<m.name()>/`, plus the conditions file.
-fn fixture_samplers(out: &Path, m: &dyn Material, quick: bool) -> Result<()> {
-    let name = io::slug(m.name());
-    let pb = stages_bar(METHODS.len() as u64, &format!("fixtures {name}"));
-    // Conditions drawn from the material, for the runtime's statistical tests (which do not
-    // link the materials): one "φ0 … φ7 wi.x wi.y wi.z" line each.
+/// Conditions drawn from the material, for the runtime's statistical tests (which do not
+/// link the materials): `<out>/<m.name()>/conditions.txt`, one "φ0 … φ7 wi.x wi.y wi.z" line
+/// each.
+fn write_conditions(out: &Path, m: &dyn Material) -> Result<()> {
     let conds = groundtruth::conditions(m, 256, 0xC0DE);
     let mut text = String::from("# phi0..phi7 wi.x wi.y wi.z (local frame), from the material\n");
     for c in &conds {
@@ -145,7 +156,17 @@ fn fixture_samplers(out: &Path, m: &dyn Material, quick: bool) -> Result<()> {
         }
         text.push_str(&format!("{:e} {:e} {:e}\n", c.wi.x, c.wi.y, c.wi.z));
     }
-    io::atomic_write(&out.join(&name).join("conditions.txt"), text.as_bytes())?;
+    io::atomic_write(
+        &out.join(io::slug(m.name())).join("conditions.txt"),
+        text.as_bytes(),
+    )
+}
+
+/// Every method trained on `m` into `<out>/<m.name()>/`, plus the conditions file.
+fn fixture_samplers(out: &Path, m: &dyn Material, quick: bool) -> Result<()> {
+    let name = io::slug(m.name());
+    let pb = stages_bar(METHODS.len() as u64, &format!("fixtures {name}"));
+    write_conditions(out, m)?;
     for method in METHODS {
         let method_name = method.name();
         pb.set_message(format!("{name}/{method_name}"));
