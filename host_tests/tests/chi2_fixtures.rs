@@ -20,10 +20,12 @@ use neusample_host_tests::{
 
 #[test]
 fn every_fixture_blob_passes_chi2() {
+    // Fast run: five conditions per blob over every fixture folder, about as many in all as
+    // twelve over the demo materials' folders alone.
     let (per_blob, samples) = if full_tests() {
         (128, 200_000)
     } else {
-        (12, 40_000)
+        (5, 40_000)
     };
     let mut materials: Vec<PathBuf> = std::fs::read_dir(fixture_blobs_dir())
         .expect("fixtures/blobs is missing: run `neusample fixtures`")
@@ -146,7 +148,7 @@ fn every_fixture_blob_passes_chi2_on_the_batched_path() {
     let (per_blob, samples) = if full_tests() {
         (32, 200_000)
     } else {
-        (4, 40_000)
+        (2, 40_000)
     };
     let jobs = fixture_jobs(per_blob);
     assert!(jobs.len() >= 36, "expected 6 materials × 6 methods");

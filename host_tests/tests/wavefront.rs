@@ -339,7 +339,11 @@ fn neural_material_batched_equals_scalar() {
         .map(|e| e.path())
         .collect();
     files.sort();
-    assert_eq!(files.len(), 3);
+    assert!(
+        files.len() >= 3,
+        "expected the neural fixtures, found {}",
+        files.len()
+    );
     for f in files {
         let bytes = std::fs::read(&f).unwrap();
         let blob = Blob::open(&bytes).unwrap();
