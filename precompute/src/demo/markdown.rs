@@ -8,7 +8,7 @@ use neusample_render::Estimator;
 use super::report::Report;
 use crate::util::stats::Estimate;
 
-fn fmt_x(v: Option<f64>) -> String {
+pub(super) fn fmt_x(v: Option<f64>) -> String {
     match v {
         Some(x) if x.is_finite() => {
             if x >= 10.0 {

@@ -17,6 +17,7 @@ use anyhow::{Context, Result};
 
 use super::config::{neural_fixture, DemoConfig, BASELINE, COSINE, ORACLE};
 use super::fixtures::{fixture_path, fixtures_dir, neural_fixtures};
+use super::markdown::{fmt_x, fmt_x_interval};
 use super::pipeline;
 use super::report::{MaterialReport, Report};
 use crate::materials;
@@ -196,24 +197,6 @@ fn fixtures_complete(name: &str) -> bool {
             .all(|m| fixture_path(&dir, &neural, m.name()).exists())
 }
 
-fn fmt_x(v: f64) -> String {
-    if !v.is_finite() {
-        "—".to_string()
-    } else if v >= 10.0 {
-        format!("{v:.1}×")
-    } else {
-        format!("{v:.2}×")
-    }
-}
-
-fn fmt_interval(e: &Estimate) -> String {
-    if e.lo.is_finite() && e.hi.is_finite() {
-        format!("{} [{:.2}–{:.2}]", fmt_x(e.value), e.lo, e.hi)
-    } else {
-        fmt_x(e.value)
-    }
-}
-
 /// The best practical method of a material (largest speed-up, oracle excluded) and its
 /// speed-up.
 fn best_practical(m: &MaterialReport) -> Option<(&str, f64)> {
@@ -341,7 +324,7 @@ fn table2(s: &mut String, lighting: Lighting, r: &Report) {
         let cells: Vec<String> = methods
             .iter()
             .map(|name| {
-                let t = speedup(m, name).map_or_else(|| "—".to_string(), |e| fmt_interval(&e));
+                let t = speedup(m, name).map_or_else(|| "—".to_string(), |e| fmt_x_interval(&e));
                 match &m.verdict {
                     Some(v) if v.clear && &v.best == name => format!("**{t}**"),
                     _ => t,
@@ -376,11 +359,7 @@ fn table2(s: &mut String, lighting: Lighting, r: &Report) {
         "\nMean over materials of the best practical method's speed-up (point values): **{}** \
          (paper: 2.58× over its twelve materials). Best with confidence / among the tied best, \
          per method: {}.\n",
-        fmt_x(if best_n > 0 {
-            best_sum / best_n as f64
-        } else {
-            f64::NAN
-        }),
+        fmt_x((best_n > 0).then(|| best_sum / best_n as f64)),
         wins.iter()
             .map(|(n, c, t)| format!("{n} {c} / {t}"))
             .collect::<Vec<_>>()
@@ -401,7 +380,7 @@ fn mse_ratios(s: &mut String, lighting: Lighting, r: &Report) {
                     .iter()
                     .find(|x| &x.method == name)
                     .and_then(|x| x.render.as_ref())
-                    .map_or_else(|| "—".to_string(), |rr| fmt_x(rr.mse_ratio.value))
+                    .map_or_else(|| "—".to_string(), |rr| fmt_x(Some(rr.mse_ratio.value)))
             })
             .collect();
         let _ = writeln!(s, "| {} | {} |", m.material, cells.join(" | "));
