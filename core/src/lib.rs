@@ -96,10 +96,10 @@ pub use neural_material::NeuralMaterial;
 pub use nn::FEATURE_DIM;
 pub use samplers::{
     AffineFlowPrepared, AffineFlowSampler, AnalyticMixturePrepared, AnalyticMixtureSampler,
-    AnyPrepared, AnySampler, CosinePrepared, CosineSampler, DirectHistogramPrepared,
-    DirectHistogramSampler, FlowPrepared, FlowSampler, HistogramMixturePrepared,
-    HistogramMixtureSampler, ImprovedBaselinePrepared, ImprovedBaselineSampler, Prepared, Sample,
-    Sampler,
+    AnyPrepared, AnySampler, BlobSampler, CosinePrepared, CosineSampler, Defensive,
+    DefensivePrepared, DirectHistogramPrepared, DirectHistogramSampler, FlowPrepared, FlowSampler,
+    HistogramMixturePrepared, HistogramMixtureSampler, ImprovedBaselinePrepared,
+    ImprovedBaselineSampler, Prepared, Sample, Sampler,
 };
 pub use warp::Frame;
 pub use weights::{Tensor, Weights};

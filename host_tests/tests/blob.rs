@@ -144,12 +144,21 @@ fn wrong_magic_version_and_kind() {
     b[0] = b'X';
     assert_eq!(Blob::open(&b).unwrap_err(), Error::BadMagic);
     let mut b = bytes.clone();
-    b[8] = 2;
+    b[8] = 3;
     assert_eq!(
         Blob::open(&b).unwrap_err(),
         Error::UnsupportedVersion {
-            found: 2,
-            supported: 1
+            found: 3,
+            supported: 2
+        }
+    );
+    let mut b = bytes.clone();
+    b[8] = 0;
+    assert_eq!(
+        Blob::open(&b).unwrap_err(),
+        Error::UnsupportedVersion {
+            found: 0,
+            supported: 2
         }
     );
     let blob = Blob::open(&bytes).unwrap();

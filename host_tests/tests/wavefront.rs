@@ -12,8 +12,8 @@ use neusample::wavefront::{
     Vec3sMut,
 };
 use neusample::{
-    AnySampler, Blob, BlobWriter, DType, Error, Prepared, Sampler, SamplerKind, TensorRole, Vec2,
-    Vec3, FEATURE_DIM,
+    AnySampler, Blob, BlobSampler, BlobWriter, DType, Defensive, Error, Prepared, Sampler,
+    SamplerKind, TensorRole, Vec2, Vec3, FEATURE_DIM,
 };
 use neusample_host_tests::{fixture_blobs_dir, fixture_conditions, rng, Condition, TestRng};
 use rand::RngExt;
@@ -271,28 +271,44 @@ fn every_fixture_sampler_batched_equals_scalar() {
                 check_sampler(&sampler, &ls, &format!("{what} AnySampler"));
                 check_concrete(&sampler, &ls, &what);
             }
+            // The same blob with a defensive weight: the learned part's batched kernels
+            // with the cosine lanes gathered, against the scalar mixture.
+            let defended = reencode_with(bytes, blob.header().dtype, 0.25);
+            let blob = Blob::open(&defended).unwrap();
+            assert_eq!((blob.version(), blob.defensive()), (2, 0.25));
+            let sampler = blob.sampler().unwrap();
+            let ls = lanes(&mut r, conds, 97);
+            let what = format!("{} α = 0.25 ({})", path.display(), isa.name());
+            check_sampler(&sampler, &ls, &format!("{what} AnySampler"));
+            check_concrete(&sampler, &ls, &what);
         }
     });
 }
 
 /// The same checks through the concrete sampler type (its own lane type).
-fn check_concrete(s: &AnySampler<'_>, ls: &[Lane], what: &str) {
-    match s {
-        AnySampler::Cosine(x) => check_sampler(x, ls, what),
-        AnySampler::ImprovedBaseline(x) => check_sampler(x, ls, what),
-        AnySampler::AnalyticMixture(x) => check_sampler(x, ls, what),
-        AnySampler::Flow(x) => check_sampler(x, ls, what),
-        AnySampler::AffineFlow(x) => check_sampler(x, ls, what),
-        AnySampler::DirectHistogram(x) => check_sampler(x, ls, what),
-        AnySampler::HistogramMixture(x) => check_sampler(x, ls, what),
+fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) {
+    let a = s.alpha();
+    match *s.inner() {
+        AnySampler::Cosine(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::ImprovedBaseline(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::AnalyticMixture(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::Flow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::AffineFlow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::DirectHistogram(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::HistogramMixture(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
     }
 }
 
 /// Re-encodes a blob's tensors as `dtype` (f16 exercises the widening of weight tiles).
 fn reencode(bytes: &[u8], dtype: DType) -> Vec<u8> {
+    reencode_with(bytes, dtype, Blob::open(bytes).unwrap().defensive())
+}
+
+/// [`reencode`] with the defensive weight `alpha`.
+fn reencode_with(bytes: &[u8], dtype: DType, alpha: f32) -> Vec<u8> {
     let blob = Blob::open(bytes).unwrap();
     let h = *blob.header();
-    let mut w = BlobWriter::new(h.kind, dtype, "re-encoded");
+    let mut w = BlobWriter::new(h.kind, dtype, "re-encoded").defensive(alpha);
     if h.kind == SamplerKind::HistogramMixture {
         w = w.histogram_dims(h.t_levels, h.resolution, h.interpolation);
     }
@@ -300,7 +316,12 @@ fn reencode(bytes: &[u8], dtype: DType) -> Vec<u8> {
         if let Some(t) = blob.tensor(role) {
             let mut v = vec![0.0f32; neusample::Weights::len(&t) as usize];
             blob.widen_into(role, &mut v).unwrap();
-            w.tensor(role, &v);
+            if blob.entry(role).unwrap().dtype == DType::U16 {
+                let q: Vec<u16> = v.iter().map(|&x| x as u16).collect();
+                w.tensor_u16(role, &q);
+            } else {
+                w.tensor(role, &v);
+            }
         }
     }
     w.to_bytes()

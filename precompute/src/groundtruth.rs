@@ -391,6 +391,103 @@ impl TargetPdf {
         }
         kl * h * h
     }
+
+    /// The χ² divergence `χ²(p* ‖ q) = ∫ p*² / q − 1 = Σ_cells p*_c² / q(m_c) · h² − 1`: the
+    /// relative variance of the one-sample estimator `p*/q` with samples from `q`, i.e. the
+    /// render's variance per sample relative to perfect importance sampling (the measure that
+    /// KL does not see where `q ≪ p*` on little mass). `q ≤ 0` or non-finite counts as
+    /// [`KL_Q_FLOOR`].
+    pub fn chi2_from(&self, q: impl Fn(Vec2) -> f32) -> f64 {
+        let res = self.res;
+        let h = 2.0 / res as f64;
+        let mut m2 = 0.0f64;
+        for r in 0..res {
+            for c in 0..res {
+                let p = f64::from(self.density[r * res + c]);
+                if p <= 0.0 {
+                    continue;
+                }
+                let qv = f64::from(q(cell_midpoint(res, r, c)));
+                let qv = if qv.is_finite() && qv > KL_Q_FLOOR {
+                    qv
+                } else {
+                    KL_Q_FLOOR
+                };
+                m2 += p * p / qv;
+            }
+        }
+        m2 * h * h - 1.0
+    }
+}
+
+/// Nodes of [`rim_quadrature`] along the radius and around it.
+pub const RIM_RADIAL: usize = 64;
+/// See [`RIM_RADIAL`].
+pub const RIM_ANGULAR: usize = 256;
+
+/// A quadrature of the whole open disk that resolves the rim: polar midpoints with
+/// `r = 1 − s²` (s uniform), so that the outermost ring lies within `1/(4·radial²)` of the
+/// horizon — where a tabulated target (cells wholly inside the disk, the release's 0.98
+/// cut-off) sees nothing, but a material that reflects at grazing angles puts mass and a
+/// sampler with thin tails puts its largest weights. Returns `(point, area weight)` pairs;
+/// the weights sum to π up to the midpoint rule's error.
+#[must_use]
+pub fn rim_quadrature(radial: usize, angular: usize) -> Vec<(Vec2, f64)> {
+    let mut q = Vec::with_capacity(radial * angular);
+    let ds = 1.0 / radial as f64;
+    let dphi = std::f64::consts::TAU / angular as f64;
+    for i in 0..radial {
+        let s = (i as f64 + 0.5) * ds;
+        let r = 1.0 - s * s;
+        // dA = r dr dφ, dr = 2s ds.
+        let w = r * 2.0 * s * ds * dphi;
+        for j in 0..angular {
+            let phi = (j as f64 + 0.5) * dphi;
+            q.push((Vec2::new((r * phi.cos()) as f32, (r * phi.sin()) as f32), w));
+        }
+    }
+    q
+}
+
+/// `∫ Y(f)` and `∫ Y(f)²/q` over the disk with [`rim_quadrature`] nodes `nodes`, `q` a disk
+/// density (≤ 0 or non-finite counts as [`KL_Q_FLOOR`]). `χ²(p* ‖ q) = m2 / a² − 1`, and `m2`
+/// is the second moment of the one-bounce estimator `Y(f)·cos/p_ω` under uniform light.
+#[must_use]
+pub fn rim_moments(
+    m: &dyn Material,
+    c: &Condition,
+    nodes: &[(Vec2, f64)],
+    q: impl Fn(Vec2) -> f32,
+) -> (f64, f64) {
+    let (mut a, mut m2) = (0.0f64, 0.0f64);
+    for &(p, w) in nodes {
+        let Some(wo) = neusample::warp::from_disk(p) else {
+            continue;
+        };
+        let f = f64::from(luminance(m.eval(&c.phi, c.wi, wo)));
+        if !(f > 0.0 && f.is_finite()) {
+            continue;
+        }
+        let qv = f64::from(q(p));
+        let qv = if qv.is_finite() && qv > KL_Q_FLOOR {
+            qv
+        } else {
+            KL_Q_FLOOR
+        };
+        a += f * w;
+        m2 += f * f / qv * w;
+    }
+    (a, m2)
+}
+
+/// The midpoint of cell `(r, c)` of an `res × res` grid over `[−1, 1]²` (rows = y).
+#[must_use]
+pub fn cell_midpoint(res: usize, r: usize, c: usize) -> Vec2 {
+    let h = 2.0 / res as f64;
+    Vec2::new(
+        (-1.0 + (c as f64 + 0.5) * h) as f32,
+        (-1.0 + (r as f64 + 0.5) * h) as f32,
+    )
 }
 
 impl neusample::Prepared for TargetPdf {

@@ -20,6 +20,7 @@
 //! typed settings of [`jobs`] and [`demo`].
 
 pub mod bake;
+pub mod defend;
 pub mod demo;
 pub mod eval;
 pub mod groundtruth;

@@ -313,3 +313,30 @@ fn tables_above_the_runtime_limit_give_densities_only() {
     assert!((marginal[63] - sum).abs() <= 1e-4 * sum);
     assert!((conditional[64 * 32 + 63] - d[64 * 32..64 * 33].iter().sum::<f32>()).abs() < 1e-3);
 }
+
+#[test]
+fn chi2_divergence_known_answers() {
+    // p* = 1 on the left half of the disk, 3 on the right (densities 1/(2A) and 3/(2A), A the
+    // area of the cells inside the disk), q uniform 1/A: χ² = (1² + 3²)/8 − 1 = 0.25 and
+    // KL = ¼ ln ½ + ¾ ln 3/2.
+    let res = 32;
+    let values: Vec<f32> = (0..res * res)
+        .map(|i| if i % res < res / 2 { 1.0 } else { 3.0 })
+        .collect();
+    let t = TargetPdf::from_values(res, values);
+    let uniform = TargetPdf::from_values(res, vec![1.0; res * res]);
+    let chi2 = t.chi2_from(|p| uniform.pdf(p));
+    assert!((chi2 - 0.25).abs() < 1e-5, "{chi2}");
+    let kl = t.kl_from(|p| uniform.pdf(p));
+    let want = 0.25 * 0.5f64.ln() + 0.75 * 1.5f64.ln();
+    assert!((kl - want).abs() < 1e-5, "{kl} vs {want}");
+    // χ² of p* against itself is 0, against c·p* it is 1/c − 1.
+    assert!(t.chi2_from(|p| t.pdf(p)).abs() < 1e-5);
+    let half = t.chi2_from(|p| 2.0 * t.pdf(p));
+    assert!((half + 0.5).abs() < 1e-5, "{half}");
+    // A density that misses part of p*'s support: the floor makes χ² huge while KL stays
+    // moderate — the case the render's variance sees and KL does not.
+    let thin = t.chi2_from(|p| if p.x < -0.9 { 0.0 } else { 1.2 * t.pdf(p) });
+    let thin_kl = t.kl_from(|p| if p.x < -0.9 { 1e-6 } else { 1.2 * t.pdf(p) });
+    assert!(thin > 1e3 && thin_kl < 1.0, "χ² {thin}, KL {thin_kl}");
+}

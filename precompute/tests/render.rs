@@ -4,8 +4,8 @@
 //! estimators, environment sampling — are in `precompute/render/tests/`.)
 
 use glam::{Vec2, Vec3};
-use neusample::{AnySampler, Blob};
-use neusample::{CosineSampler, Prepared, Sampler};
+use neusample::{Blob, BlobSampler};
+use neusample::{Prepared, Sampler};
 use neusample_precompute::demo::fixtures_dir;
 use neusample_precompute::eval::metrics::{self, Technique};
 use neusample_precompute::eval::OracleSampler;
@@ -56,10 +56,8 @@ fn every_method_converges_to_the_reference() {
         .iter()
         .map(|(n, b)| (*n, Blob::open(b).unwrap()))
         .collect();
-    let mut techniques: Vec<(String, Technique<'_>)> = vec![(
-        "cosine".into(),
-        Technique::Blob(AnySampler::Cosine(CosineSampler)),
-    )];
+    let mut techniques: Vec<(String, Technique<'_>)> =
+        vec![("cosine".into(), Technique::Blob(BlobSampler::cosine()))];
     for (n, b) in &opened {
         techniques.push((n.to_string(), Technique::Blob(b.sampler().unwrap())));
     }
@@ -231,7 +229,7 @@ fn global_illumination_is_unbiased_for_every_sampler() {
     // Indirect light is there: on a bright Lambertian scene (albedo 0.8) the image with three
     // interactions is brighter than direct lighting alone, by many standard errors.
     let white = Lambert([0.8; 3]);
-    let cosine = Technique::Blob(AnySampler::Cosine(CosineSampler));
+    let cosine = Technique::Blob(BlobSampler::cosine());
     let (gm, gse) = metrics::pixel_average(&cosine.render(&scene, &white, &gi(1024, 5, 3)), &mask);
     let (dm, dse) = metrics::pixel_average(&cosine.render(&scene, &white, &gi(1024, 6, 1)), &mask);
     for c in 0..3 {
@@ -243,10 +241,8 @@ fn global_illumination_is_unbiased_for_every_sampler() {
         assert!(z > 5.0, "channel {c}: GI {} vs direct {}", gm[c], dm[c]);
     }
 
-    let mut techniques: Vec<(String, Technique<'_>)> = vec![(
-        "cosine".into(),
-        Technique::Blob(AnySampler::Cosine(CosineSampler)),
-    )];
+    let mut techniques: Vec<(String, Technique<'_>)> =
+        vec![("cosine".into(), Technique::Blob(BlobSampler::cosine()))];
     for (n, b) in &opened {
         techniques.push((n.to_string(), Technique::Blob(b.sampler().unwrap())));
     }

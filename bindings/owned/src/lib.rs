@@ -18,7 +18,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use neusample::{AnySampler, Blob, CosineSampler, Error, NeuralMaterial, SamplerKind, Tensor};
+use neusample::{Blob, BlobSampler, Error, NeuralMaterial, SamplerKind, Tensor};
 
 /// The blob's bytes in 16-byte aligned storage (the format aligns tensors to 16 bytes
 /// relative to the blob's start, so f32 tensors become aligned slices).
@@ -124,13 +124,13 @@ impl OwnedBlob {
     }
 }
 
-type AnySamplerOf<'a> = AnySampler<'a>;
+type BlobSamplerOf<'a> = BlobSampler<'a>;
 
 self_cell::self_cell!(
     struct SamplerCell {
         owner: Option<Arc<BlobCell>>,
         #[covariant]
-        dependent: AnySamplerOf,
+        dependent: BlobSamplerOf,
     }
 );
 
@@ -148,7 +148,7 @@ impl OwnedSampler {
     pub fn new(blob: &OwnedBlob) -> Result<Self, Error> {
         SamplerCell::try_new(Some(blob.0.clone()), |b| match b {
             Some(b) => b.borrow_dependent().sampler(),
-            None => Ok(AnySampler::Cosine(CosineSampler)),
+            None => Ok(BlobSampler::cosine()),
         })
         .map(OwnedSampler)
     }
@@ -156,14 +156,12 @@ impl OwnedSampler {
     /// The cosine sampler (needs no blob).
     #[must_use]
     pub fn cosine() -> Self {
-        OwnedSampler(SamplerCell::new(None, |_| {
-            AnySampler::Cosine(CosineSampler)
-        }))
+        OwnedSampler(SamplerCell::new(None, |_| BlobSampler::cosine()))
     }
 
     /// The sampler.
     #[must_use]
-    pub fn get(&self) -> &AnySampler<'_> {
+    pub fn get(&self) -> &BlobSampler<'_> {
         self.0.borrow_dependent()
     }
 

@@ -57,27 +57,9 @@ pub trait BatchSampler {
         phi: Features<'_>,
         wi: Vec3s<'_>,
         u: Vec2s<'_>,
-        mut out: SamplesMut<'_>,
+        out: SamplesMut<'_>,
     ) -> Result<()> {
-        let n = wi.len();
-        phi.check(n)?;
-        wi.check(n)?;
-        u.check(n)?;
-        out.check(n)?;
-        let mut lanes = [Self::Lane::default(); FUSED_CHUNK];
-        let mut a = 0;
-        while a < n {
-            let b = if n - a > FUSED_CHUNK {
-                a + FUSED_CHUNK
-            } else {
-                n
-            };
-            let chunk = &mut lanes[..b - a];
-            self.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
-            self.sample_batch(chunk, u.range(a, b), out.range(a, b))?;
-            a = b;
-        }
-        Ok(())
+        sample_fused_chunks(self, phi, wi, u, out)
     }
 
     /// [`BatchSampler::prepare_batch`] then [`BatchSampler::pdf_batch`], in chunks of
@@ -89,26 +71,68 @@ pub trait BatchSampler {
         wo: Vec3s<'_>,
         pdf: &mut [f32],
     ) -> Result<()> {
-        let n = wi.len();
-        phi.check(n)?;
-        wi.check(n)?;
-        wo.check(n)?;
-        check_len("pdf", pdf.len(), n)?;
-        let mut lanes = [Self::Lane::default(); FUSED_CHUNK];
-        let mut a = 0;
-        while a < n {
-            let b = if n - a > FUSED_CHUNK {
-                a + FUSED_CHUNK
-            } else {
-                n
-            };
-            let chunk = &mut lanes[..b - a];
-            self.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
-            self.pdf_batch(chunk, wo.range(a, b), &mut pdf[a..b])?;
-            a = b;
-        }
-        Ok(())
+        pdf_fused_chunks(self, phi, wi, wo, pdf)
     }
+}
+
+/// [`BatchSampler::sample_fused`]'s default: prepare and sample in chunks of [`FUSED_CHUNK`]
+/// lanes on the stack.
+pub(crate) fn sample_fused_chunks<S: BatchSampler + ?Sized>(
+    s: &S,
+    phi: Features<'_>,
+    wi: Vec3s<'_>,
+    u: Vec2s<'_>,
+    mut out: SamplesMut<'_>,
+) -> Result<()> {
+    let n = wi.len();
+    phi.check(n)?;
+    wi.check(n)?;
+    u.check(n)?;
+    out.check(n)?;
+    let mut lanes = [S::Lane::default(); FUSED_CHUNK];
+    let mut a = 0;
+    while a < n {
+        let b = if n - a > FUSED_CHUNK {
+            a + FUSED_CHUNK
+        } else {
+            n
+        };
+        let chunk = &mut lanes[..b - a];
+        s.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
+        s.sample_batch(chunk, u.range(a, b), out.range(a, b))?;
+        a = b;
+    }
+    Ok(())
+}
+
+/// [`BatchSampler::pdf_fused`]'s default: prepare and evaluate in chunks of [`FUSED_CHUNK`]
+/// lanes on the stack.
+pub(crate) fn pdf_fused_chunks<S: BatchSampler + ?Sized>(
+    s: &S,
+    phi: Features<'_>,
+    wi: Vec3s<'_>,
+    wo: Vec3s<'_>,
+    pdf: &mut [f32],
+) -> Result<()> {
+    let n = wi.len();
+    phi.check(n)?;
+    wi.check(n)?;
+    wo.check(n)?;
+    check_len("pdf", pdf.len(), n)?;
+    let mut lanes = [S::Lane::default(); FUSED_CHUNK];
+    let mut a = 0;
+    while a < n {
+        let b = if n - a > FUSED_CHUNK {
+            a + FUSED_CHUNK
+        } else {
+            n
+        };
+        let chunk = &mut lanes[..b - a];
+        s.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
+        s.pdf_batch(chunk, wo.range(a, b), &mut pdf[a..b])?;
+        a = b;
+    }
+    Ok(())
 }
 
 /// A lane's prepared state: `Default` is the refused lane, and [`LaneState::is_prepared`]

@@ -7,8 +7,12 @@ use crate::kind::{DType, Interpolation, SamplerKind};
 
 /// The 8 bytes every blob starts with.
 pub const MAGIC: [u8; 8] = *b"NEUSAMP\0";
-/// The format version this build reads and writes.
-pub const FORMAT_VERSION: u32 = 1;
+/// The newest format version this build reads and writes. Version 2 adds the
+/// [`Extension`] (the defensive weight α) after the header; the writer uses it only when α is
+/// not 0, so blobs without a defensive part are still written, byte for byte, as version 1.
+pub const FORMAT_VERSION: u32 = 2;
+/// The oldest format version this build reads.
+pub const MIN_FORMAT_VERSION: u32 = 1;
 /// Bytes before the header: magic, version, total length, header length.
 pub const PREAMBLE_LEN: usize = 20;
 /// Alignment of the data section and of every tensor, relative to the blob start.
@@ -102,6 +106,15 @@ pub struct Header<'a> {
     pub label: &'a str,
     /// Number of tensor directory entries that follow the header.
     pub tensor_count: u32,
+}
+
+/// What version 2 adds after the header (postcard-encoded, before the tensor directory).
+#[derive(Copy, Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
+pub struct Extension {
+    /// The defensive weight α ∈ [0, 1) of a sampler blob: the runtime samples
+    /// `p = (1 − α)·p_learned + α·p_cosine` ([`Defensive`](crate::samplers::Defensive)).
+    /// 0 for version-1 blobs and for neural materials.
+    pub defensive: f32,
 }
 
 /// One entry of the tensor directory.

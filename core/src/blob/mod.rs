@@ -6,6 +6,7 @@
 //!
 //! ```text
 //! magic "NEUSAMP\0" | version u32 | total_len u32 | header_len u32 | header (postcard)
+//! | version 2 only: extension (postcard: the defensive weight α)
 //! | tensor directory (postcard, one entry per tensor) | zero padding to 16
 //! | tensor data, each tensor 16-byte aligned | CRC-32 of everything before it (u32)
 //! ```
@@ -26,8 +27,8 @@ mod validate;
 mod write;
 
 pub use format::{
-    Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION, MAGIC,
-    MAX_LABEL_LEN, MAX_TENSORS, PREAMBLE_LEN,
+    Extension, Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION, MAGIC,
+    MAX_LABEL_LEN, MAX_TENSORS, MIN_FORMAT_VERSION, PREAMBLE_LEN,
 };
 pub use read::Blob;
 #[cfg(feature = "alloc")]

@@ -5,14 +5,14 @@ use crate::kind::SamplerKind;
 use crate::neural_material::NeuralMaterial;
 use crate::samplers::histogram_mixture;
 use crate::samplers::{
-    AffineFlowSampler, AnalyticMixtureSampler, AnySampler, CosineSampler, DirectHistogramSampler,
-    FlowSampler, HistogramMixtureSampler, ImprovedBaselineSampler,
+    AffineFlowSampler, AnalyticMixtureSampler, AnySampler, CosineSampler, Defensive,
+    DirectHistogramSampler, FlowSampler, HistogramMixtureSampler, ImprovedBaselineSampler,
 };
 use crate::weights::{Tensor, Weights};
 
 use super::format::{
-    u32_at, Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION, MAGIC,
-    MAX_LABEL_LEN, PREAMBLE_LEN, ROLES,
+    u32_at, Extension, Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION,
+    MAGIC, MAX_LABEL_LEN, MIN_FORMAT_VERSION, PREAMBLE_LEN, ROLES,
 };
 use super::validate::{check_dims, check_finite, required};
 
@@ -20,6 +20,8 @@ use super::validate::{check_dims, check_finite, required};
 #[derive(Copy, Clone, Debug)]
 pub struct Blob<'a> {
     header: Header<'a>,
+    version: u32,
+    extension: Extension,
     tensors: [Option<(TensorEntry, &'a [u8])>; ROLES],
 }
 
@@ -53,7 +55,7 @@ impl<'a> Blob<'a> {
             return Err(Error::Truncated { needed: min, got });
         }
         let version = u32_at(bytes, 8);
-        if version != FORMAT_VERSION {
+        if version < MIN_FORMAT_VERSION || version > FORMAT_VERSION {
             return Err(Error::UnsupportedVersion {
                 found: version,
                 supported: FORMAT_VERSION,
@@ -92,6 +94,14 @@ impl<'a> Blob<'a> {
             return Err(Error::HeaderInvalid);
         }
         check_dims(&header)?;
+        let mut extension = Extension::default();
+        if version >= 2 {
+            let (e, r): (Extension, &'a [u8]) =
+                postcard::take_from_bytes(rest).map_err(|_| Error::HeaderDecode)?;
+            check_defensive(header.kind, e.defensive)?;
+            extension = e;
+            rest = r;
+        }
 
         let (req, req_count) = required(&header);
         if header.tensor_count as usize != req_count {
@@ -147,7 +157,12 @@ impl<'a> Blob<'a> {
                 }
             }
         }
-        let blob = Blob { header, tensors };
+        let blob = Blob {
+            header,
+            version,
+            extension,
+            tensors,
+        };
         if header.kind == SamplerKind::HistogramMixture && blob.is_compact() {
             histogram_mixture::validate_compact_tables(
                 &blob.tensor_or_empty(TensorRole::Mass),
@@ -181,6 +196,22 @@ impl<'a> Blob<'a> {
     #[must_use]
     pub fn kind(&self) -> SamplerKind {
         self.header.kind
+    }
+
+    /// The format version the blob was written in (1 or 2).
+    #[must_use]
+    pub fn version(&self) -> u32 {
+        self.version
+    }
+
+    /// The defensive weight α of the sampler ([`Defensive`]): 0 for version-1 blobs.
+    #[must_use]
+    pub fn defensive(&self) -> f32 {
+        self.extension.defensive
+    }
+
+    fn defend<S>(&self, s: S) -> Defensive<S> {
+        Defensive::new_unchecked(s, self.extension.defensive)
     }
 
     /// The directory entry of a tensor, if the blob has it.
@@ -241,38 +272,48 @@ impl<'a> Blob<'a> {
         self.tensor_or_empty(TensorRole::Params)
     }
 
-    /// The improved baseline sampler, or [`Error::WrongKind`].
-    pub fn improved_baseline(&self) -> Result<ImprovedBaselineSampler<Tensor<'a>>> {
+    /// The improved baseline sampler (with the blob's defensive weight), or
+    /// [`Error::WrongKind`].
+    pub fn improved_baseline(&self) -> Result<Defensive<ImprovedBaselineSampler<Tensor<'a>>>> {
         self.expect(SamplerKind::ImprovedBaseline)?;
-        ImprovedBaselineSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+        let s = ImprovedBaselineSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
+        Ok(self.defend(s))
     }
 
     /// The analytic mixture sampler, or [`Error::WrongKind`].
-    pub fn analytic_mixture(&self) -> Result<AnalyticMixtureSampler<Tensor<'a>>> {
+    pub fn analytic_mixture(&self) -> Result<Defensive<AnalyticMixtureSampler<Tensor<'a>>>> {
         self.expect(SamplerKind::AnalyticMixture)?;
-        AnalyticMixtureSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+        let s = AnalyticMixtureSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
+        Ok(self.defend(s))
     }
 
     /// The RQ-spline flow sampler, or [`Error::WrongKind`].
-    pub fn flow(&self) -> Result<FlowSampler<Tensor<'a>>> {
+    pub fn flow(&self) -> Result<Defensive<FlowSampler<Tensor<'a>>>> {
         self.expect(SamplerKind::Flow)?;
-        FlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+        let s = FlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
+        Ok(self.defend(s))
     }
 
     /// The affine-coupling flow sampler, or [`Error::WrongKind`].
-    pub fn affine_flow(&self) -> Result<AffineFlowSampler<Tensor<'a>>> {
+    pub fn affine_flow(&self) -> Result<Defensive<AffineFlowSampler<Tensor<'a>>>> {
         self.expect(SamplerKind::AffineFlow)?;
-        AffineFlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+        let s = AffineFlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
+        Ok(self.defend(s))
     }
 
     /// The direct histogram sampler, or [`Error::WrongKind`].
-    pub fn direct_histogram(&self) -> Result<DirectHistogramSampler<Tensor<'a>>> {
+    pub fn direct_histogram(&self) -> Result<Defensive<DirectHistogramSampler<Tensor<'a>>>> {
         self.expect(SamplerKind::DirectHistogram)?;
-        DirectHistogramSampler::new(self.params()).ok_or(Error::HeaderInvalid)
+        let s = DirectHistogramSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
+        Ok(self.defend(s))
     }
 
     /// The histogram mixture sampler, or [`Error::WrongKind`].
-    pub fn histogram_mixture(&self) -> Result<HistogramMixtureSampler<Tensor<'a>>> {
+    pub fn histogram_mixture(&self) -> Result<Defensive<HistogramMixtureSampler<Tensor<'a>>>> {
+        Ok(self.defend(self.histogram_mixture_part()?))
+    }
+
+    fn histogram_mixture_part(&self) -> Result<HistogramMixtureSampler<Tensor<'a>>> {
         self.expect(SamplerKind::HistogramMixture)?;
         if self.is_compact() {
             return HistogramMixtureSampler::new_compact(
@@ -313,26 +354,46 @@ impl<'a> Blob<'a> {
         .ok_or(Error::HeaderInvalid)
     }
 
-    /// Whichever sampler the blob holds. A neural-material blob holds no sampler:
-    /// [`Error::NotASampler`].
-    pub fn sampler(&self) -> Result<AnySampler<'a>> {
-        Ok(match self.header.kind {
+    /// Whichever sampler the blob holds, with the blob's defensive weight α
+    /// ([`Blob::defensive`]; 0, a plain pass-through, for version-1 blobs). A neural-material
+    /// blob holds no sampler: [`Error::NotASampler`].
+    pub fn sampler(&self) -> Result<crate::samplers::BlobSampler<'a>> {
+        let any = match self.header.kind {
             SamplerKind::Cosine => AnySampler::Cosine(CosineSampler),
             SamplerKind::ImprovedBaseline => {
-                AnySampler::ImprovedBaseline(self.improved_baseline()?)
+                AnySampler::ImprovedBaseline(*self.improved_baseline()?.inner())
             }
-            SamplerKind::AnalyticMixture => AnySampler::AnalyticMixture(self.analytic_mixture()?),
-            SamplerKind::Flow => AnySampler::Flow(self.flow()?),
-            SamplerKind::AffineFlow => AnySampler::AffineFlow(self.affine_flow()?),
-            SamplerKind::DirectHistogram => AnySampler::DirectHistogram(self.direct_histogram()?),
+            SamplerKind::AnalyticMixture => {
+                AnySampler::AnalyticMixture(*self.analytic_mixture()?.inner())
+            }
+            SamplerKind::Flow => AnySampler::Flow(*self.flow()?.inner()),
+            SamplerKind::AffineFlow => AnySampler::AffineFlow(*self.affine_flow()?.inner()),
+            SamplerKind::DirectHistogram => {
+                AnySampler::DirectHistogram(*self.direct_histogram()?.inner())
+            }
             SamplerKind::HistogramMixture => {
-                AnySampler::HistogramMixture(self.histogram_mixture()?)
+                AnySampler::HistogramMixture(self.histogram_mixture_part()?)
             }
             SamplerKind::NeuralMaterial => {
                 return Err(Error::NotASampler {
                     found: SamplerKind::NeuralMaterial,
                 })
             }
-        })
+        };
+        Ok(self.defend(any))
+    }
+}
+
+/// The defensive weight must be a number in [0, 1), and 0 for a neural material.
+fn check_defensive(kind: SamplerKind, alpha: f32) -> Result<()> {
+    let ok = if kind.is_sampler() {
+        alpha >= 0.0 && alpha < 1.0
+    } else {
+        alpha == 0.0
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::HeaderInvalid)
     }
 }

@@ -6,7 +6,8 @@ use crate::nn::FEATURE_DIM;
 use crate::samplers::{direct_histogram, histogram_mixture};
 
 use super::format::{
-    Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION, MAGIC, PREAMBLE_LEN,
+    Extension, Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, MAGIC,
+    MIN_FORMAT_VERSION, PREAMBLE_LEN,
 };
 
 /// Builds blobs (needs the `alloc` feature). The trainer in `neusample-precompute` and the
@@ -14,6 +15,7 @@ use super::format::{
 #[derive(Clone, Debug)]
 pub struct BlobWriter<'l> {
     header: Header<'l>,
+    extension: Extension,
     tensors: alloc::vec::Vec<(TensorRole, DType, alloc::vec::Vec<u8>)>,
 }
 
@@ -45,6 +47,7 @@ impl<'l> BlobWriter<'l> {
                 label,
                 tensor_count: 0,
             },
+            extension: Extension::default(),
             tensors: alloc::vec::Vec::new(),
         }
     }
@@ -69,6 +72,17 @@ impl<'l> BlobWriter<'l> {
     pub fn texture_dims(mut self, width: u32, height: u32) -> Self {
         self.header.resolution = width;
         self.header.t_levels = height;
+        self
+    }
+
+    /// Sets the defensive weight α ([`Defensive`](crate::samplers::Defensive)): the runtime
+    /// samples `(1 − α)·p_learned + α·p_cosine`. A blob with α ≠ 0 is written as format
+    /// version 2; α = 0 (the default) keeps version 1. [`Blob::open`](crate::Blob::open)
+    /// accepts α ∈ [0, 1) for samplers and 0 for neural materials; the writer stores what it
+    /// is given, so that tests can write invalid values.
+    #[must_use]
+    pub fn defensive(mut self, alpha: f32) -> Self {
+        self.extension.defensive = alpha;
         self
     }
 
@@ -125,12 +139,21 @@ impl<'l> BlobWriter<'l> {
         tensors.sort_by_key(|(r, _, _)| r.index());
         let mut header = self.header;
         header.tensor_count = tensors.len() as u32;
+        // The oldest version that holds the content (bit-identical version-1 blobs when α = 0).
+        let version: u32 = if self.extension.defensive.to_bits() == 0 {
+            MIN_FORMAT_VERSION
+        } else {
+            2
+        };
 
         // Header and directory sizes do not depend on the offsets' values only through
         // varint lengths, so lay out with a first pass and fix up until stable.
         let mut offsets = alloc::vec![0u32; tensors.len()];
         loop {
             let mut head = postcard::to_allocvec(&header).unwrap_or_default();
+            if version >= 2 {
+                head.extend_from_slice(&postcard::to_allocvec(&self.extension).unwrap_or_default());
+            }
             for (i, (role, dtype, bytes)) in tensors.iter().enumerate() {
                 let e = TensorEntry {
                     role: *role,
@@ -159,7 +182,7 @@ impl<'l> BlobWriter<'l> {
             let total = end + CHECKSUM_LEN;
             let mut out = alloc::vec::Vec::with_capacity(total);
             out.extend_from_slice(&MAGIC);
-            out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+            out.extend_from_slice(&version.to_le_bytes());
             out.extend_from_slice(&(total as u32).to_le_bytes());
             out.extend_from_slice(&(head.len() as u32).to_le_bytes());
             out.extend_from_slice(&head);

@@ -9,6 +9,7 @@
 //! | [`affine_flow`] | Xie et al. 2019 | affine coupling flow |
 //! | [`direct_histogram`] | Zhu et al. 2021 | MLP → 16 × 16 histogram |
 //! | [`histogram_mixture`] | Eq. 5–6 | MLP → weights, rotations, latent codes of baked tables |
+//! | [`defensive`] | — | `(1 − α)·p_learned + α/π`: any of the above mixed with cosine |
 //!
 //! Each module also holds its architecture's constants (layer sizes and parameter offsets,
 //! `core/ARCHITECTURES.md`), which the trainer uses to export parameters in the runtime's
@@ -18,6 +19,7 @@ pub mod affine_flow;
 mod any;
 pub mod cosine;
 mod coupling;
+pub mod defensive;
 pub mod direct_histogram;
 pub mod histogram_mixture;
 pub mod lobes;
@@ -30,6 +32,7 @@ pub use affine_flow::{AffineFlowPrepared, AffineFlowSampler, AffineLane};
 pub use any::AnyLane;
 pub use any::{AnyPrepared, AnySampler};
 pub use cosine::{CosinePrepared, CosineSampler};
+pub use defensive::{BlobSampler, Defensive, DefensivePrepared};
 pub use direct_histogram::{DirectHistogramPrepared, DirectHistogramSampler};
 pub use histogram_mixture::{HistogramMixturePrepared, HistogramMixtureSampler, MixtureLane};
 pub use lobes::{

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use neusample::{AnySampler, Blob, NeuralMaterial, Tensor};
+use neusample::{Blob, BlobSampler, NeuralMaterial, Tensor};
 use neusample_render::{
     demo_scene, render, render_wavefront, Estimator, Render, RenderOptions, Scene, SceneParams,
     Surface,
@@ -113,7 +113,7 @@ fn wavefront_equals_scalar_with_two_surfaces() {
     let flow = read(&dir.join("flow.nsb"));
     let mixture = read(&dir.join("histogram-mixture.nsb"));
     let (flow, mixture) = (Blob::open(&flow).unwrap(), Blob::open(&mixture).unwrap());
-    let samplers: [AnySampler<'_>; 2] = [flow.sampler().unwrap(), mixture.sampler().unwrap()];
+    let samplers: [BlobSampler<'_>; 2] = [flow.sampler().unwrap(), mixture.sampler().unwrap()];
     let mut scene = scene();
     scene.objects[1].surface = 1;
     let surfaces = samplers.map(|s| Surface::new(&m, s));

@@ -10,6 +10,7 @@ use neusample::{BlobWriter, SamplerKind};
 
 use super::config::NEURAL_SUFFIX;
 use crate::bake;
+use crate::defend;
 use crate::groundtruth;
 use crate::jobs::material::{train_material, TrainMaterialJob};
 use crate::materials::neural::NeuralMaterialModel;
@@ -85,6 +86,10 @@ impl std::str::FromStr for FixtureSet {
             })
     }
 }
+
+/// Seed of the conditions on which the fixtures' defensive weights are chosen
+/// ([`defend::defend_baked`]); neither the demo's evaluation seeds nor the χ² suites' draw them.
+pub const DEFEND_SEED: u64 = 0xDEF;
 
 /// `neusample fixtures`: trains every method on the built-ins `names` with fixed seeds and
 /// writes `<out>/<material>/<method>.nsb` (f32, histogram tables T = 8, N = 32) plus
@@ -184,6 +189,7 @@ fn fixture_samplers(out: &Path, m: &dyn Material, quick: bool) -> Result<()> {
         let bytes = bake::blob_bytes(&trained, DType::F32, &label)?;
         bake::verify(&trained, &bytes, m, 8, 7)
             .with_context(|| format!("fixture {name}/{method_name}"))?;
+        let (bytes, _) = defend::defend_baked(bytes, m, DEFEND_SEED)?;
         io::atomic_write(&fixture_path(out, &name, method_name), &bytes)?;
         pb.inc(1);
     }

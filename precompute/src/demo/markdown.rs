@@ -183,18 +183,20 @@ pub fn markdown(r: &Report) -> String {
         );
         let _ = writeln!(
             s,
-            "| method | KL(p*‖p) | KL(p*_src‖p) | pdf MSE | mass in disk | prepare ns | sample ns | pdf ns | prepare+sample+pdf ns | scalar ns | material eval ns | ×material eval | train s | blob bytes |"
+            "| method | KL(p*‖p) | χ²(p*‖p) mean | χ² worst | KL(p*_src‖p) | pdf MSE | mass in disk | prepare ns | sample ns | pdf ns | prepare+sample+pdf ns | scalar ns | material eval ns | ×material eval | train s | blob bytes |"
         );
         let _ = writeln!(
             s,
-            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         );
         for x in &m.methods {
             let _ = writeln!(
                 s,
-                "| {} | {:.4} | {} | {:.3e} | {:.4} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {} |",
+                "| {} | {:.4} | {} | {} | {} | {:.3e} | {:.4} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {} |",
                 x.method,
                 x.kl_divergence,
+                fmt_chi2(x.chi2),
+                fmt_chi2(x.chi2_worst),
                 x.kl_vs_source
                     .map_or_else(|| "—".to_string(), |k| format!("{k:.4}")),
                 x.pdf_mse,
@@ -249,8 +251,27 @@ pub fn markdown(r: &Report) -> String {
             let _ = writeln!(s, "![equal time]({})\n", fg.equal_time);
             let _ = writeln!(s, "![convergence]({})\n", fg.convergence);
             let _ = writeln!(s, "![pdfs]({})\n", fg.pdfs);
+            if !fg.weights.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "Sample weights p*/p of each learned sampler at its two worst-χ² fit \
+                     conditions (where the render's variance comes from):\n\n![weights]({})\n",
+                    fg.weights
+                );
+            }
             let _ = writeln!(s, "![equal spp]({})\n", fg.equal_spp);
         }
     }
     s
+}
+
+/// A χ² divergence for the tables: 3 significant digits, `—` when not measured.
+pub(crate) fn fmt_chi2(x: f64) -> String {
+    if x.is_nan() {
+        "—".to_string()
+    } else if x.abs() >= 1000.0 {
+        format!("{x:.2e}")
+    } else {
+        format!("{x:.3}")
+    }
 }

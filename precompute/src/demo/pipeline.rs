@@ -7,8 +7,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use glam::Vec2;
 use indicatif::ProgressBar;
-use neusample::{AnySampler, Blob};
+use neusample::{Blob, BlobSampler};
 use neusample::{CosineSampler, DType, Prepared, Sampler};
 use neusample_render::{demo_scene, Estimator};
 
@@ -18,12 +19,13 @@ use super::config::{
 };
 use super::figures::{self, Rgb8};
 use super::fixtures::{fixture_path, fixtures_dir};
-use super::markdown::markdown;
+use super::markdown::{fmt_chi2, markdown};
 use super::report::{
     method_report, FigureReport, MaterialReport, MethodReport, NeuralReport, ReferenceReport,
     RenderReport, RenderSetup, Report, REPORT_SCHEMA,
 };
 use crate::bake;
+use crate::defend;
 use crate::eval::metrics::{self, Technique};
 use crate::eval::{self, Fit, OracleSampler};
 use crate::groundtruth::{self, TargetPdf};
@@ -144,6 +146,7 @@ pub fn run(a: &DemoConfig) -> Result<()> {
                 );
                 let bytes = bake::blob_bytes(&trained, DType::F32, &label)?;
                 let v = bake::verify(&trained, &bytes, m.as_ref(), 8, a.seed + 7)?;
+                let (bytes, _) = defend::defend_baked(bytes, m.as_ref(), a.seed + 300)?;
                 (
                     bytes,
                     trained.seconds,
@@ -253,10 +256,8 @@ fn render_material(
             ))
         })
         .collect::<Result<Vec<_>>>()?;
-    let mut techniques: Vec<(String, Technique<'_>)> = vec![(
-        COSINE.to_string(),
-        Technique::Blob(AnySampler::Cosine(CosineSampler)),
-    )];
+    let mut techniques: Vec<(String, Technique<'_>)> =
+        vec![(COSINE.to_string(), Technique::Blob(BlobSampler::cosine()))];
     for (n, blob) in &opened {
         let s = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
         techniques.push((n.clone(), Technique::Blob(s)));
@@ -438,6 +439,11 @@ fn render_material(
         &out.join(&pdfs),
         &pdf_figure(m, &techniques, p, p.settings.seed + 500)?,
     )?;
+    let weights = format!("{dir}/weights.png");
+    figures::write_png(
+        &out.join(&weights),
+        &weights_figure(m, &techniques, p, p.settings.seed + 100)?,
+    )?;
     pb.inc(1);
 
     let pixels = rr.mask.iter().filter(|&&b| b).count();
@@ -457,9 +463,104 @@ fn render_material(
             equal_spp: eq_spp,
             convergence: conv,
             pdfs,
+            weights,
         },
         budget,
     ))
+}
+
+/// Where each learned sampler's sample weights are largest: for every runtime sampler but
+/// cosine and the baseline, its two worst conditions by χ²(p* ‖ p) among the fit conditions
+/// (`seed` is the fit's), as p*, p and the weight p*/p on the disk (each tile scaled to its own
+/// maximum, `viridis(√(w / max w))`), labelled with the condition's χ² and largest weight.
+fn weights_figure(
+    m: &dyn Material,
+    techniques: &[(String, Technique<'_>)],
+    p: &Preset,
+    seed: u64,
+) -> Result<Rgb8> {
+    use rayon::prelude::*;
+    let conds = groundtruth::conditions(m, p.eval_conditions, seed);
+    let targets: Vec<TargetPdf> = conds
+        .par_iter()
+        .map(|c| TargetPdf::new(m, c, p.pdf_res))
+        .collect();
+    let size = p.pdf_size;
+    let mut tiles = Vec::new();
+    let mut rows = 0;
+    for (name, t) in techniques {
+        let Technique::Blob(s) = t else { continue };
+        if name == COSINE || name == BASELINE {
+            continue;
+        }
+        let mut chi: Vec<(usize, f64)> = conds
+            .par_iter()
+            .zip(&targets)
+            .enumerate()
+            .map(|(i, (c, target))| {
+                let x = s
+                    .prepare(&c.phi, c.wi)
+                    .map_or(f64::INFINITY, |pr| target.chi2_from(|q| pr.pdf_disk(q)));
+                (i, x)
+            })
+            .collect();
+        chi.sort_by(|a, b| b.1.total_cmp(&a.1));
+        for &(i, x) in chi.iter().take(2) {
+            let (c, target) = (&conds[i], &targets[i]);
+            let vmax = target.density().iter().copied().fold(0.0f32, f32::max);
+            let theta = c.wi.z.clamp(-1.0, 1.0).acos().to_degrees();
+            let Some(pr) = s.prepare(&c.phi, c.wi) else {
+                continue;
+            };
+            let weight = |q: Vec2| {
+                let d = pr.pdf_disk(q);
+                if d > 0.0 {
+                    target.pdf(q) / d
+                } else {
+                    0.0
+                }
+            };
+            let mut wmax = 0.0f32;
+            for r in 0..p.pdf_res {
+                for col in 0..p.pdf_res {
+                    let w = weight(groundtruth::cell_midpoint(p.pdf_res, r, col));
+                    if w.is_finite() {
+                        wmax = wmax.max(w);
+                    }
+                }
+            }
+            tiles.push((
+                figures::disk_image(size, vmax, |q| target.pdf(q)),
+                [
+                    format!("{name}: p*"),
+                    format!("θi {theta:.0}° uv {:.2},{:.2}", c.uv.x, c.uv.y),
+                ],
+            ));
+            tiles.push((
+                figures::disk_image(size, vmax, |q| pr.pdf_disk(q)),
+                [format!("{name}: p"), format!("χ² {}", fmt_chi2(x))],
+            ));
+            tiles.push((
+                figures::disk_image(size, wmax, weight),
+                ["weight p*/p".to_string(), format!("max {wmax:.3}")],
+            ));
+            rows += 1;
+        }
+    }
+    if rows == 0 {
+        tiles.push((
+            Rgb8::filled(size, size, [40, 40, 40]),
+            ["no learned sampler".to_string(), String::new()],
+        ));
+    }
+    figures::labelled_grid(
+        &tiles,
+        3,
+        &format!(
+            "{}: sample weights p*/p at each learned sampler's two worst-χ² conditions",
+            m.name()
+        ),
+    )
 }
 
 /// Fig. 7: for a few random conditions, the ground truth p* (tabulated at `pdf_res`) beside
@@ -472,7 +573,7 @@ fn pdf_figure(
     seed: u64,
 ) -> Result<Rgb8> {
     let conds = groundtruth::conditions(m, p.pdf_conditions, seed);
-    let samplers: Vec<(&String, &AnySampler<'_>)> = techniques
+    let samplers: Vec<(&String, &BlobSampler<'_>)> = techniques
         .iter()
         .filter_map(|(n, t)| match t {
             Technique::Blob(s) => Some((n, s)),

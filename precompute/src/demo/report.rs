@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::eval::metrics::{ConvergencePoint, RenderSettings, Verdict};
 use crate::eval::{Cost, EvalCost, Fit, FitReport};
-use crate::util::json::f64_or_nan;
+use crate::util::json::{f64_or_nan, nan};
 use crate::util::stats::Estimate;
 
 /// Schema version of `report.json` (README.md documents it).
@@ -90,6 +90,13 @@ pub struct MethodReport {
     /// Mean KL(p* ‖ p), nats.
     #[serde(deserialize_with = "f64_or_nan")]
     pub kl_divergence: f64,
+    /// Mean χ²(p* ‖ p) = ∫ p*²/p − 1 over the fit conditions: the render's relative variance
+    /// per sample (the measure KL misses where p ≪ p*); NaN in reports written before it.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub chi2: f64,
+    /// The largest χ²(p* ‖ p) of the fit conditions.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub chi2_worst: f64,
     /// Mean squared pdf difference on the disk.
     #[serde(deserialize_with = "f64_or_nan")]
     pub pdf_mse: f64,
@@ -153,6 +160,9 @@ pub struct FigureReport {
     pub convergence: String,
     /// p* beside every method's p at a few conditions (Fig. 7).
     pub pdfs: String,
+    /// Each learned sampler's sample weights p*/p on the disk at its worst-χ² conditions.
+    #[serde(default)]
+    pub weights: String,
 }
 
 /// How well a neural material reproduces its source ([`crate::eval::fit_report`]).
@@ -255,6 +265,8 @@ pub(crate) fn method_report(
         blob_bytes,
         blob_vs_model,
         kl_divergence: fit.kl_divergence,
+        chi2: fit.chi2,
+        chi2_worst: fit.chi2_worst,
         pdf_mse: fit.pdf_mse,
         mass_in_disk: fit.mass_in_disk,
         kl_vs_source: None,

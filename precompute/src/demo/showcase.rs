@@ -37,7 +37,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use neusample::{AnySampler, Blob, CosineSampler, SamplerKind};
+use neusample::{Blob, BlobSampler, SamplerKind};
 use neusample_render::{
     render_wavefront, showcase_scene, time_per_sample_wavefront, EnvMap, Estimator, Render,
     RenderOptions, Scene, SceneParams, ShowcaseParams, Surface, SHOWCASE_OBJECTS,
@@ -290,9 +290,9 @@ fn load_blob(name: &str, method: &str) -> Result<Vec<u8>> {
 }
 
 /// The sampler of a loaded blob (cosine sampling without one).
-fn sampler_of(bytes: Option<&[u8]>) -> Result<AnySampler<'_>> {
+fn sampler_of(bytes: Option<&[u8]>) -> Result<BlobSampler<'_>> {
     match bytes {
-        None => Ok(AnySampler::Cosine(CosineSampler)),
+        None => Ok(BlobSampler::cosine()),
         Some(b) => Blob::open(b)
             .and_then(|blob| blob.sampler())
             .map_err(|e| anyhow::anyhow!("{e}")),
@@ -437,8 +437,8 @@ fn load(c: &ShowcaseConfig, names: &[String]) -> Result<Vec<Loaded>> {
 /// Each material with its sampler.
 fn surfaces<'a, 's>(
     loaded: &'a [Loaded],
-    samplers: &[AnySampler<'s>],
-) -> Vec<Surface<'a, dyn Material, AnySampler<'s>>> {
+    samplers: &[BlobSampler<'s>],
+) -> Vec<Surface<'a, dyn Material, BlobSampler<'s>>> {
     loaded
         .iter()
         .zip(samplers)

@@ -4,7 +4,7 @@
 //! its material's sampler kind would.
 
 use neusample::wavefront::BatchSampler;
-use neusample::{AnySampler, Sampler};
+use neusample::{AnySampler, BlobSampler, Defensive, Sampler};
 
 /// Work that is generic over the concrete sampler type ([`with_concrete`]).
 pub trait WithSampler {
@@ -16,15 +16,19 @@ pub trait WithSampler {
         S::Lane: Send;
 }
 
-/// Runs `work` on the concrete sampler inside `s`.
-pub fn with_concrete<W: WithSampler>(s: AnySampler<'_>, work: W) -> W::Output {
-    match s {
-        AnySampler::Cosine(x) => work.run(x),
-        AnySampler::ImprovedBaseline(x) => work.run(x),
-        AnySampler::AnalyticMixture(x) => work.run(x),
-        AnySampler::Flow(x) => work.run(x),
-        AnySampler::AffineFlow(x) => work.run(x),
-        AnySampler::DirectHistogram(x) => work.run(x),
-        AnySampler::HistogramMixture(x) => work.run(x),
+/// Runs `work` on the concrete sampler inside `s`, with `s`'s defensive weight.
+pub fn with_concrete<W: WithSampler>(s: BlobSampler<'_>, work: W) -> W::Output {
+    fn d<S>(x: S, alpha: f32) -> Defensive<S> {
+        Defensive::new_unchecked(x, alpha)
+    }
+    let alpha = s.alpha();
+    match *s.inner() {
+        AnySampler::Cosine(x) => work.run(d(x, alpha)),
+        AnySampler::ImprovedBaseline(x) => work.run(d(x, alpha)),
+        AnySampler::AnalyticMixture(x) => work.run(d(x, alpha)),
+        AnySampler::Flow(x) => work.run(d(x, alpha)),
+        AnySampler::AffineFlow(x) => work.run(d(x, alpha)),
+        AnySampler::DirectHistogram(x) => work.run(d(x, alpha)),
+        AnySampler::HistogramMixture(x) => work.run(d(x, alpha)),
     }
 }

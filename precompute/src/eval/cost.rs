@@ -382,7 +382,7 @@ const COST_SEED: u64 = 0xC057;
 
 /// Measures [`Cost`] on `n` random conditions of `material`, `passes` times: the batched API
 /// at [`COST_BATCH`] lanes per call (the concrete sampler's own lanes for a blob's
-/// [`neusample::AnySampler`]; see [`cost_any`]) and the scalar API.
+/// [`neusample::BlobSampler`]; see [`cost_any`]) and the scalar API.
 pub fn cost<S: Sampler + BatchSampler>(
     sampler: &S,
     material: &dyn Material,
@@ -412,7 +412,7 @@ pub fn cost<S: Sampler + BatchSampler>(
 
 /// [`cost()`] of a blob's sampler through its concrete type.
 pub fn cost_any(
-    sampler: &neusample::AnySampler<'_>,
+    sampler: &neusample::BlobSampler<'_>,
     material: &dyn Material,
     n: usize,
     passes: usize,

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::groundtruth::{self, TargetPdf};
 use crate::materials::Material;
 use crate::train::neural_material::draw;
-use crate::util::json::f64_or_nan;
+use crate::util::json::{f64_or_nan, nan};
 use crate::util::rng::mix_seed;
 
 /// Fit of a sampler's density to the ground truth, averaged over conditions.
@@ -22,6 +22,18 @@ pub struct Fit {
     /// midpoints).
     #[serde(deserialize_with = "f64_or_nan")]
     pub kl_divergence: f64,
+    /// Mean χ²(p* ‖ p) = ∫ p*²/p − 1 over the conditions: the render's relative variance per
+    /// sample. Integrated over the whole disk up to the horizon
+    /// ([`groundtruth::rim_moments`]), not on the KL's table, whose cells stop short of the
+    /// rim where thin-tailed samplers put their largest weights.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub chi2: f64,
+    /// The largest χ²(p* ‖ p) of the conditions.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub chi2_worst: f64,
+    /// Index of that condition in [`groundtruth::conditions`] with the fit's seed.
+    #[serde(default)]
+    pub chi2_worst_condition: usize,
     /// Mean over conditions of the mean squared difference of the disk densities.
     #[serde(deserialize_with = "f64_or_nan")]
     pub pdf_mse: f64,
@@ -55,23 +67,28 @@ pub fn fit_to<S: Sampler + Sync>(
     seed: u64,
 ) -> Fit {
     let conds = groundtruth::conditions(material, conditions, seed);
-    let per: Vec<(f64, f64, f64)> = conds
+    let nodes = groundtruth::rim_quadrature(groundtruth::RIM_RADIAL, groundtruth::RIM_ANGULAR);
+    let per: Vec<(f64, f64, f64, f64)> = conds
         .par_iter()
         .map(|c| {
-            let target = match reference {
-                None => TargetPdf::new(material, c, res),
-                Some(r) => {
-                    let rc = groundtruth::Condition {
+            let (target_material, tc) = match reference {
+                None => (material, *c),
+                Some(r) => (
+                    r,
+                    groundtruth::Condition {
                         phi: r.features(c.uv),
                         ..*c
-                    };
-                    TargetPdf::new(r, &rc, res)
-                }
+                    },
+                ),
             };
+            let target = TargetPdf::new(target_material, &tc, res);
             let Some(prep) = sampler.prepare(&c.phi, c.wi) else {
-                return (f64::INFINITY, f64::INFINITY, 0.0);
+                return (f64::INFINITY, f64::INFINITY, 0.0, f64::INFINITY);
             };
             let kl = target.kl_from(|p| prep.pdf_disk(p));
+            let (a, m2) =
+                groundtruth::rim_moments(target_material, &tc, &nodes, |p| prep.pdf_disk(p));
+            let chi2 = if a > 0.0 { m2 / (a * a) - 1.0 } else { 0.0 };
             let h = 2.0 / res as f64;
             let (mut se, mut mass, mut n) = (0.0, 0.0, 0usize);
             for r in 0..res {
@@ -87,13 +104,24 @@ pub fn fit_to<S: Sampler + Sync>(
                     n += 1;
                 }
             }
-            (kl, se / n as f64, mass)
+            (kl, se / n as f64, mass, chi2)
         })
         .collect();
     let n = per.len().max(1) as f64;
+    let (chi2_worst_condition, chi2_worst) =
+        per.iter()
+            .map(|p| p.3)
+            .enumerate()
+            .fold(
+                (0, f64::NEG_INFINITY),
+                |a, (i, c)| if c > a.1 { (i, c) } else { a },
+            );
     Fit {
         conditions: per.len(),
         kl_divergence: per.iter().map(|p| p.0).sum::<f64>() / n,
+        chi2: per.iter().map(|p| p.3).sum::<f64>() / n,
+        chi2_worst,
+        chi2_worst_condition,
         pdf_mse: per.iter().map(|p| p.1).sum::<f64>() / n,
         mass_in_disk: per.iter().map(|p| p.2).sum::<f64>() / n,
     }

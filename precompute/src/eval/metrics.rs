@@ -40,7 +40,7 @@
 //!   `spp_m = round(N · t_b / t_m)` (at least 1) and is rendered with a fresh seed.
 
 use neusample::wavefront::BatchSampler;
-use neusample::{AnySampler, Sampler};
+use neusample::{BlobSampler, Sampler};
 use neusample_render::{self as render, Estimator, Image, Render, RenderOptions, Scene, Surface};
 use serde::{Deserialize, Serialize};
 
@@ -55,7 +55,7 @@ use crate::util::timing::median;
 #[derive(Clone, Copy, Debug)]
 pub enum Technique<'a> {
     /// A runtime sampler (any blob, or cosine).
-    Blob(AnySampler<'a>),
+    Blob(BlobSampler<'a>),
     /// The tabulated oracle (prepared once per pixel, table time excluded).
     Oracle(OracleSampler<'a>),
 }

@@ -99,6 +99,12 @@ pub struct SummaryRow {
     /// Mean KL(p* ‖ p), nats.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kl: Option<f64>,
+    /// Mean χ²(p* ‖ p) = ∫ p*²/p − 1 (the render's relative variance per sample).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chi2: Option<f64>,
+    /// Largest χ²(p* ‖ p) over the conditions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chi2_worst: Option<f64>,
     /// Mean squared pdf difference on the disk.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pdf_mse: Option<f64>,
@@ -146,6 +152,8 @@ pub fn sweep(material: &dyn Material, job: &SweepJob) -> Result<Summary> {
         methods: vec![SummaryRow {
             method: SamplerKind::Cosine.name().to_string(),
             kl: Some(fit.kl_divergence),
+            chi2: Some(fit.chi2),
+            chi2_worst: Some(fit.chi2_worst),
             pdf_mse: Some(fit.pdf_mse),
             train_seconds: Some(0.0),
             steps: Some(0),
@@ -168,6 +176,8 @@ pub fn sweep(material: &dyn Material, job: &SweepJob) -> Result<Summary> {
                 Ok(SummaryRow {
                     method: method.name().to_string(),
                     kl: Some(fit.kl_divergence),
+                    chi2: Some(fit.chi2),
+                    chi2_worst: Some(fit.chi2_worst),
                     pdf_mse: Some(fit.pdf_mse),
                     train_seconds: Some(trained.seconds),
                     steps: job.config.schedule(method).map(|s| s.steps),

@@ -3,6 +3,7 @@
 //! (`neusample_precompute::jobs`, `neusample_precompute::demo`) and prints what it returns.
 
 mod bench;
+mod defend;
 mod demo;
 mod material;
 mod output;
@@ -41,6 +42,9 @@ enum Command {
     },
     /// Train a sampler for a material and write its blob (verified against the model).
     Train(train::TrainArgs),
+    /// Set a blob's defensive weight α (mix its sampler with cosine sampling), chosen by the
+    /// render's second moment on a material or given.
+    Defend(defend::DefendArgs),
     /// Describe a blob: kind, dimensions, tensors, checksum status.
     Inspect {
         /// The blob file.
@@ -83,6 +87,7 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Materials { json } => list_materials(json),
         Command::Train(a) => train::run(&a),
+        Command::Defend(a) => defend::run(&a),
         Command::Inspect { blob, json } => {
             let info = inspect(&blob)?;
             if json {

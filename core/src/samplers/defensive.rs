@@ -1,0 +1,401 @@
+//! [`Defensive`]: a learned sampler mixed with cosine sampling, so that no sample weight
+//! exceeds `π·f/α` wherever the material reflects.
+//!
+//! The density is the one-sample mixture (Veach's defensive importance sampling; Owen & Zhou
+//! 2000) of the learned density `p_l` and the cosine density:
+//!
+//! ```text
+//! p(wo) = (1 − α)·p_l(wo) + α·cos θo / π      (solid angle)
+//! p⊥(x) = (1 − α)·p_l⊥(x) + α / π             (projected-disk area)
+//! ```
+//!
+//! One uniform chooses the part: `u.x < α` draws cosine from `(u.x / α, u.y)`, otherwise the
+//! learned sampler draws from `((u.x − α) / (1 − α), u.y)`. Both parts are evaluated for
+//! every density, so the pdf is exact whichever part drew the sample (the learned part's
+//! density at a cosine sample costs one `pdf` of the learned sampler).
+//!
+//! With α = 0 every call is the learned sampler's own, bit for bit: version-1 blobs, which
+//! have no α, behave as before.
+
+use glam::{Vec2, Vec3};
+
+use crate::math::{self, INV_PI, ONE_MINUS_EPSILON};
+use crate::nn::FEATURE_DIM;
+use crate::warp;
+
+use super::{Prepared, Sample, Sampler};
+
+/// A sampler `S` mixed with cosine sampling at weight α (module docs).
+#[derive(Copy, Clone, Debug)]
+pub struct Defensive<S> {
+    inner: S,
+    alpha: f32,
+}
+
+/// The prepared state of a [`Defensive`] sampler: the learned part's state and α.
+#[derive(Copy, Clone, Debug)]
+pub struct DefensivePrepared<P> {
+    inner: P,
+    alpha: f32,
+}
+
+impl<S> Defensive<S> {
+    /// `inner` mixed with cosine at weight `alpha`, or `None` unless `0 ≤ alpha < 1`.
+    #[inline]
+    #[must_use]
+    pub fn new(inner: S, alpha: f32) -> Option<Self> {
+        if alpha >= 0.0 && alpha < 1.0 {
+            Some(Self::new_unchecked(inner, alpha))
+        } else {
+            None
+        }
+    }
+
+    /// [`Defensive::new`] without the range check, for GPU shaders (`Option<Self>` with a
+    /// borrowed sampler cannot be tested by rust-gpu). An α outside `[0, 1)` gives wrong
+    /// densities, never a panic or NaN: α ≤ 0 (or NaN) is the learned sampler alone.
+    #[inline]
+    #[must_use]
+    pub const fn new_unchecked(inner: S, alpha: f32) -> Self {
+        Self { inner, alpha }
+    }
+
+    /// `inner` alone (α = 0).
+    #[inline]
+    #[must_use]
+    pub const fn plain(inner: S) -> Self {
+        Self::new_unchecked(inner, 0.0)
+    }
+
+    /// The learned part.
+    #[inline]
+    #[must_use]
+    pub fn inner(&self) -> &S {
+        &self.inner
+    }
+
+    /// The defensive weight α.
+    #[inline]
+    #[must_use]
+    pub fn alpha(&self) -> f32 {
+        self.alpha
+    }
+
+    /// Whether the cosine part is present (α > 0).
+    #[inline]
+    #[must_use]
+    pub fn is_mixed(&self) -> bool {
+        self.alpha > 0.0
+    }
+}
+
+/// What [`Blob::sampler`](crate::Blob::sampler) returns: whichever sampler the blob holds,
+/// with the blob's defensive weight.
+pub type BlobSampler<'a> = Defensive<super::AnySampler<'a>>;
+
+impl<'a> Defensive<super::AnySampler<'a>> {
+    /// Cosine sampling (no blob), as a [`BlobSampler`].
+    #[inline]
+    #[must_use]
+    pub const fn cosine() -> Self {
+        Self::plain(super::AnySampler::Cosine(super::CosineSampler))
+    }
+
+    /// The kind of the learned part.
+    #[inline]
+    #[must_use]
+    pub fn kind(&self) -> crate::SamplerKind {
+        self.inner.kind()
+    }
+}
+
+/// `(1 − α)·p_l + α·cos θ / π`, the mixture's solid-angle density.
+#[inline(always)]
+fn mix(alpha: f32, p_learned: f32, cos_theta: f32) -> f32 {
+    (1.0 - alpha) * p_learned + alpha * (cos_theta * INV_PI)
+}
+
+/// The mixture's sample from its solid-angle density, or `None` when it is not finite and
+/// positive.
+#[inline(always)]
+fn mixed_sample(wo: Vec3, pdf: f32) -> Option<Sample> {
+    if pdf > 0.0 && math::is_finite(pdf) {
+        Some(Sample {
+            wo,
+            pdf,
+            pdf_disk: warp::solid_angle_to_disk(pdf, wo.z),
+        })
+    } else {
+        None
+    }
+}
+
+/// Which part `u` chooses and the uniform it hands that part: `(true, u')` for cosine.
+#[inline(always)]
+fn split(alpha: f32, u: Vec2) -> (bool, Vec2) {
+    let below = |x: f32| {
+        if x < ONE_MINUS_EPSILON {
+            x
+        } else {
+            ONE_MINUS_EPSILON
+        }
+    };
+    if u.x < alpha {
+        (true, Vec2::new(below(u.x / alpha), u.y))
+    } else {
+        (false, Vec2::new(below((u.x - alpha) / (1.0 - alpha)), u.y))
+    }
+}
+
+/// The cosine part's direction for `u'`.
+#[inline(always)]
+fn cosine_direction(u: Vec2) -> Option<Vec3> {
+    warp::from_disk(warp::sample_uniform_disk_concentric(u))
+}
+
+impl<S: Sampler> Sampler for Defensive<S> {
+    type Prepared<'s>
+        = DefensivePrepared<S::Prepared<'s>>
+    where
+        Self: 's;
+
+    #[inline]
+    fn prepare<'s>(&'s self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<Self::Prepared<'s>> {
+        Some(DefensivePrepared {
+            inner: self.inner.prepare(phi, wi)?,
+            alpha: self.alpha,
+        })
+    }
+}
+
+impl<P: Prepared> DefensivePrepared<P> {
+    /// The learned part's prepared state.
+    #[inline]
+    #[must_use]
+    pub fn inner(&self) -> &P {
+        &self.inner
+    }
+}
+
+impl<P: Prepared> Prepared for DefensivePrepared<P> {
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        if !(self.alpha > 0.0) {
+            return self.inner.sample(u);
+        }
+        let u = math::sanitize_u2(u)?;
+        let (cosine, u) = split(self.alpha, u);
+        if cosine {
+            let wo = cosine_direction(u)?;
+            mixed_sample(wo, mix(self.alpha, self.inner.pdf(wo), wo.z))
+        } else {
+            let s = self.inner.sample(u)?;
+            mixed_sample(s.wo, mix(self.alpha, s.pdf, s.wo.z))
+        }
+    }
+
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        if !(self.alpha > 0.0) {
+            return self.inner.pdf_disk(p);
+        }
+        if !warp::inside_disk(p) {
+            return 0.0;
+        }
+        (1.0 - self.alpha) * self.inner.pdf_disk(p) + self.alpha * INV_PI
+    }
+
+    #[inline]
+    fn pdf(&self, wo: Vec3) -> f32 {
+        if !(self.alpha > 0.0) {
+            return self.inner.pdf(wo);
+        }
+        match warp::upper_hemisphere(wo) {
+            Some(w) => mix(self.alpha, self.inner.pdf(w), w.z),
+            None => 0.0,
+        }
+    }
+
+    /// The learned part's inverse when α = 0; `None` otherwise (a mixture has no unique
+    /// inverse: either part may have drawn a direction).
+    #[inline]
+    fn invert(&self, wo: Vec3) -> Option<Vec2> {
+        if !(self.alpha > 0.0) {
+            return self.inner.invert(wo);
+        }
+        None
+    }
+}
+
+#[cfg(not(target_arch = "spirv"))]
+mod batch {
+    //! [`Defensive`] over wavefronts: the learned part's batched kernels, the cosine lanes
+    //! gathered into one `pdf_batch` of the learned part per chunk.
+
+    use super::*;
+    use crate::batch::{
+        check_invert_args, check_pdf_args, check_sample_args, BatchSampler, Features, LaneState,
+        SamplesMut, Vec2s, Vec2sMut, Vec3s, FUSED_CHUNK,
+    };
+    use crate::error::Result;
+
+    impl<S: BatchSampler> BatchSampler for Defensive<S> {
+        type Lane = S::Lane;
+
+        #[inline]
+        fn prepare_batch(
+            &self,
+            phi: Features<'_>,
+            wi: Vec3s<'_>,
+            lanes: &mut [S::Lane],
+        ) -> Result<()> {
+            self.inner.prepare_batch(phi, wi, lanes)
+        }
+
+        fn sample_batch(
+            &self,
+            lanes: &[S::Lane],
+            u: Vec2s<'_>,
+            mut out: SamplesMut<'_>,
+        ) -> Result<()> {
+            if !self.is_mixed() {
+                return self.inner.sample_batch(lanes, u, out);
+            }
+            let n = check_sample_args(lanes, &u, &out)?;
+            let alpha = self.alpha;
+            let mut a = 0;
+            while a < n {
+                let b = if n - a > FUSED_CHUNK {
+                    a + FUSED_CHUNK
+                } else {
+                    n
+                };
+                let m = b - a;
+                // Uniforms for the learned part (NaN refuses a lane whose `u` is invalid or
+                // that chose cosine: the learned kernel's result there is not used).
+                let mut ux = [f32::NAN; FUSED_CHUNK];
+                let mut uy = [0.0f32; FUSED_CHUNK];
+                // The cosine lanes, gathered: lane index, prepared state, direction.
+                let mut at = [0usize; FUSED_CHUNK];
+                let mut cl = [S::Lane::default(); FUSED_CHUNK];
+                let (mut cx, mut cy, mut cz) = (
+                    [0.0f32; FUSED_CHUNK],
+                    [0.0f32; FUSED_CHUNK],
+                    [0.0f32; FUSED_CHUNK],
+                );
+                let mut c = 0;
+                for i in 0..m {
+                    let Some(v) = math::sanitize_u2(u.at(a + i)) else {
+                        continue;
+                    };
+                    let (cosine, v) = split(alpha, v);
+                    uy[i] = v.y;
+                    if !cosine {
+                        ux[i] = v.x;
+                    } else if lanes[a + i].is_prepared() {
+                        if let Some(wo) = cosine_direction(v) {
+                            at[c] = i;
+                            cl[c] = lanes[a + i];
+                            (cx[c], cy[c], cz[c]) = (wo.x, wo.y, wo.z);
+                            c += 1;
+                        }
+                    }
+                }
+                let mut chunk = out.range(a, b);
+                self.inner.sample_batch(
+                    &lanes[a..b],
+                    Vec2s {
+                        x: &ux[..m],
+                        y: &uy[..m],
+                    },
+                    chunk.range(0, m),
+                )?;
+                for i in 0..m {
+                    // Learned lanes: the mixture's density; refused and cosine lanes: refused
+                    // here, the cosine ones filled in below.
+                    let s = if ux[i].is_nan() || !(chunk.pdf[i] > 0.0) {
+                        None
+                    } else {
+                        let wo = Vec3::new(chunk.wo.x[i], chunk.wo.y[i], chunk.wo.z[i]);
+                        mixed_sample(wo, mix(alpha, chunk.pdf[i], wo.z))
+                    };
+                    chunk.set(i, s);
+                }
+                if c > 0 {
+                    let mut pl = [0.0f32; FUSED_CHUNK];
+                    self.inner.pdf_batch(
+                        &cl[..c],
+                        Vec3s {
+                            x: &cx[..c],
+                            y: &cy[..c],
+                            z: &cz[..c],
+                        },
+                        &mut pl[..c],
+                    )?;
+                    for j in 0..c {
+                        let wo = Vec3::new(cx[j], cy[j], cz[j]);
+                        chunk.set(at[j], mixed_sample(wo, mix(alpha, pl[j], wo.z)));
+                    }
+                }
+                a = b;
+            }
+            Ok(())
+        }
+
+        fn pdf_batch(&self, lanes: &[S::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+            if !self.is_mixed() {
+                return self.inner.pdf_batch(lanes, wo, pdf);
+            }
+            let n = check_pdf_args(lanes, &wo, pdf)?;
+            self.inner.pdf_batch(lanes, wo, pdf)?;
+            for i in 0..n {
+                pdf[i] = match warp::upper_hemisphere(wo.at(i)) {
+                    Some(w) if lanes[i].is_prepared() => mix(self.alpha, pdf[i], w.z),
+                    _ => 0.0,
+                };
+            }
+            Ok(())
+        }
+
+        fn invert_batch(
+            &self,
+            lanes: &[S::Lane],
+            wo: Vec3s<'_>,
+            u: Vec2sMut<'_>,
+            ok: &mut [bool],
+        ) -> Result<()> {
+            if !self.is_mixed() {
+                return self.inner.invert_batch(lanes, wo, u, ok);
+            }
+            check_invert_args(lanes, &wo, &u, ok)?;
+            ok.fill(false);
+            Ok(())
+        }
+
+        fn sample_fused(
+            &self,
+            phi: Features<'_>,
+            wi: Vec3s<'_>,
+            u: Vec2s<'_>,
+            out: SamplesMut<'_>,
+        ) -> Result<()> {
+            if !self.is_mixed() {
+                return self.inner.sample_fused(phi, wi, u, out);
+            }
+            crate::batch::sample_fused_chunks(self, phi, wi, u, out)
+        }
+
+        fn pdf_fused(
+            &self,
+            phi: Features<'_>,
+            wi: Vec3s<'_>,
+            wo: Vec3s<'_>,
+            pdf: &mut [f32],
+        ) -> Result<()> {
+            if !self.is_mixed() {
+                return self.inner.pdf_fused(phi, wi, wo, pdf);
+            }
+            crate::batch::pdf_fused_chunks(self, phi, wi, wo, pdf)
+        }
+    }
+}
