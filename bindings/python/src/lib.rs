@@ -130,6 +130,8 @@ fn header_dict<'py>(py: Python<'py>, blob: &OwnedBlob) -> PyResult<Bound<'py, Py
         },
     )?;
     d.set_item("label", h.label)?;
+    d.set_item("format_version", blob.blob().version())?;
+    d.set_item("defensive", blob.blob().defensive())?;
     d.set_item("tensor_count", h.tensor_count)?;
     Ok(d)
 }
@@ -144,7 +146,6 @@ fn inspect<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> 
     let d = header_dict(py, &blob)?;
     d.set_item("file", path_str(&path))?;
     d.set_item("bytes", blob.bytes().len())?;
-    d.set_item("format_version", neusample::blob::FORMAT_VERSION)?;
     d.set_item("checksum", "ok")?;
     let tensors = PyList::empty(py);
     for role in TensorRole::ALL {
@@ -219,6 +220,13 @@ impl Sampler {
     #[getter]
     fn kind(&self) -> &'static str {
         self.inner.kind().name()
+    }
+
+    /// The defensive weight α: the sampler draws from `(1 − α)·p_learned + α·cos θ/π` and
+    /// reports that density (0: the learned sampler alone).
+    #[getter]
+    fn alpha(&self) -> f32 {
+        self.inner.get().alpha()
     }
 
     /// Prepares the sampler for each lane's `(phi, wi)` and draws one direction from `u`.

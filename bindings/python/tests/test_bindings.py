@@ -191,3 +191,9 @@ def test_inspect_and_header():
     assert len(blob) == Path(material_path("goat_leather_neural")).stat().st_size
     assert blob.sampler.__doc__
     assert set(neusample.SAMPLER_KINDS) == {"cosine", *METHODS}
+    # A version-1 blob has no defensive weight; the committed flows carry one (version 2).
+    assert info["format_version"] == 1 and info["defensive"] == 0.0
+    flow = neusample.inspect(sampler_path("victorian_fabric_neural", "flow"))
+    assert flow["format_version"] == 2 and 0.0 < flow["defensive"] < 1.0
+    assert neusample.Sampler(sampler_path("victorian_fabric_neural", "flow")).alpha == flow["defensive"]
+    assert neusample.Sampler.cosine().alpha == 0.0

@@ -68,7 +68,8 @@ pub struct Batched {
 /// One sampler's figures.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct MethodCost {
-    /// The method (blob file stem).
+    /// The method (blob file stem; with ` α=…` for a blob with a defensive weight, and
+    /// ` α=0` for its learned part alone).
     pub method: String,
     /// The scalar API, one shading point at a time.
     pub scalar: Split,
@@ -461,24 +462,36 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
         };
         let blob = Blob::open(&bytes).with_context(|| path.display().to_string())?;
         let s = blob.sampler().with_context(|| path.display().to_string())?;
-        let scalar = scalar_split(&s, &inp, passes);
-        let batched = with_concrete(
-            s,
-            BatchedAll {
-                rows: &rows,
-                passes,
-            },
-        );
-        let b64 = batched
-            .iter()
-            .find(|b| b.n == 64)
-            .map_or(0.0, |b| b.dispatched.total_ns);
-        methods.push(MethodCost {
-            method: method.to_string(),
-            scalar,
-            batched,
-            vs_material_eval: b64 / eval64,
-        });
+        // A blob with a defensive weight is measured as stored and, beside it, its learned
+        // part alone (α = 0): the mixture's own cost in the same run.
+        let mut variants = vec![(method.to_string(), s)];
+        if s.is_mixed() {
+            variants[0].0 = format!("{method} α={}", s.alpha());
+            variants.push((
+                format!("{method} α=0"),
+                neusample::Defensive::plain(*s.inner()),
+            ));
+        }
+        for (name, s) in variants {
+            let scalar = scalar_split(&s, &inp, passes);
+            let batched = with_concrete(
+                s,
+                BatchedAll {
+                    rows: &rows,
+                    passes,
+                },
+            );
+            let b64 = batched
+                .iter()
+                .find(|b| b.n == 64)
+                .map_or(0.0, |b| b.dispatched.total_ns);
+            methods.push(MethodCost {
+                method: name,
+                scalar,
+                batched,
+                vs_material_eval: b64 / eval64,
+            });
+        }
     }
     Ok(BenchReport {
         blobs: cfg.blobs.display().to_string(),

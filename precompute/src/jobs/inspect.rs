@@ -5,7 +5,6 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::Result;
-use neusample::blob::FORMAT_VERSION;
 use neusample::Weights;
 use neusample::{Blob, SamplerKind, TensorRole};
 use serde::{Deserialize, Serialize};
@@ -19,8 +18,11 @@ pub struct Inspection {
     pub file: String,
     /// File size in bytes.
     pub bytes: usize,
-    /// Blob format version this build reads.
+    /// The blob's format version (1, or 2 with a defensive weight).
     pub format_version: u32,
+    /// The sampler's defensive weight α (`Defensive`; 0 in version-1 blobs).
+    #[serde(default)]
+    pub defensive: f32,
     /// Kind name ([`SamplerKind::name`]).
     pub kind: String,
     /// Storage type of the parameters (`f32`, `f16`).
@@ -95,7 +97,8 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     Ok(Inspection {
         file: path.display().to_string(),
         bytes: bytes.len(),
-        format_version: FORMAT_VERSION,
+        format_version: blob.version(),
+        defensive: blob.defensive(),
         kind: h.kind.name().to_string(),
         dtype: lower(&h.dtype),
         feature_dim: h.feature_dim,
@@ -129,6 +132,13 @@ impl Inspection {
             self.bytes,
             self.format_version
         );
+        if self.defensive > 0.0 {
+            let _ = writeln!(
+                s,
+                "  defensive mixture: (1 − α)·p + α·cos/π with α = {}",
+                self.defensive
+            );
+        }
         let _ = writeln!(
             s,
             "  storage {}, φ dim {}, {} params",

@@ -63,6 +63,9 @@ class Sampler:
     def cosine() -> "Sampler": ...
     @property
     def kind(self) -> str: ...
+    @property
+    def alpha(self) -> float:
+        """The defensive weight: the density is (1 − α)·p_learned + α·cos θ/π."""
     def sample(self, phi: F32, wi: F32, u: F32, *, threads: int = 1) -> Tuple[F32, F32]:
         """phi (8, N), wi (3, N), u (2, N) in [0, 1) → (wo (3, N), pdf (N,)); refused
         lanes (wi below the horizon, NaN, sample outside the support) are wo = 0, pdf = 0."""
