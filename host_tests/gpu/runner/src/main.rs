@@ -752,6 +752,15 @@ fn main() {
             tol: tight,
             cpu: hm_cpu(1),
         },
+        // Last, so that the cases before it keep their inputs (seeded by position).
+        Case {
+            label: "defensive_flow",
+            entry: "defensive_flow",
+            buffers: vec![fw],
+            params: p(n),
+            tol: flow_tol,
+            cpu: cpu!(neusample_gpu_shader::defensive_flow, fw),
+        },
     ];
 
     // Debugging aid: `NEUSAMPLE_GPU_SMOKE=<entry>` only creates and dispatches that entry

@@ -100,6 +100,29 @@ weighted_entry!(
     AffineFlowSampler
 );
 
+/// The defensive weight of [`defensive_flow`] (a blob's α on a host; a constant here).
+pub const DEFENSIVE_ALPHA: f32 = 0.25;
+
+/// The spline flow mixed with cosine sampling at weight [`DEFENSIVE_ALPHA`]
+/// (`neusample::Defensive`: one uniform picks the part, both parts give the density).
+#[spirv(compute(threads(64)))]
+pub fn defensive_flow(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(push_constant)] params: &Params,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] output: &mut [f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] weights: &[f32],
+) {
+    let i = id.x;
+    if i < params.n && kernel::in_range(i, input.len(), output.len()) {
+        let s = neusample::Defensive::new_unchecked(
+            neusample::FlowSampler::new_unchecked(weights),
+            DEFENSIVE_ALPHA,
+        );
+        kernel::run(&s, i, input, output);
+    }
+}
+
 /// Histogram mixture (paper Eq. 5–6): network weights at binding 2, baked tables `mass`,
 /// `table`, `marginal`, `conditional` at 3–6; T, N and the interpolation in the push
 /// constants.
