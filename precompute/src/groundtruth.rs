@@ -367,56 +367,35 @@ impl TargetPdf {
     /// a density on the disk (area measure). `q ≤ 0` or non-finite counts as
     /// [`KL_Q_FLOOR`]. In nats.
     pub fn kl_from(&self, q: impl Fn(Vec2) -> f32) -> f64 {
-        let res = self.res;
-        let h = 2.0 / res as f64;
-        let mut kl = 0.0f64;
-        for r in 0..res {
-            for c in 0..res {
-                let p = f64::from(self.density[r * res + c]);
-                if p <= 0.0 {
-                    continue;
-                }
-                let m = Vec2::new(
-                    (-1.0 + (c as f64 + 0.5) * h) as f32,
-                    (-1.0 + (r as f64 + 0.5) * h) as f32,
-                );
-                let qv = f64::from(q(m));
-                let qv = if qv.is_finite() && qv > KL_Q_FLOOR {
-                    qv
-                } else {
-                    KL_Q_FLOOR
-                };
-                kl += p * (p / qv).ln();
-            }
-        }
-        kl * h * h
+        self.cell_sum(q, |p, qv| p * (p / qv).ln())
     }
 
     /// The χ² divergence `χ²(p* ‖ q) = ∫ p*² / q − 1 = Σ_cells p*_c² / q(m_c) · h² − 1`: the
     /// relative variance of the one-sample estimator `p*/q` with samples from `q`, i.e. the
     /// render's variance per sample relative to perfect importance sampling (the measure that
     /// KL does not see where `q ≪ p*` on little mass). `q ≤ 0` or non-finite counts as
-    /// [`KL_Q_FLOOR`].
+    /// [`KL_Q_FLOOR`]. Over the table's cells only, which stop short of the horizon;
+    /// [`rim_moments`] integrates over the whole disk.
     pub fn chi2_from(&self, q: impl Fn(Vec2) -> f32) -> f64 {
+        self.cell_sum(q, |p, qv| p * p / qv) - 1.0
+    }
+
+    /// `Σ_cells term(p*_c, q(m_c)) · h²` over the cells where p* > 0, `q` floored at
+    /// [`KL_Q_FLOOR`] (≤ 0 or non-finite counts as the floor).
+    fn cell_sum(&self, q: impl Fn(Vec2) -> f32, term: impl Fn(f64, f64) -> f64) -> f64 {
         let res = self.res;
         let h = 2.0 / res as f64;
-        let mut m2 = 0.0f64;
+        let mut sum = 0.0f64;
         for r in 0..res {
             for c in 0..res {
                 let p = f64::from(self.density[r * res + c]);
                 if p <= 0.0 {
                     continue;
                 }
-                let qv = f64::from(q(cell_midpoint(res, r, c)));
-                let qv = if qv.is_finite() && qv > KL_Q_FLOOR {
-                    qv
-                } else {
-                    KL_Q_FLOOR
-                };
-                m2 += p * p / qv;
+                sum += term(p, floored(f64::from(q(cell_midpoint(res, r, c)))));
             }
         }
-        m2 * h * h - 1.0
+        sum * h * h
     }
 }
 
@@ -468,16 +447,20 @@ pub fn rim_moments(
         if !(f > 0.0 && f.is_finite()) {
             continue;
         }
-        let qv = f64::from(q(p));
-        let qv = if qv.is_finite() && qv > KL_Q_FLOOR {
-            qv
-        } else {
-            KL_Q_FLOOR
-        };
+        let qv = floored(f64::from(q(p)));
         a += f * w;
         m2 += f * f / qv * w;
     }
     (a, m2)
+}
+
+/// `q`, or [`KL_Q_FLOOR`] where `q` is below it or not finite.
+fn floored(q: f64) -> f64 {
+    if q.is_finite() && q > KL_Q_FLOOR {
+        q
+    } else {
+        KL_Q_FLOOR
+    }
 }
 
 /// The midpoint of cell `(r, c)` of an `res × res` grid over `[−1, 1]²` (rows = y).

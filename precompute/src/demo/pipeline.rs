@@ -470,9 +470,11 @@ fn render_material(
 }
 
 /// Where each learned sampler's sample weights are largest: for every runtime sampler but
-/// cosine and the baseline, its two worst conditions by χ²(p* ‖ p) among the fit conditions
-/// (`seed` is the fit's), as p*, p and the weight p*/p on the disk (each tile scaled to its own
-/// maximum, `viridis(√(w / max w))`), labelled with the condition's χ² and largest weight.
+/// cosine and the baseline, its two worst conditions by χ²(p* ‖ p) to the horizon among the fit
+/// conditions (`seed` is the fit's), as p* (tabulated), p and the weight p*/p on the disk with
+/// p* from the material itself (each tile scaled to its own maximum, `viridis(√(w / max w))`),
+/// labelled with the condition's χ² and its largest weight on the rim-resolving quadrature
+/// (the outermost rings are thinner than a pixel).
 fn weights_figure(
     m: &dyn Material,
     techniques: &[(String, Technique<'_>)],
@@ -481,6 +483,7 @@ fn weights_figure(
 ) -> Result<Rgb8> {
     use rayon::prelude::*;
     let conds = groundtruth::conditions(m, p.eval_conditions, seed);
+    let nodes = groundtruth::rim_quadrature(groundtruth::RIM_RADIAL, groundtruth::RIM_ANGULAR);
     let targets: Vec<TargetPdf> = conds
         .par_iter()
         .map(|c| TargetPdf::new(m, c, p.pdf_res))
@@ -493,40 +496,42 @@ fn weights_figure(
         if name == COSINE || name == BASELINE {
             continue;
         }
-        let mut chi: Vec<(usize, f64)> = conds
+        // χ² to the horizon, as the fit reports it, and the albedo that normalises p*.
+        let mut chi: Vec<(usize, f64, f64)> = conds
             .par_iter()
-            .zip(&targets)
             .enumerate()
-            .map(|(i, (c, target))| {
-                let x = s
-                    .prepare(&c.phi, c.wi)
-                    .map_or(f64::INFINITY, |pr| target.chi2_from(|q| pr.pdf_disk(q)));
-                (i, x)
+            .map(|(i, c)| {
+                let Some(pr) = s.prepare(&c.phi, c.wi) else {
+                    return (i, f64::INFINITY, 0.0);
+                };
+                let (a, m2) = groundtruth::rim_moments(m, c, &nodes, |q| pr.pdf_disk(q));
+                let x = if a > 0.0 { m2 / (a * a) - 1.0 } else { 0.0 };
+                (i, x, a)
             })
             .collect();
         chi.sort_by(|a, b| b.1.total_cmp(&a.1));
-        for &(i, x) in chi.iter().take(2) {
+        for &(i, x, albedo) in chi.iter().take(2) {
             let (c, target) = (&conds[i], &targets[i]);
             let vmax = target.density().iter().copied().fold(0.0f32, f32::max);
             let theta = c.wi.z.clamp(-1.0, 1.0).acos().to_degrees();
             let Some(pr) = s.prepare(&c.phi, c.wi) else {
                 continue;
             };
+            // p* from the material itself (no table cut-off), so the rim shows.
             let weight = |q: Vec2| {
                 let d = pr.pdf_disk(q);
-                if d > 0.0 {
-                    target.pdf(q) / d
-                } else {
-                    0.0
+                match neusample::warp::from_disk(q) {
+                    Some(wo) if d > 0.0 && albedo > 0.0 => {
+                        crate::materials::luminance(m.eval(&c.phi, c.wi, wo)) / albedo as f32 / d
+                    }
+                    _ => 0.0,
                 }
             };
             let mut wmax = 0.0f32;
-            for r in 0..p.pdf_res {
-                for col in 0..p.pdf_res {
-                    let w = weight(groundtruth::cell_midpoint(p.pdf_res, r, col));
-                    if w.is_finite() {
-                        wmax = wmax.max(w);
-                    }
+            for &(q, _) in &nodes {
+                let w = weight(q);
+                if w.is_finite() {
+                    wmax = wmax.max(w);
                 }
             }
             tiles.push((
@@ -538,11 +543,17 @@ fn weights_figure(
             ));
             tiles.push((
                 figures::disk_image(size, vmax, |q| pr.pdf_disk(q)),
-                [format!("{name}: p"), format!("χ² {}", fmt_chi2(x))],
+                [
+                    format!("{name}: p"),
+                    format!("χ² {} (to the horizon)", fmt_chi2(x)),
+                ],
             ));
             tiles.push((
                 figures::disk_image(size, wmax, weight),
-                ["weight p*/p".to_string(), format!("max {wmax:.3}")],
+                [
+                    "weight p*/p".to_string(),
+                    format!("max {wmax:.3} (to the horizon)"),
+                ],
             ));
             rows += 1;
         }
