@@ -12,24 +12,9 @@ use neusample_host_tests::{
 
 /// A fixture blob's bytes rewritten with the defensive weight `alpha`.
 fn defended(bytes: &[u8], alpha: f32) -> Vec<u8> {
-    let blob = Blob::open(bytes).unwrap();
-    let h = *blob.header();
-    let mut w = BlobWriter::new(h.kind, h.dtype, h.label).defensive(alpha);
-    *w.header_mut() = h;
-    for role in TensorRole::ALL {
-        let (Some(e), Some(t)) = (blob.entry(role), blob.tensor(role)) else {
-            continue;
-        };
-        let v: Vec<f32> = (0..neusample::Weights::len(&t))
-            .map(|i| neusample::Weights::at(&t, i))
-            .collect();
-        if e.dtype == DType::U16 {
-            w.tensor_u16(role, &v.iter().map(|&x| x as u16).collect::<Vec<_>>());
-        } else {
-            w.tensor(role, &v);
-        }
-    }
-    w.to_bytes()
+    BlobWriter::from_blob(&Blob::open(bytes).unwrap())
+        .defensive(alpha)
+        .to_bytes()
 }
 
 fn fixture(rel: &str) -> Vec<u8> {
@@ -61,17 +46,7 @@ fn versions_and_validation() {
     let m = std::fs::read(fixture_blobs_dir().join("../materials/neural/goat_leather_neural.nsb"))
         .unwrap();
     let mb = Blob::open(&m).unwrap();
-    let h = *mb.header();
-    let mut w = BlobWriter::new(h.kind, h.dtype, h.label).defensive(0.1);
-    *w.header_mut() = h;
-    for role in TensorRole::ALL {
-        if let Some(t) = mb.tensor(role) {
-            let v: Vec<f32> = (0..neusample::Weights::len(&t))
-                .map(|i| neusample::Weights::at(&t, i))
-                .collect();
-            w.tensor(role, &v);
-        }
-    }
+    let w = BlobWriter::from_blob(&mb).defensive(0.1);
     assert_eq!(Blob::open(&w.to_bytes()).unwrap_err(), Error::HeaderInvalid);
     // Every truncation of a version-2 blob is a typed error, never a panic.
     for n in 0..v2.len() {

@@ -273,7 +273,7 @@ fn every_fixture_sampler_batched_equals_scalar() {
             }
             // The same blob with a defensive weight: the learned part's batched kernels
             // with the cosine lanes gathered, against the scalar mixture.
-            let defended = reencode_with(bytes, blob.header().dtype, 0.25);
+            let defended = BlobWriter::from_blob(&blob).defensive(0.25).to_bytes();
             let blob = Blob::open(&defended).unwrap();
             assert_eq!((blob.version(), blob.defensive()), (2, 0.25));
             let sampler = blob.sampler().unwrap();
@@ -301,14 +301,9 @@ fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) {
 
 /// Re-encodes a blob's tensors as `dtype` (f16 exercises the widening of weight tiles).
 fn reencode(bytes: &[u8], dtype: DType) -> Vec<u8> {
-    reencode_with(bytes, dtype, Blob::open(bytes).unwrap().defensive())
-}
-
-/// [`reencode`] with the defensive weight `alpha`.
-fn reencode_with(bytes: &[u8], dtype: DType, alpha: f32) -> Vec<u8> {
     let blob = Blob::open(bytes).unwrap();
     let h = *blob.header();
-    let mut w = BlobWriter::new(h.kind, dtype, "re-encoded").defensive(alpha);
+    let mut w = BlobWriter::new(h.kind, dtype, "re-encoded").defensive(blob.defensive());
     if h.kind == SamplerKind::HistogramMixture {
         w = w.histogram_dims(h.t_levels, h.resolution, h.interpolation);
     }
@@ -316,12 +311,7 @@ fn reencode_with(bytes: &[u8], dtype: DType, alpha: f32) -> Vec<u8> {
         if let Some(t) = blob.tensor(role) {
             let mut v = vec![0.0f32; neusample::Weights::len(&t) as usize];
             blob.widen_into(role, &mut v).unwrap();
-            if blob.entry(role).unwrap().dtype == DType::U16 {
-                let q: Vec<u16> = v.iter().map(|&x| x as u16).collect();
-                w.tensor_u16(role, &q);
-            } else {
-                w.tensor(role, &v);
-            }
+            w.tensor(role, &v);
         }
     }
     w.to_bytes()

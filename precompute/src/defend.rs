@@ -14,12 +14,12 @@
 //! [`with_defensive`] rewrites a blob with the chosen α, its tensors unchanged.
 
 use anyhow::{bail, Context, Result};
-use neusample::{Blob, BlobWriter, DType, Prepared, Sampler, SamplerKind, TensorRole};
+use neusample::{Blob, BlobWriter, Prepared, Sampler, SamplerKind};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::groundtruth::{self, rim_quadrature, RIM_ANGULAR, RIM_RADIAL};
-use crate::materials::{luminance, Material};
+use crate::materials::Material;
 
 /// The weights [`choose_alpha`] tries. Capped at 0.2: the expectation is dominated by rare
 /// directions at the horizon, and beyond 0.2 it buys little there while every typical shading
@@ -78,19 +78,7 @@ pub fn choose_alpha(
         .par_iter()
         .map(|c| {
             let prep = sampler.prepare(&c.phi, c.wi);
-            let f: Vec<f64> = nodes
-                .iter()
-                .map(|&(p, _)| {
-                    neusample::warp::from_disk(p).map_or(0.0, |wo| {
-                        let y = f64::from(luminance(material.eval(&c.phi, c.wi, wo)));
-                        if y.is_finite() {
-                            y.max(0.0)
-                        } else {
-                            0.0
-                        }
-                    })
-                })
-                .collect();
+            let f = groundtruth::rim_luminance(material, c, &nodes);
             let a: f64 = f.iter().zip(&nodes).map(|(y, n)| y * n.1).sum();
             let mut m2 = vec![0.0f64; ALPHA_GRID.len()];
             for (&(p, w), &y) in nodes.iter().zip(&f) {
@@ -102,7 +90,7 @@ pub fn choose_alpha(
                 for (k, &alpha) in ALPHA_GRID.iter().enumerate() {
                     let alpha = f64::from(alpha);
                     let qa = (1.0 - alpha) * q + alpha * std::f64::consts::FRAC_1_PI;
-                    m2[k] += y * y / qa.max(groundtruth::KL_Q_FLOOR) * w;
+                    m2[k] += y * y / groundtruth::floored(qa) * w;
                 }
             }
             // Normalised: χ² + 1 = m2 / a².
@@ -151,33 +139,14 @@ pub fn choose_alpha(
 /// `bytes` rewritten with the defensive weight `alpha` (format version 2, or version 1 when
 /// α = 0), every tensor and header field kept; the result is opened before it is returned.
 pub fn with_defensive(bytes: &[u8], alpha: f32) -> Result<Vec<u8>> {
-    use neusample::Weights;
     let blob = Blob::open(bytes).context("the blob does not open")?;
-    let h = *blob.header();
-    if !h.kind.is_sampler() {
-        bail!("a {} blob has no sampler to defend", h.kind.name());
+    if !blob.kind().is_sampler() {
+        bail!("a {} blob has no sampler to defend", blob.kind().name());
     }
     if !(alpha >= 0.0 && alpha < 1.0) {
         bail!("the defensive weight must be in [0, 1), not {alpha}");
     }
-    let mut w = BlobWriter::new(h.kind, h.dtype, h.label).defensive(alpha);
-    *w.header_mut() = h;
-    for role in TensorRole::ALL {
-        let (Some(e), Some(t)) = (blob.entry(role), blob.tensor(role)) else {
-            continue;
-        };
-        let v: Vec<f32> = (0..t.len()).map(|i| t.at(i)).collect();
-        if e.dtype == DType::U16 {
-            let q: Vec<u16> = v.iter().map(|&x| x as u16).collect();
-            w.tensor_u16(role, &q);
-        } else {
-            if e.dtype != w.dtype_of(role) {
-                bail!("tensor {} is stored as {:?}", role.name(), e.dtype);
-            }
-            w.tensor(role, &v);
-        }
-    }
-    let out = w.to_bytes();
+    let out = BlobWriter::from_blob(&blob).defensive(alpha).to_bytes();
     let check = Blob::open(&out).context("the rewritten blob does not open")?;
     if check.defensive().to_bits() != alpha.to_bits() {
         bail!("the rewritten blob does not hold α = {alpha}");

@@ -428,6 +428,25 @@ pub fn rim_quadrature(radial: usize, angular: usize) -> Vec<(Vec2, f64)> {
     q
 }
 
+/// `Y(f)` at each of the [`rim_quadrature`] nodes `nodes` (0 where it is not finite and
+/// positive).
+#[must_use]
+pub fn rim_luminance(m: &dyn Material, c: &Condition, nodes: &[(Vec2, f64)]) -> Vec<f64> {
+    nodes
+        .iter()
+        .map(|&(p, _)| {
+            neusample::warp::from_disk(p).map_or(0.0, |wo| {
+                let y = f64::from(luminance(m.eval(&c.phi, c.wi, wo)));
+                if y > 0.0 && y.is_finite() {
+                    y
+                } else {
+                    0.0
+                }
+            })
+        })
+        .collect()
+}
+
 /// `∫ Y(f)` and `∫ Y(f)²/q` over the disk with [`rim_quadrature`] nodes `nodes`, `q` a disk
 /// density (≤ 0 or non-finite counts as [`KL_Q_FLOOR`]). `χ²(p* ‖ q) = m2 / a² − 1`, and `m2`
 /// is the second moment of the one-bounce estimator `Y(f)·cos/p_ω` under uniform light.
@@ -439,23 +458,17 @@ pub fn rim_moments(
     q: impl Fn(Vec2) -> f32,
 ) -> (f64, f64) {
     let (mut a, mut m2) = (0.0f64, 0.0f64);
-    for &(p, w) in nodes {
-        let Some(wo) = neusample::warp::from_disk(p) else {
-            continue;
-        };
-        let f = f64::from(luminance(m.eval(&c.phi, c.wi, wo)));
-        if !(f > 0.0 && f.is_finite()) {
-            continue;
+    for (&(p, w), f) in nodes.iter().zip(rim_luminance(m, c, nodes)) {
+        if f > 0.0 {
+            a += f * w;
+            m2 += f * f / floored(f64::from(q(p))) * w;
         }
-        let qv = floored(f64::from(q(p)));
-        a += f * w;
-        m2 += f * f / qv * w;
     }
     (a, m2)
 }
 
 /// `q`, or [`KL_Q_FLOOR`] where `q` is below it or not finite.
-fn floored(q: f64) -> f64 {
+pub(crate) fn floored(q: f64) -> f64 {
     if q.is_finite() && q > KL_Q_FLOOR {
         q
     } else {

@@ -210,6 +210,11 @@ impl<'a> Blob<'a> {
         self.extension.defensive
     }
 
+    /// Every tensor the blob holds, in role order, with its stored bytes.
+    pub(crate) fn stored_tensors(&self) -> impl Iterator<Item = (TensorEntry, &'a [u8])> + '_ {
+        self.tensors.iter().flatten().copied()
+    }
+
     fn defend<S>(&self, s: S) -> Defensive<S> {
         Defensive::new_unchecked(s, self.extension.defensive)
     }

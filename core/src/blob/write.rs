@@ -52,6 +52,23 @@ impl<'l> BlobWriter<'l> {
         }
     }
 
+    /// A writer holding everything `blob` holds — header, defensive weight and every tensor's
+    /// stored bytes — so that changing one field (e.g. [`BlobWriter::defensive`]) rewrites
+    /// the blob with all else bit for bit.
+    #[must_use]
+    pub fn from_blob(blob: &crate::Blob<'l>) -> Self {
+        BlobWriter {
+            header: *blob.header(),
+            extension: Extension {
+                defensive: blob.defensive(),
+            },
+            tensors: blob
+                .stored_tensors()
+                .map(|(e, bytes)| (e.role, e.dtype, bytes.to_vec()))
+                .collect(),
+        }
+    }
+
     /// Sets the histogram mixture's table dimensions and latent-code lookup.
     #[must_use]
     pub fn histogram_dims(
