@@ -98,6 +98,28 @@ impl Blob {
             .map_err(|e| blob_error(py, &e, self.path.as_deref()))
     }
 
+    /// The values of the tensor with role `role` (`"params"`, `"mass"`, `"table"`,
+    /// `"marginal"`, `"conditional"` or `"features"`) as a float32 array, exactly as the
+    /// runtime reads them (f16 widened, u16 CDF integers as floats); None when the blob has
+    /// no such tensor. `ValueError` for an unknown role.
+    fn tensor<'py>(
+        &self,
+        py: Python<'py>,
+        role: &str,
+    ) -> PyResult<Option<Bound<'py, PyArray1<f32>>>> {
+        let role = TensorRole::ALL
+            .into_iter()
+            .find(|r| r.name() == role)
+            .ok_or_else(|| {
+                pyo3::exceptions::PyValueError::new_err(format!("unknown tensor role {role:?}"))
+            })?;
+        let Some(t) = self.inner.blob().tensor(role) else {
+            return Ok(None);
+        };
+        let values: Vec<f32> = (0..t.len()).map(|i| t.at(i)).collect();
+        Ok(Some(PyArray1::from_vec(py, values)))
+    }
+
     fn __len__(&self) -> usize {
         self.inner.bytes().len()
     }

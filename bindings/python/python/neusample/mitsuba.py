@@ -1,9 +1,9 @@
-"""A Mitsuba 3 BSDF plugin: a neural material sampled by a neusample sampler.
+"""Mitsuba 3 BSDF plugins: a neural material importance-sampled by a neusample sampler.
 
 ::
 
     import mitsuba as mi
-    mi.set_variant("llvm_ad_rgb")            # or "scalar_rgb"
+    mi.set_variant("llvm_ad_rgb")            # or "cuda_ad_rgb", "scalar_rgb"
     import neusample.mitsuba
     neusample.mitsuba.register()             # BSDF type "neusample"
     bsdf = mi.load_dict({
@@ -17,23 +17,25 @@ Properties:
 ``material`` (string, required)
     A neural-material blob: the feature texture φ(uv) and the decoder giving the BRDF.
 ``sampler`` (string, optional)
-    A sampler blob of any kind; without it, cosine-hemisphere sampling.
+    A sampler blob; without it, cosine-hemisphere sampling.
 ``uv_scale``, ``uv_offset`` (float, optional; 1 and 0)
     Texture coordinates are ``si.uv * uv_scale + uv_offset`` (the texture wraps).
-``threads`` (int, optional; 1)
-    Threads of each batched call (0: rayon's pool; Mitsuba's own threads are not used by
-    the evaluated wavefront mode).
+``mode`` (string, optional; ``"symbolic"``)
+    ``"symbolic"``: the sampler and the material run as Dr.Jit code
+    (:mod:`neusample.drjit`) traced into Mitsuba's own kernels, in its default symbolic
+    mode, on the LLVM and CUDA variants. ``"evaluated"``: whole wavefronts leave the kernel
+    for the Rust runtime (numpy round trip, any sampler kind); it needs
+    :func:`evaluated_mode`, which makes every BSDF of the scene slower.
+``precision`` (string, optional; symbolic mode)
+    The networks' arithmetic: ``"f32"`` (default on LLVM) or ``"f16"`` (default on CUDA,
+    where cooperative vectors need it).
+``threads`` (int, optional; 1; evaluated mode)
+    Threads of each batched Rust call (0: rayon's pool).
 
-The plugin evaluates whole wavefronts: ``si.wi``, ``wo`` (already in the local shading
-frame, ``si.sh_frame``), ``si.uv`` and the sample are converted to numpy once per call, the
-batched neusample calls run with the GIL released, and the results come back as Dr.Jit
-arrays. ``eval`` returns ``f · cos θo``; ``pdf`` the solid-angle density; ``sample`` the
-direction, its pdf and the weight ``f · cos θo / pdf``; a refused sample is invalid (pdf 0,
-weight 0). Reflection only, front side only.
-
-In ``llvm_ad_rgb`` the wavefronts must be concrete: call :func:`evaluated_mode` (it turns
-off ``dr.JitFlag.SymbolicLoops`` and ``dr.JitFlag.SymbolicCalls``) before rendering.
-``scalar_rgb`` works as is (one lane per call).
+``eval`` returns ``f · cos θo``; ``pdf`` the solid-angle density; ``sample`` the direction,
+its pdf and the weight ``f · cos θo / pdf``; a refused sample is invalid (pdf 0, weight 0).
+Reflection only, front side only. In ``scalar_rgb`` both modes call the Rust runtime once
+per ray (there is no kernel to trace into).
 """
 
 from __future__ import annotations
@@ -203,10 +205,127 @@ def bsdf_class():
     return NeuSampleBSDF
 
 
-def register(name: str = "neusample", cls=None) -> None:
-    """Registers the BSDF plugin as ``name`` for the current Mitsuba variant (or ``cls``, a
-    subclass of :func:`bsdf_class`)."""
+def symbolic_bsdf_class():
+    """The symbolic-mode plugin class (:mod:`neusample.drjit`) for the current JIT variant."""
+    import drjit as dr
     import mitsuba as mi
 
-    cls = cls or bsdf_class()
-    mi.register_bsdf(name, lambda props: cls(props))
+    from . import drjit as nd
+
+    variant = mi.variant()
+    if variant is None:
+        raise RuntimeError("call mitsuba.set_variant(...) before neusample.mitsuba.register()")
+    key = ("symbolic", variant)
+    if key in _CLASSES:
+        return _CLASSES[key]
+    if not dr.is_jit_v(mi.Float):
+        raise RuntimeError(f"the symbolic plugin needs a JIT variant (llvm_*, cuda_*), not {variant}")
+
+    flags = (
+        mi.BSDFFlags.GlossyReflection
+        | mi.BSDFFlags.FrontSide
+        | mi.BSDFFlags.SpatiallyVarying
+    )
+
+    class NeuSampleJitBSDF(mi.BSDF):
+        """A neural material (``material``) importance-sampled by a neusample ``sampler``,
+        both as Dr.Jit code traced into Mitsuba's kernels."""
+
+        def __init__(self, props):
+            mi.BSDF.__init__(self, props)
+            self.material_path = str(props["material"])
+            self.sampler_path = str(props["sampler"]) if "sampler" in props else None
+            precision = str(props["precision"]) if "precision" in props else None
+            self.material = nd.NeuralMaterial(self.material_path, mi.Float, precision)
+            self.sampler = nd.Sampler(self.sampler_path, mi.Float, precision)
+            self.uv_scale = float(props["uv_scale"]) if "uv_scale" in props else 1.0
+            self.uv_offset = float(props["uv_offset"]) if "uv_offset" in props else 0.0
+            self.m_components = [flags]
+            self.m_flags = flags
+
+        def _features(self, si):
+            u = si.uv.x * self.uv_scale + self.uv_offset
+            v = si.uv.y * self.uv_scale + self.uv_offset
+            return self.material.features(u, v)
+
+        def _f_cos(self, phi, si, wo):
+            f = self.material.eval(phi, si.wi, wo)
+            c = dr.maximum(wo[2], 0.0)
+            return mi.Color3f(f[0] * c, f[1] * c, f[2] * c)
+
+        def _pdf(self, phi, si, wo):
+            """The sampler's solid-angle pdf: the one helper `pdf` and `eval_pdf` share."""
+            st, ok = self.sampler.prepare(phi, si.wi)
+            return self.sampler.pdf_prepared(st, ok, wo)
+
+        def sample(self, ctx, si, sample1, sample2, active=True):
+            phi = self._features(si)
+            st, ok = self.sampler.prepare(phi, si.wi)
+            wo, pdf, valid = self.sampler.sample_prepared(st, ok, (sample2.x, sample2.y))
+            valid = valid & active & ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
+            f_cos = self._f_cos(phi, si, wo)
+            bs = dr.zeros(mi.BSDFSample3f)
+            bs.wo = mi.Vector3f(wo[0], wo[1], wo[2])
+            bs.pdf = dr.select(valid, pdf, 0.0)
+            bs.eta = 1.0
+            bs.sampled_type = mi.UInt32(+mi.BSDFFlags.GlossyReflection)
+            bs.sampled_component = mi.UInt32(0)
+            weight = f_cos / dr.select(valid, pdf, 1.0)
+            return bs, dr.select(valid, weight, 0.0)
+
+        def eval(self, ctx, si, wo, active=True):
+            enabled = active & ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
+            w = (wo.x, wo.y, wo.z)
+            return dr.select(enabled, self._f_cos(self._features(si), si, w), 0.0)
+
+        def pdf(self, ctx, si, wo, active=True):
+            enabled = active & ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
+            w = (wo.x, wo.y, wo.z)
+            return dr.select(enabled, self._pdf(self._features(si), si, w), 0.0)
+
+        def eval_pdf(self, ctx, si, wo, active=True):
+            enabled = active & ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
+            w = (wo.x, wo.y, wo.z)
+            phi = self._features(si)
+            return (
+                dr.select(enabled, self._f_cos(phi, si, w), 0.0),
+                dr.select(enabled, self._pdf(phi, si, w), 0.0),
+            )
+
+        def to_string(self):
+            return (
+                f"NeuSampleJitBSDF[material={self.material_path!r}, "
+                f"sampler={self.sampler_path!r} ({self.sampler.name}, α = {self.sampler.alpha})]"
+            )
+
+    _CLASSES[key] = NeuSampleJitBSDF
+    return NeuSampleJitBSDF
+
+
+def plugin_class(mode: str = "symbolic"):
+    """The plugin class of ``mode`` for the current variant: the symbolic one in JIT
+    variants, the Rust per-ray one in scalar variants (either mode)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    if mode not in ("symbolic", "evaluated"):
+        raise ValueError(f"neusample: mode must be 'symbolic' or 'evaluated', not {mode!r}")
+    if mode == "evaluated" or not dr.is_jit_v(mi.Float):
+        return bsdf_class()
+    return symbolic_bsdf_class()
+
+
+def register(name: str = "neusample", cls=None) -> None:
+    """Registers the BSDF plugin as ``name`` for the current Mitsuba variant. The scene's
+    ``mode`` property picks the symbolic (default) or evaluated plugin; with ``cls`` (a
+    subclass of :func:`symbolic_bsdf_class` or :func:`bsdf_class`) every instance is a
+    ``cls``."""
+    import mitsuba as mi
+
+    def make(props):
+        if cls is not None:
+            return cls(props)
+        mode = str(props["mode"]) if "mode" in props else "symbolic"
+        return plugin_class(mode)(props)
+
+    mi.register_bsdf(name, make)
