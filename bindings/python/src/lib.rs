@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use neusample::wavefront::{
     BatchSampler, Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut,
 };
-use neusample::{SamplerKind, TensorRole, Weights, FEATURE_DIM};
+use neusample::{Prepared, Sampler as _, SamplerKind, TensorRole, Vec2, Vec3, Weights, FEATURE_DIM};
 use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedSampler};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
@@ -368,6 +368,64 @@ impl Sampler {
         Ok(pdf_arr)
     }
 
+    /// `sample` through the scalar API, one lane at a time (`prepare`, then `sample`): the
+    /// reference that the batched and the Dr.Jit paths are compared with. Same arguments
+    /// and results as `sample` (no `threads`).
+    fn sample_scalar<'py>(
+        &self,
+        py: Python<'py>,
+        phi: &Bound<'py, PyAny>,
+        wi: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+    ) -> PyResult<SampleArrays<'py>> {
+        let phi = Rows::<FEATURE_DIM>::new(phi, "phi")?;
+        let wi = Rows::<3>::new(wi, "wi")?;
+        let u = Rows::<2>::new(u, "u")?;
+        let n = same_n(&[("phi", phi.n()), ("wi", wi.n()), ("u", u.n())])?;
+        let (phi, wi, u) = (phi.rows()?, wi.rows()?, u.rows()?);
+        let sampler = self.inner.get();
+        let mut wo = vec![0.0f32; 3 * n];
+        let mut pdf = vec![0.0f32; n];
+        for i in 0..n {
+            let s = sampler
+                .prepare(&lane_phi(&phi, i), Vec3::new(wi[0][i], wi[1][i], wi[2][i]))
+                .and_then(|p| p.sample(Vec2::new(u[0][i], u[1][i])));
+            if let Some(s) = s {
+                (wo[i], wo[n + i], wo[2 * n + i]) = (s.wo.x, s.wo.y, s.wo.z);
+                pdf[i] = s.pdf;
+            }
+        }
+        Ok((
+            PyArray1::from_vec(py, wo).reshape([3, n])?,
+            PyArray1::from_vec(py, pdf),
+        ))
+    }
+
+    /// `pdf` through the scalar API, one lane at a time (the reference; see
+    /// `sample_scalar`).
+    fn pdf_scalar<'py>(
+        &self,
+        py: Python<'py>,
+        phi: &Bound<'py, PyAny>,
+        wi: &Bound<'py, PyAny>,
+        wo: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let phi = Rows::<FEATURE_DIM>::new(phi, "phi")?;
+        let wi = Rows::<3>::new(wi, "wi")?;
+        let wo = Rows::<3>::new(wo, "wo")?;
+        let n = same_n(&[("phi", phi.n()), ("wi", wi.n()), ("wo", wo.n())])?;
+        let (phi, wi, wo) = (phi.rows()?, wi.rows()?, wo.rows()?);
+        let sampler = self.inner.get();
+        let pdf: Vec<f32> = (0..n)
+            .map(|i| {
+                sampler
+                    .prepare(&lane_phi(&phi, i), Vec3::new(wi[0][i], wi[1][i], wi[2][i]))
+                    .map_or(0.0, |p| p.pdf(Vec3::new(wo[0][i], wo[1][i], wo[2][i])))
+            })
+            .collect();
+        Ok(PyArray1::from_vec(py, pdf))
+    }
+
     fn __repr__(&self) -> String {
         format!("neusample.Sampler(kind={:?})", self.kind())
     }
@@ -375,6 +433,11 @@ impl Sampler {
 
 /// `(wo, pdf)` of [`Sampler::sample`].
 type SampleArrays<'py> = (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<f32>>);
+
+/// Lane `i` of a `(8, N)` feature array.
+fn lane_phi(phi: &[&[f32]; FEATURE_DIM], i: usize) -> [f32; FEATURE_DIM] {
+    core::array::from_fn(|c| phi[c][i])
+}
 
 fn batch_error_s(msg: String) -> PyErr {
     pyo3::exceptions::PyValueError::new_err(msg)
@@ -496,6 +559,54 @@ impl NeuralMaterial {
             .map_err(batch_error)?;
         }
         Ok(f_arr)
+    }
+
+    /// `features` through the scalar API, one lane at a time (the reference).
+    fn features_scalar<'py>(
+        &self,
+        py: Python<'py>,
+        uv: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let uv = Rows::<2>::new(uv, "uv")?;
+        let n = uv.n();
+        let uv = uv.rows()?;
+        let m = self.inner.get();
+        let mut out = vec![0.0f32; FEATURE_DIM * n];
+        for i in 0..n {
+            let f = m.features(Vec2::new(uv[0][i], uv[1][i]));
+            for (c, v) in f.iter().enumerate() {
+                out[c * n + i] = *v;
+            }
+        }
+        Ok(PyArray1::from_vec(py, out).reshape([FEATURE_DIM, n])?)
+    }
+
+    /// `eval` through the scalar API, one lane at a time (the reference).
+    fn eval_scalar<'py>(
+        &self,
+        py: Python<'py>,
+        phi: &Bound<'py, PyAny>,
+        wi: &Bound<'py, PyAny>,
+        wo: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let phi = Rows::<FEATURE_DIM>::new(phi, "phi")?;
+        let wi = Rows::<3>::new(wi, "wi")?;
+        let wo = Rows::<3>::new(wo, "wo")?;
+        let n = same_n(&[("phi", phi.n()), ("wi", wi.n()), ("wo", wo.n())])?;
+        let (phi, wi, wo) = (phi.rows()?, wi.rows()?, wo.rows()?);
+        let m = self.inner.get();
+        let mut out = vec![0.0f32; 3 * n];
+        for i in 0..n {
+            let f = m.eval(
+                &lane_phi(&phi, i),
+                Vec3::new(wi[0][i], wi[1][i], wi[2][i]),
+                Vec3::new(wo[0][i], wo[1][i], wo[2][i]),
+            );
+            for (c, v) in f.iter().enumerate() {
+                out[c * n + i] = *v;
+            }
+        }
+        Ok(PyArray1::from_vec(py, out).reshape([3, n])?)
     }
 
     fn __repr__(&self) -> String {

@@ -27,7 +27,8 @@ def fixtures_dir() -> Path:
 
 
 def pytest_terminal_summary(terminalreporter):
-    """Prints the χ² p-values and the render means of the Mitsuba tests."""
+    """Prints the Dr.Jit agreement figures, the χ² p-values and the render means."""
+    _drjit_summary(terminalreporter.write_line)
     try:
         import test_mitsuba as tm
     except Exception:  # noqa: BLE001 - module skipped or not collected
@@ -51,3 +52,29 @@ def pytest_terminal_summary(terminalreporter):
         w(f"{'sampler':<20} {'mean':>9} {'ref mean':>9} {'rel diff':>9} {'RMSE':>9} {'s':>6}")
         for method, mean, ref, rel, rmse, secs in tm.RENDER_RESULTS:
             w(f"{method:<20} {mean:>9.5f} {ref:>9.5f} {rel:>9.4f} {rmse:>9.5f} {secs:>6.2f}")
+
+
+def _drjit_summary(w):
+    try:
+        import test_drjit as td
+    except Exception:  # noqa: BLE001 - module skipped or not collected
+        return
+    if not td.RESULTS:
+        return
+    w("")
+    w(f"Dr.Jit runtime vs Rust scalar ({td.LANES} lanes, LLVM, f32): largest relative pdf error at "
+      f"the same directions, share of lanes above {td.PDF_RTOL}, sample lanes refused differently, "
+      f"lanes moved > {td.SAMPLE_ATOL}; materials: largest relative error of f and φ")
+    w(f"{'blob':<62} {'α':>5} {'pdf err':>9} {'>1e-4':>8} {'refused≠':>9} {'moved':>8}")
+    for name, alpha, a, b, c, d in td.RESULTS:
+        w(f"{name:<62} {alpha:>5.2f} {a:>9.2e} {b:>8.2e} {c:>9.2e} {d:>8.2e}")
+    samplers = [r for r in td.RESULTS if not r[0].startswith("fixtures/materials")]
+    for label, rows in (("flows", [r for r in samplers if "flow" in r[0]]),
+                        ("other kinds", [r for r in samplers if "flow" not in r[0]])):
+        if rows:
+            worst = max(rows, key=lambda r: r[2])
+            w(f"worst pdf error, {label}: {worst[2]:.3e} ({worst[0]})")
+    if td.FLOW_F64:
+        r, d, x = td.FLOW_F64
+        w(f"goat_leather/flow against its f64 evaluation: Rust f32 {r:.2e}, Dr.Jit f32 {d:.2e} "
+          f"(Dr.Jit vs Rust {x:.2e})")

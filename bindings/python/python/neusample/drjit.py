@@ -80,6 +80,7 @@ class Types:
             raise TypeError(f"neusample.drjit needs a JIT array type (llvm or cuda), not {Float}")
         self.Float = Float
         self.UInt32 = dr.uint32_array_t(Float)
+        self.Float32 = dr.float32_array_t(Float)
         self.Bool = dr.mask_t(Float)
         self.TensorXf = dr.tensor_t(Float)
         self.Float16 = dr.float16_array_t(Float)
@@ -88,7 +89,8 @@ class Types:
 
     def buffer(self, values: np.ndarray):
         """A flat, evaluated Float buffer of ``values`` (for ``dr.gather``)."""
-        b = self.Float(np.ascontiguousarray(values, dtype=np.float32))
+        b = self.Float(np.ascontiguousarray(values, dtype=np.float32).astype(
+            np.float64 if dr.type_v(self.Float) == dr.VarType.Float64 else np.float32))
         dr.make_opaque(b)
         return b
 
@@ -288,6 +290,12 @@ class Mlp:
                 mats += [w, b]
         self.end = at
         self.split = split
+        if precision == "plain":
+            # Explicit sums with the weights as constants (any Float type, e.g. Float64: the
+            # reference the tests measure f32 rounding against; slow to trace).
+            self.mats = [np.asarray(m, dtype=np.float64) for m in mats]
+            self.dtype = t.Float
+            return
         T = t.TensorXf16 if precision == "f16" else t.TensorXf
         tensors = [T(np.ascontiguousarray(m, dtype=np.float32)) for m in mats]
         self.views = nn.pack(*tensors, layout="inference")
@@ -296,14 +304,45 @@ class Mlp:
     def _vec(self, xs):
         return nn.CoopVec(*[self.dtype(x) for x in xs])
 
+    @staticmethod
+    def _plain(a, xs, b=None):
+        out = []
+        for o in range(a.shape[0]):
+            y = float(b[o]) if b is not None else 0.0
+            for i, x in enumerate(xs):
+                y = y + x * float(a[o, i])
+            out.append(y)
+        return out
+
     def first_share(self, xs):
         """The first layer's condition share ``b + A[:, :split] x`` (a cooperative vector)."""
+        if self.precision == "plain":
+            return self._plain(self.mats[0], xs, self.mats[2])
         return nn.matvec(self.views[0], self._vec(xs), self.views[2])
+
+    def _call_plain(self, xs, act, share):
+        v = list(xs)
+        k = 0
+        for li in range(len(self.layers)):
+            if li == 0 and self.split is not None:
+                v = [a + c for a, c in zip(self._plain(self.mats[1], v), share)]
+                k = 3
+            else:
+                v = self._plain(self.mats[k], v, self.mats[k + 1])
+                k += 2
+            if li + 1 < len(self.layers):
+                if act == "relu":
+                    v = [dr.maximum(x, 0) for x in v]
+                else:
+                    v = [dr.maximum(x, 0) + dr.minimum(x, 0) * LEAKY_SLOPE for x in v]
+        return [self.t.Float(x) for x in v]
 
     def __call__(self, xs, act="relu", share=None):
         """The network on inputs ``xs`` (a list of Floats); hidden activations ``act``
         (``"relu"`` or ``"leaky"``), identity output. With ``share``, ``xs`` are the first
         layer's inputs after the split."""
+        if self.precision == "plain":
+            return self._call_plain(xs, act, share)
         v = self._vec(xs)
         k = 0
         for li in range(len(self.layers)):
@@ -814,9 +853,12 @@ class Sampler:
         if blob is None:
             self.kind = Cosine(t)
             self.alpha = 0.0
+            self._alpha = None
             return
         kind = blob.kind
         self.alpha = float(blob.header["defensive"])
+        # α as an opaque value, so that samplers differing only in α share compiled kernels.
+        self._alpha = dr.opaque(t.Float, self.alpha)
         if kind == "neural-material" or kind not in KINDS:
             raise ValueError(
                 f"neusample.drjit: sampler kind {kind!r} is not implemented in Dr.Jit "
@@ -848,8 +890,8 @@ class Sampler:
         u0, ok0 = sanitize_u(u[0])
         u1, ok1 = sanitize_u(u[1])
         valid = ok & ok0 & ok1
-        alpha = self.alpha
-        if alpha > 0:
+        alpha = self._alpha
+        if self.alpha > 0:
             cos_lane = u0 < alpha
             v0 = dr.select(cos_lane, u0 / alpha, (u0 - alpha) / (1.0 - alpha))
             v0 = dr.select(v0 < ONE_MINUS_EPSILON, v0, ONE_MINUS_EPSILON)
@@ -865,7 +907,7 @@ class Sampler:
         z = dr.sqrt(dr.maximum(1.0 - r2, 0.0))
         valid = valid & (r2 < 1.0) & (z > MIN_COS_THETA)
         p_disk = self.kind.pdf_disk(st, px, py)
-        if alpha > 0:
+        if self.alpha > 0:
             p_learned = p_disk * z
             # A lane the learned part drew must have a positive learned density, as alone.
             valid = valid & (cos_lane | ((p_learned > 0) & is_finite(p_learned)))
@@ -882,7 +924,7 @@ class Sampler:
         w, wok = upper_hemisphere(_vec3(wo))
         p = self.kind.pdf_disk(st, w[0], w[1])
         if self.alpha > 0:
-            pdf = (1.0 - self.alpha) * (p * w[2]) + self.alpha * (w[2] * INV_PI)
+            pdf = (1.0 - self._alpha) * (p * w[2]) + self._alpha * (w[2] * INV_PI)
         else:
             pdf = p * w[2]
         return dr.select(ok & wok, pdf, 0.0)
@@ -901,7 +943,7 @@ class Sampler:
         st, ok = self.prepare(phi, wi)
         d = self.kind.pdf_disk(st, p[0], p[1])
         if self.alpha > 0:
-            d = dr.select(inside_disk(p[0], p[1]), (1.0 - self.alpha) * d + self.alpha * INV_PI, 0.0)
+            d = dr.select(inside_disk(p[0], p[1]), (1.0 - self._alpha) * d + self._alpha * INV_PI, 0.0)
         return dr.select(ok, d, 0.0)
 
 
