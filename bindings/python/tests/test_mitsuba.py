@@ -1,6 +1,8 @@
-"""Mitsuba 3 tests of the BSDF plugin: Mitsuba's own χ² test on every fixture sampler of the
-three demo materials (and cosine), a deliberately wrong pdf that the same test must reject,
-a render that converges to the same image with every sampler, and the scalar variant.
+"""Mitsuba 3 tests of the BSDF plugins: Mitsuba's own χ² test on every fixture sampler of the
+three demo materials (and cosine), in symbolic mode (the plugin traced inside a symbolic
+loop, as the path integrator calls it) and through the evaluated plugin; a deliberately
+wrong pdf that the same test must reject; renders that converge to the same image with every
+sampler; the symbolic render against the evaluated one; and the scalar variant.
 
 Needs `mitsuba==3.9.1` and, for `llvm_ad_rgb`, a working LLVM (Debian: `libllvm19`). Without
 them the module is skipped, unless NEUSAMPLE_REQUIRE_MITSUBA=1 (CI), which makes it fail.
@@ -28,7 +30,6 @@ except Exception as e:  # noqa: BLE001 - any failure to get the variant
 import neusample.mitsuba as nsm  # noqa: E402
 from mitsuba.chi2 import BSDFAdapter, ChiSquareTest, SphericalDomain  # noqa: E402
 
-nsm.evaluated_mode()
 nsm.register()
 
 # (wi, uv) per χ² run: normal, oblique and grazing incidence at three texels.
@@ -46,21 +47,63 @@ RESOLUTION = {"brushed_metal_neural": (201, 8)}
 DEFAULT_RESOLUTION = (101, 4)
 # Šidák-corrected inside ChiSquareTest.run over every run of the suite.
 SIGNIFICANCE = 0.01
-TEST_COUNT = len(MATERIALS) * (len(METHODS) + 1) * len(CONDITIONS)
+SYMBOLIC_METHODS = ["baseline", "analytic", "flow", "histogram-mixture"]
+TEST_COUNT = len(MATERIALS) * (len(METHODS) + len(SYMBOLIC_METHODS) + 2) * len(CONDITIONS)
 
 CHI2_RESULTS = []  # rows printed by conftest.pytest_terminal_summary
 
 
-def bsdf_dict(material, method, kind="neusample"):
-    d = {"type": kind, "material": material_path(material)}
+def bsdf_dict(material, method, kind="neusample", mode="evaluated"):
+    d = {"type": kind, "material": material_path(material), "mode": mode}
     path = sampler_path(material, method)
     if path is not None:
         d["sampler"] = path
     return d
 
 
-def chi2(material, method, wi, uv, kind="neusample", samples=SAMPLES):
-    sample_func, pdf_func = BSDFAdapter(kind, bsdf_dict(material, method, kind), wi=wi, uv=uv)
+def symbolic_adapter(bsdf, wi, uv):
+    """sample/pdf functors for ChiSquareTest that call the plugin inside a symbolic loop of
+    one iteration whose state holds the interaction and the samples, so that the plugin sees
+    symbolic arrays, as in the path integrator's kernel (the evaluated plugin fails here)."""
+    plugin = mi.load_dict(bsdf)
+    ctx = mi.BSDFContext()
+
+    def si_of(n):
+        si = dr.zeros(mi.SurfaceInteraction3f, n)
+        si.wi = wi
+        si.uv = uv
+        return si
+
+    def sample_functor(sample, *args):
+        n = dr.width(sample)
+
+        def body(i, si, s, wo, w):
+            bs, weight = plugin.sample(ctx, si, s[0], mi.Vector2f(s[1], s[2]), True)
+            return i + 1, si, s, bs.wo, dr.select(dr.all(weight == 0), 0.0, 1.0)
+
+        state = (dr.zeros(mi.UInt32, n), si_of(n), mi.Vector3f(sample),
+                 dr.zeros(mi.Vector3f, n), dr.zeros(mi.Float, n))
+        _, _, _, wo, w = dr.while_loop(state, lambda i, *_: i < 1, body, mode="symbolic")
+        return wo, w
+
+    def pdf_functor(wo, *args):
+        n = dr.width(wo)
+
+        def body(i, si, v, p):
+            return i + 1, si, v, plugin.pdf(ctx, si, v, True)
+
+        state = (dr.zeros(mi.UInt32, n), si_of(n), mi.Vector3f(wo), dr.zeros(mi.Float, n))
+        return dr.while_loop(state, lambda i, *_: i < 1, body, mode="symbolic")[3]
+
+    return sample_functor, pdf_functor
+
+
+def chi2(material, method, wi, uv, kind="neusample", samples=SAMPLES, mode="evaluated"):
+    d = bsdf_dict(material, method, kind, "evaluated" if mode == "evaluated_in_symbolic" else mode)
+    if mode in ("symbolic", "evaluated_in_symbolic"):
+        sample_func, pdf_func = symbolic_adapter(d, wi, uv)
+    else:
+        sample_func, pdf_func = BSDFAdapter(kind, d, wi=wi, uv=uv)
     res, ires = RESOLUTION.get(material, DEFAULT_RESOLUTION)
     test = ChiSquareTest(
         domain=SphericalDomain(),
@@ -76,6 +119,23 @@ def chi2(material, method, wi, uv, kind="neusample", samples=SAMPLES):
     return ok, float(test.p_value), time.perf_counter() - t, test
 
 
+@pytest.mark.parametrize("method", ["cosine"] + SYMBOLIC_METHODS)
+@pytest.mark.parametrize("material", MATERIALS)
+def test_chi2_symbolic_every_fixture_sampler(material, method):
+    for k, (wi, uv) in enumerate(CONDITIONS):
+        ok, p, secs, test = chi2(material, method, wi, uv, mode="symbolic")
+        CHI2_RESULTS.append((material, f"{method} (symbolic)", k, wi, uv, p, ok, secs))
+        assert ok, f"{material}/{method} wi={wi} uv={uv}: p = {p:.3g}\n{test.messages}"
+
+
+def test_the_symbolic_adapter_really_traces_symbolically():
+    """Control: the evaluated plugin needs concrete arrays, so inside the adapter's symbolic
+    loop it must fail."""
+    wi, uv = CONDITIONS[1]
+    with pytest.raises(RuntimeError):
+        chi2("goat_leather_neural", "flow", wi, uv, samples=1000, mode="evaluated_in_symbolic")
+
+
 @pytest.mark.parametrize("method", ["cosine"] + METHODS)
 @pytest.mark.parametrize("material", MATERIALS)
 def test_chi2_every_fixture_sampler(material, method):
@@ -86,13 +146,21 @@ def test_chi2_every_fixture_sampler(material, method):
 
 
 class WrongPdf(nsm.bsdf_class()):
-    """The plugin with its pdf scaled by 1.05 (test only): χ² must reject it."""
+    """The evaluated plugin with its pdf scaled by 1.05 (test only): χ² must reject it."""
 
     def _pdf(self, phi, wi, wo):
         return super()._pdf(phi, wi, wo) * np.float32(1.05)
 
 
+class WrongPdfSymbolic(nsm.symbolic_bsdf_class()):
+    """The symbolic plugin with its pdf scaled by 1.05 (test only): χ² must reject it."""
+
+    def _pdf(self, phi, si, wo):
+        return super()._pdf(phi, si, wo) * 1.05
+
+
 nsm.register("neusample_wrongpdf", WrongPdf)
+nsm.register("neusample_wrongpdf_symbolic", WrongPdfSymbolic)
 
 
 @pytest.mark.parametrize("method", ["cosine", "flow", "histogram-mixture"])
@@ -101,6 +169,10 @@ def test_chi2_rejects_a_pdf_scaled_by_1_05(method):
     ok, p, secs, _ = chi2("goat_leather_neural", method, wi, uv, kind="neusample_wrongpdf")
     CHI2_RESULTS.append(("goat_leather_neural", f"{method} ×1.05 (control)", 1, wi, uv, p, ok, secs))
     assert not ok, f"the χ² test accepted a pdf scaled by 1.05 (p = {p:.3g})"
+    ok, p, secs, _ = chi2("goat_leather_neural", method, wi, uv, kind="neusample_wrongpdf_symbolic",
+                          mode="symbolic")
+    CHI2_RESULTS.append(("goat_leather_neural", f"{method} ×1.05 (symbolic control)", 1, wi, uv, p, ok, secs))
+    assert not ok, f"the χ² test accepted a symbolic pdf scaled by 1.05 (p = {p:.3g})"
 
 
 # --- rendering -------------------------------------------------------------------------
@@ -116,7 +188,7 @@ def envmap_bitmap():
     return mi.Bitmap((sky + sun).astype(np.float32))
 
 
-def scene_dict(material, method, res=32):
+def scene_dict(material, method, res=32, mode="evaluated"):
     return {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": 3},
@@ -131,35 +203,75 @@ def scene_dict(material, method, res=32):
         "patch": {
             "type": "rectangle",
             "to_world": mi.ScalarTransform4f().scale([1.2, 1.2, 1.0]),
-            "bsdf": {**bsdf_dict(material, method), "uv_scale": 2.0},
+            "bsdf": {**bsdf_dict(material, method, mode=mode), "uv_scale": 2.0},
         },
     }
 
 
-def render(material, method, spp, seed=0, res=32):
-    scene = mi.load_dict(scene_dict(material, method, res))
+def render(material, method, spp, seed=0, res=32, mode="evaluated"):
+    scene = mi.load_dict(scene_dict(material, method, res, mode))
     img = mi.render(scene, spp=spp, seed=seed)
     return np.array(img, dtype=np.float64)
 
 
+@pytest.fixture
+def evaluated_flags():
+    """Mitsuba's evaluated mode (symbolic loops and calls off) for one test, restored after."""
+    loops = dr.flag(dr.JitFlag.SymbolicLoops)
+    calls = dr.flag(dr.JitFlag.SymbolicCalls)
+    nsm.evaluated_mode()
+    yield
+    dr.set_flag(dr.JitFlag.SymbolicLoops, loops)
+    dr.set_flag(dr.JitFlag.SymbolicCalls, calls)
+
+
+
 RENDER_BOUND = 0.01  # relative difference of image means allowed against the reference (largest seen: 0.0019)
+SAME_SEED_BOUND = 1e-3  # symbolic vs evaluated render with the same samples
 RENDER_RESULTS = []
 
 
-def test_render_converges_to_the_same_image_with_every_sampler():
+def check_convergence(methods, mode):
     material = "goat_leather_neural"
-    ref = render(material, "cosine", spp=256, seed=1000)
+    ref = render(material, "cosine", spp=256, seed=1000, mode=mode)
     ref_mean = ref.mean()
     assert np.isfinite(ref).all() and ref_mean > 0
-    for method in ["cosine"] + METHODS:
+    for method in methods:
         t = time.perf_counter()
-        img = render(material, method, spp=64, seed=7)
+        img = render(material, method, spp=64, seed=7, mode=mode)
         secs = time.perf_counter() - t
         rel = abs(img.mean() - ref_mean) / ref_mean
         rmse = float(np.sqrt(((img - ref) ** 2).mean()))
-        RENDER_RESULTS.append((method, img.mean(), ref_mean, rel, rmse, secs))
+        RENDER_RESULTS.append((f"{method} ({mode})", img.mean(), ref_mean, rel, rmse, secs))
         assert np.isfinite(img).all()
         assert rel < RENDER_BOUND, f"{method}: image mean {img.mean():.5f} vs reference {ref_mean:.5f}"
+
+
+def test_render_converges_to_the_same_image_with_every_sampler(evaluated_flags):
+    check_convergence(["cosine"] + METHODS, "evaluated")
+
+
+def test_symbolic_render_converges_to_the_same_image_with_every_sampler():
+    check_convergence(["cosine"] + SYMBOLIC_METHODS, "symbolic")
+
+
+@pytest.mark.parametrize("method", ["flow", "histogram-mixture"])
+def test_symbolic_render_matches_the_evaluated_render(method):
+    """The same scene, samples and seed in both modes: the same image up to f32 rounding
+    (and the rare sample that lands across a discontinuity of the sampling map)."""
+    material = "goat_leather_neural"
+    sym = render(material, method, spp=32, seed=3, mode="symbolic")
+    loops, calls = dr.flag(dr.JitFlag.SymbolicLoops), dr.flag(dr.JitFlag.SymbolicCalls)
+    nsm.evaluated_mode()
+    try:
+        ev = render(material, method, spp=32, seed=3, mode="evaluated")
+    finally:
+        dr.set_flag(dr.JitFlag.SymbolicLoops, loops)
+        dr.set_flag(dr.JitFlag.SymbolicCalls, calls)
+    rel = abs(sym.mean() - ev.mean()) / ev.mean()
+    rmse = float(np.sqrt(((sym - ev) ** 2).mean()))
+    RENDER_RESULTS.append((f"{method} symbolic vs evaluated", sym.mean(), ev.mean(), rel, rmse, 0.0))
+    assert np.isfinite(sym).all() and rel < SAME_SEED_BOUND
 
 
 def test_scalar_rgb_variant_renders_and_samples():
@@ -167,7 +279,7 @@ def test_scalar_rgb_variant_renders_and_samples():
     mi.set_variant("scalar_rgb")
     try:
         nsm.register()
-        bsdf = mi.load_dict(bsdf_dict("brushed_metal_neural", "flow"))
+        bsdf = mi.load_dict(bsdf_dict("brushed_metal_neural", "flow", mode="symbolic"))
         si = mi.SurfaceInteraction3f()
         si.wi = mi.Vector3f(0.36, -0.48, 0.8)
         si.uv = mi.Point2f(0.3, 0.6)

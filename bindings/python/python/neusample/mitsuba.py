@@ -323,9 +323,13 @@ def register(name: str = "neusample", cls=None) -> None:
     import mitsuba as mi
 
     def make(props):
+        # Read here, so that Mitsuba never reports them unreferenced (each class uses its own).
+        mode = str(props["mode"]) if "mode" in props else "symbolic"
+        for name in ("precision", "threads"):
+            if name in props:
+                props[name]
         if cls is not None:
             return cls(props)
-        mode = str(props["mode"]) if "mode" in props else "symbolic"
         return plugin_class(mode)(props)
 
     mi.register_bsdf(name, make)
