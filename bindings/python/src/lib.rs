@@ -15,7 +15,9 @@ use std::path::PathBuf;
 use neusample::wavefront::{
     BatchSampler, Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut,
 };
-use neusample::{Prepared, Sampler as _, SamplerKind, TensorRole, Vec2, Vec3, Weights, FEATURE_DIM};
+use neusample::{
+    Prepared, Sampler as _, SamplerKind, TensorRole, Vec2, Vec3, Weights, FEATURE_DIM,
+};
 use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedSampler};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
@@ -578,7 +580,7 @@ impl NeuralMaterial {
                 out[c * n + i] = *v;
             }
         }
-        Ok(PyArray1::from_vec(py, out).reshape([FEATURE_DIM, n])?)
+        PyArray1::from_vec(py, out).reshape([FEATURE_DIM, n])
     }
 
     /// `eval` through the scalar API, one lane at a time (the reference).
@@ -606,7 +608,7 @@ impl NeuralMaterial {
                 out[c * n + i] = *v;
             }
         }
-        Ok(PyArray1::from_vec(py, out).reshape([3, n])?)
+        PyArray1::from_vec(py, out).reshape([3, n])
     }
 
     fn __repr__(&self) -> String {

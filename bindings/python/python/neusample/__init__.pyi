@@ -53,6 +53,9 @@ class Blob:
         """The sampler it holds (BlobError "not_a_sampler" for a material)."""
     def neural_material(self) -> "NeuralMaterial":
         """The material it holds (BlobError "wrong_kind" for a sampler)."""
+    def tensor(self, role: str) -> Optional[F32]:
+        """The tensor `role` ("params", "mass", "table", "marginal", "conditional",
+        "features") as float32 values, as the runtime reads them; None when absent."""
     def __len__(self) -> int: ...
 
 class Sampler:
@@ -69,6 +72,10 @@ class Sampler:
     def sample(self, phi: F32, wi: F32, u: F32, *, threads: int = 1) -> Tuple[F32, F32]:
         """phi (8, N), wi (3, N), u (2, N) in [0, 1) → (wo (3, N), pdf (N,)); refused
         lanes (wi below the horizon, NaN, sample outside the support) are wo = 0, pdf = 0."""
+    def sample_scalar(self, phi: F32, wi: F32, u: F32) -> Tuple[F32, F32]:
+        """`sample` through the scalar API, one lane at a time (the reference)."""
+    def pdf_scalar(self, phi: F32, wi: F32, wo: F32) -> F32:
+        """`pdf` through the scalar API, one lane at a time (the reference)."""
     def pdf(self, phi: F32, wi: F32, wo: F32, *, threads: int = 1) -> F32:
         """phi (8, N), wi (3, N), wo (3, N) → solid-angle pdf (N,); 0 below the horizon."""
 
@@ -82,6 +89,10 @@ class NeuralMaterial:
     def height(self) -> int: ...
     def features(self, uv: F32, *, threads: int = 1) -> F32:
         """uv (2, N) → φ (8, N): bilinear, wrapping texture lookup."""
+    def features_scalar(self, uv: F32) -> F32:
+        """`features` through the scalar API, one lane at a time (the reference)."""
+    def eval_scalar(self, phi: F32, wi: F32, wo: F32) -> F32:
+        """`eval` through the scalar API, one lane at a time (the reference)."""
     def eval(self, phi: F32, wi: F32, wo: F32, *, threads: int = 1) -> F32:
         """phi (8, N), wi, wo (3, N) → RGB BRDF (3, N) without the cosine; 0 below the
         horizon or for non-finite input."""

@@ -1,0 +1,276 @@
+"""A Fig. 11-style Mitsuba 3 scene with several neural materials, rendered in Mitsuba's default
+symbolic mode (llvm_ad_rgb: the samplers and the materials compiled into Mitsuba's own
+kernel by neusample.drjit), and the speed figures of the symbolic plugin.
+
+Scene: three neural materials (goat leather, brushed metal and Victorian fabric, each with its
+own fixture sampler of the chosen method) on two spheres and a cube, standing on a built-in
+`roughplastic` floor with a `diffuse` back wall, under an environment map with a sun (the
+`path` integrator, MIS, max depth 6: multi-bounce global illumination).
+
+    python bindings/python/examples/mitsuba_scene.py equal-time [--budget 20] [--res 160]
+        → docs/mitsuba_scene.png, docs/mitsuba_scene.md (equal-time table)
+    python bindings/python/examples/mitsuba_scene.py speed [--repeats 5] [--res 96] [--spp 8]
+        → docs/mitsuba_speed.md (symbolic vs evaluated vs roughconductor; Table 1 in Mitsuba)
+"""
+
+import argparse
+import math
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[3]
+DOCS = ROOT / "docs"
+
+import drjit as dr  # noqa: E402
+import mitsuba as mi  # noqa: E402
+
+mi.set_variant("llvm_ad_rgb")
+import neusample.mitsuba as nsm  # noqa: E402
+
+nsm.register()
+
+METHODS = ["cosine", "baseline", "analytic", "flow", "histogram-mixture"]
+OBJECTS = [
+    # (name, material, shape, transform, uv_scale)
+    ("leather", "goat_leather_neural", "sphere", dict(translate=[-1.25, 0.2, 0.55], scale=0.55), 3.0),
+    ("metal", "brushed_metal_neural", "sphere", dict(translate=[0.05, -0.45, 0.55], scale=0.55), 2.0),
+    ("fabric", "victorian_fabric_neural", "cube", dict(translate=[1.3, 0.45, 0.45], scale=0.45), 1.0),
+]
+
+
+def envmap(h=128, w=256):
+    """A sky gradient with a warm sun (the light of the scene, sampled by MIS)."""
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    theta = (y + 0.5) / h * np.pi
+    phi = (x + 0.5) / w * 2 * np.pi
+    up = np.clip(np.cos(theta), 0, 1)
+    sky = np.stack([0.25 + 0.35 * up, 0.35 + 0.35 * up, 0.6 + 0.3 * up], -1) * (theta < np.pi / 2 + 0.1)[..., None]
+    ground = np.array([0.12, 0.11, 0.1]) * (theta >= np.pi / 2 + 0.1)[..., None]
+    sun = np.exp(-((theta - 0.75) ** 2 + (phi - 2.2) ** 2) / 0.004)[..., None] * np.array([300.0, 270.0, 220.0])
+    return mi.Bitmap((sky + ground + sun).astype(np.float32))
+
+
+def neural_bsdf(material, method, mode, uv_scale):
+    d = {"type": "neusample", "mode": mode, "uv_scale": uv_scale,
+         "material": str(ROOT / "fixtures" / "materials" / "neural" / f"{material}.nsb")}
+    if method != "cosine":
+        d["sampler"] = str(ROOT / "fixtures" / "blobs" / material / f"{method}.nsb")
+    return d
+
+
+def scene_dict(method, mode="symbolic", res=160, builtin=False, max_depth=6):
+    """The scene with every neural material sampled by `method` (`builtin`: Mitsuba's own
+    `roughconductor` in their place, for scale)."""
+    w, h = res, res * 3 // 4
+    d = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": max_depth},
+        "sensor": {
+            "type": "perspective", "fov": 38,
+            "to_world": mi.ScalarTransform4f().look_at(origin=[0.3, -5.2, 2.3], target=[0.05, 0.1, 0.45], up=[0, 0, 1]),
+            "film": {"type": "hdrfilm", "width": w, "height": h, "pixel_format": "rgb"},
+            "sampler": {"type": "independent"},
+        },
+        "sky": {"type": "envmap", "bitmap": envmap(),
+                "to_world": mi.ScalarTransform4f().rotate([1, 0, 0], 90)},
+        "floor": {"type": "rectangle",
+                  "to_world": mi.ScalarTransform4f().scale([6, 6, 1]),
+                  "bsdf": {"type": "roughplastic", "alpha": 0.3,
+                           "diffuse_reflectance": {"type": "rgb", "value": [0.35, 0.33, 0.3]}}},
+        "wall": {"type": "rectangle",
+                 "to_world": mi.ScalarTransform4f().translate([0, 2.5, 2]).rotate([1, 0, 0], 90).scale([6, 2.5, 1]),
+                 "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.5, 0.45, 0.4]}}},
+    }
+    for name, material, shape, tr, uv_scale in OBJECTS:
+        bsdf = ({"type": "roughconductor", "alpha": 0.2} if builtin
+                else neural_bsdf(material, method, mode, uv_scale))
+        d[name] = {"type": shape,
+                   "to_world": mi.ScalarTransform4f().translate(tr["translate"]).scale(tr["scale"]),
+                   "bsdf": bsdf}
+    return d
+
+
+class Flags:
+    """Mitsuba's evaluated mode for a block (what the evaluated plugin needs)."""
+
+    def __init__(self, evaluated):
+        self.evaluated = evaluated
+
+    def __enter__(self):
+        self.saved = (dr.flag(dr.JitFlag.SymbolicLoops), dr.flag(dr.JitFlag.SymbolicCalls))
+        if self.evaluated:
+            nsm.evaluated_mode()
+
+    def __exit__(self, *exc):
+        dr.set_flag(dr.JitFlag.SymbolicLoops, self.saved[0])
+        dr.set_flag(dr.JitFlag.SymbolicCalls, self.saved[1])
+
+
+def timed_render(scene, spp, seed, evaluated=False):
+    with Flags(evaluated):
+        t = time.perf_counter()
+        img = mi.render(scene, spp=spp, seed=seed)
+        img = np.array(img, dtype=np.float64)
+        return img, time.perf_counter() - t
+
+
+def to_srgb(img):
+    x = np.clip(img, 0, None)
+    x = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.clip(x, 0, 1)
+
+
+def machine():
+    import os
+    return f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, mitsuba {mi.__version__}, drjit {dr.__version__}"
+
+
+def equal_time(a):
+    res = a.res
+    scenes = {m: mi.load_dict(scene_dict(m, res=res)) for m in METHODS}
+    for m in METHODS:  # compile every kernel once (the cache in ~/.drjit keeps them)
+        timed_render(scenes[m], 2, 0)
+    t = time.perf_counter()
+    ref, _ = timed_render(scenes["histogram-mixture"], a.ref_spp, 12345)
+    ref_secs = time.perf_counter() - t
+    # Cost per spp: median of interleaved timings.
+    per_spp = {m: [] for m in METHODS}
+    for r in range(3):
+        for m in METHODS:
+            per_spp[m].append(timed_render(scenes[m], 8, 100 + r)[1] / 8)
+    rows, tiles = [], [to_srgb(ref)]
+    for m in METHODS:
+        cost = statistics.median(per_spp[m])
+        spp = max(1, int(a.budget / cost))
+        img, secs = timed_render(scenes[m], spp, 7)
+        mse = float(((img - ref) ** 2).mean())
+        relmse = float((((img - ref) ** 2) / (ref ** 2 + 1e-2)).mean())
+        rows.append((m, spp, secs, cost, mse, relmse))
+        tiles.append(to_srgb(img))
+        print(f"{m:<18} spp {spp:>5} time {secs:6.2f} s  MSE {mse:.3e}  relMSE {relmse:.3e}", flush=True)
+    base = {r[0]: r for r in rows}["baseline"]
+    DOCS.mkdir(exist_ok=True)
+    grid = np.concatenate([np.concatenate(tiles[:3], axis=1), np.concatenate(tiles[3:], axis=1)], axis=0)
+    mi.util.write_bitmap(str(DOCS / "mitsuba_scene.png"), (grid * 255).astype(np.uint8), write_async=False)
+    h, w = ref.shape[:2]
+    lines = [
+        "# Neural materials in Mitsuba 3's symbolic kernels, equal time",
+        "",
+        "Three neural materials (goat leather, brushed metal, Victorian fabric) on two spheres and a cube,",
+        "a built-in `roughplastic` floor and `diffuse` wall, an environment map with a sun; `path`",
+        "integrator with MIS, max depth 6 (multi-bounce GI). `llvm_ad_rgb` in Mitsuba's default",
+        "**symbolic** mode: the samplers and the materials are Dr.Jit code (`neusample.drjit`) compiled",
+        "into Mitsuba's own kernel. Each sampler gets the same wall-clock budget; its spp come from",
+        "the median of three interleaved timed renders; errors against a",
+        f"{a.ref_spp}-spp reference (histogram mixture, {ref_secs:.0f} s). Speed-up = baseline relMSE ÷ method",
+        "relMSE (equal time).",
+        "",
+        "![equal time](mitsuba_scene.png)",
+        "",
+        "Top: reference, cosine, improved baseline. Bottom: analytic mixture, flow, histogram mixture.",
+        "",
+        f"{w}×{h}, budget {a.budget:g} s per sampler, {machine()}.",
+        "",
+        "| sampler | spp | time (s) | ms/spp | MSE | relMSE | speed-up vs baseline |",
+        "|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for m, spp, secs, cost, mse, relmse in rows:
+        lines.append(f"| {m} | {spp} | {secs:.2f} | {cost * 1e3:.1f} | {mse:.3e} | {relmse:.3e} | "
+                     f"{base[5] / relmse:.2f}× |")
+    lines += ["", "Reproduce:", "", "```sh",
+              f"python bindings/python/examples/mitsuba_scene.py equal-time --budget {a.budget:g} --res {a.res} --ref-spp {a.ref_spp}",
+              "```", "", "One run, one seed: the table's errors are single measurements (no interval);",
+              "rerun with another `--seed` to see their spread.", ""]
+    (DOCS / "mitsuba_scene.md").write_text("\n".join(lines))
+
+
+def speed(a):
+    """ns per sample (per camera path) of the whole render, symbolic vs evaluated, the
+    built-in roughconductor for scale; interleaved repeats, medians."""
+    res, spp = a.res, a.spp
+    w, h = res, res * 3 // 4
+    samples = w * h * spp
+    configs = []
+    for m in METHODS:
+        configs.append((m, "symbolic", mi.load_dict(scene_dict(m, "symbolic", res))))
+        configs.append((m, "evaluated", mi.load_dict(scene_dict(m, "evaluated", res))))
+    configs.append(("roughconductor", "symbolic", mi.load_dict(scene_dict("cosine", res=res, builtin=True))))
+    configs.append(("roughconductor", "evaluated", mi.load_dict(scene_dict("cosine", res=res, builtin=True))))
+    for name, mode, sc in configs:  # warm-up: compile
+        timed_render(sc, spp, 0, evaluated=(mode == "evaluated"))
+    times = {(n, mo): [] for n, mo, _ in configs}
+    for r in range(a.repeats):
+        for name, mode, sc in configs:
+            times[(name, mode)].append(timed_render(sc, spp, 1 + r, evaluated=(mode == "evaluated"))[1])
+        print(f"repeat {r + 1}/{a.repeats}", flush=True)
+    med = {k: statistics.median(v) for k, v in times.items()}
+    lo_hi = {k: (min(v), max(v)) for k, v in times.items()}
+    ns = {k: v / samples * 1e9 for k, v in med.items()}
+    lines = [
+        "# Speed of the symbolic Mitsuba plugin",
+        "",
+        "The scene of `mitsuba_scene.md` (three neural materials, built-in floor and wall, envmap,",
+        f"`path` max depth 6) at {w}×{h}, {spp} spp ({samples} camera samples), `llvm_ad_rgb`, {machine()}.",
+        "**symbolic**: Mitsuba's default mode, the plugin's Dr.Jit code compiled into Mitsuba's",
+        "kernel; **evaluated**: symbolic loops and calls off, every bounce a numpy round trip to the",
+        "Rust runtime (the previous plugin). `roughconductor`: Mitsuba's built-in BSDF in place of",
+        f"the three neural materials. Median of {a.repeats} renders, run interleaved in one process",
+        "(min–max in brackets); compile time excluded (warm-up render).",
+        "",
+        "| sampler | symbolic ns/sample | evaluated ns/sample | evaluated ÷ symbolic | symbolic s/spp | sampler share (symbolic) |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    cos = med[("cosine", "symbolic")]
+    for m in METHODS + ["roughconductor"]:
+        s, e = med[(m, "symbolic")], med[(m, "evaluated")]
+        (sl, sh), (el, eh) = lo_hi[(m, "symbolic")], lo_hi[(m, "evaluated")]
+        share = "—" if m in ("cosine", "roughconductor") else f"{max(s - cos, 0) / s * 100:.0f} %"
+        lines.append(
+            f"| {m} | {ns[(m, 'symbolic')]:.0f} [{sl / samples * 1e9:.0f}–{sh / samples * 1e9:.0f}] | "
+            f"{ns[(m, 'evaluated')]:.0f} [{el / samples * 1e9:.0f}–{eh / samples * 1e9:.0f}] | "
+            f"{e / s:.2f}× | {s / spp:.4f} | {share} |")
+    lines += [
+        "",
+        "Sampler share: (render time with the sampler − with cosine sampling) ÷ render time, the",
+        "cost of its `sample` and of its `pdf` for MIS (the paper's Table 1 'Sampling' row over",
+        "'Rendering'; the paper's figures are on an NVIDIA GPU with the scene of its Fig. 1).",
+        "No NVIDIA GPU was available: `cuda_ad_rgb` was not measured (the code has no LLVM-only",
+        "calls; on CUDA the networks run as f16 cooperative vectors, the OptiX requirement).",
+        "",
+        "Reproduce:",
+        "",
+        "```sh",
+        f"python bindings/python/examples/mitsuba_scene.py speed --repeats {a.repeats} --res {a.res} --spp {a.spp}",
+        "```",
+        "",
+    ]
+    DOCS.mkdir(exist_ok=True)
+    (DOCS / "mitsuba_speed.md").write_text("\n".join(lines))
+    print("\n".join(lines))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    e = sub.add_parser("equal-time")
+    e.add_argument("--budget", type=float, default=20.0, help="seconds per sampler")
+    e.add_argument("--res", type=int, default=160)
+    e.add_argument("--ref-spp", type=int, default=2048)
+    s = sub.add_parser("speed")
+    s.add_argument("--repeats", type=int, default=5)
+    s.add_argument("--res", type=int, default=96)
+    s.add_argument("--spp", type=int, default=8)
+    a = ap.parse_args()
+    if a.cmd == "equal-time":
+        equal_time(a)
+    else:
+        speed(a)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
