@@ -6,8 +6,10 @@
 #      examples built with the system cc/c++ against the static library, and run;
 #   4. `pip install ./bindings/python` (the documented command; one release build of the
 #      wheel, without the `train` feature, so burn is never compiled for it);
-#   5. pytest: unit tests, Mitsuba χ² on every fixture sampler, the wrong-pdf control, the
-#      render test (NEUSAMPLE_REQUIRE_MITSUBA=1: a missing Mitsuba fails instead of skipping).
+#   5. pytest: unit tests, the Dr.Jit runtime against the Rust scalar path on every fixture
+#      blob, Mitsuba χ² on every fixture sampler (symbolic and evaluated plugins), the
+#      wrong-pdf controls, the render tests (NEUSAMPLE_REQUIRE_MITSUBA=1: a missing Mitsuba or
+#      Dr.Jit LLVM backend fails instead of skipping).
 # Environment: CARGO_TARGET_DIR (default target/), NEUSAMPLE_VENV (default target/ci-venv),
 # NEUSAMPLE_BINDINGS_CARGO_TESTED=1 when `cargo test --workspace` ran just before (step 3's
 # cargo tests are then not rebuilt with another feature set).
@@ -63,7 +65,7 @@ CARGO_TARGET_DIR="$target" "$venv/bin/python" -m pip install -q --disable-pip-ve
   --force-reinstall --no-deps ./bindings/python
 "$venv/bin/python" -c "import neusample; print('neusample', neusample.__version__, neusample.__file__)"
 
-step "pytest (unit, Mitsuba χ², wrong-pdf control, render)"
+step "pytest (unit, Dr.Jit vs Rust, Mitsuba χ² symbolic + evaluated, controls, renders)"
 cd bindings/python/tests
 NEUSAMPLE_REQUIRE_MITSUBA=1 "$venv/bin/python" -m pytest -q -p no:cacheprovider .
 cd "$root"

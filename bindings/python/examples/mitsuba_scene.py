@@ -14,7 +14,7 @@ own fixture sampler of the chosen method) on two spheres and a cube, standing on
 """
 
 import argparse
-import math
+import gc
 import platform
 import statistics
 import sys
@@ -195,18 +195,32 @@ def speed(a):
     res, spp = a.res, a.spp
     w, h = res, res * 3 // 4
     samples = w * h * spp
+    def load(d, mode):
+        # A symbolic render traces every live BSDF instance, evaluated-mode ones included
+        # (which cannot be traced): each scene lives only for its own render.
+        with Flags(mode == "evaluated"):
+            return mi.load_dict(d)
+
     configs = []
     for m in METHODS:
-        configs.append((m, "symbolic", mi.load_dict(scene_dict(m, "symbolic", res))))
-        configs.append((m, "evaluated", mi.load_dict(scene_dict(m, "evaluated", res))))
-    configs.append(("roughconductor", "symbolic", mi.load_dict(scene_dict("cosine", res=res, builtin=True))))
-    configs.append(("roughconductor", "evaluated", mi.load_dict(scene_dict("cosine", res=res, builtin=True))))
-    for name, mode, sc in configs:  # warm-up: compile
-        timed_render(sc, spp, 0, evaluated=(mode == "evaluated"))
+        for mode in ("symbolic", "evaluated"):
+            configs.append((m, mode, scene_dict(m, mode, res)))
+    for mode in ("symbolic", "evaluated"):
+        configs.append(("roughconductor", mode, scene_dict("cosine", res=res, builtin=True)))
+
+    def run(d, mode, seed):
+        sc = load(d, mode)
+        secs = timed_render(sc, spp, seed, evaluated=(mode == "evaluated"))[1]
+        del sc
+        gc.collect()
+        return secs
+
+    for name, mode, d in configs:  # warm-up: compile
+        run(d, mode, 0)
     times = {(n, mo): [] for n, mo, _ in configs}
     for r in range(a.repeats):
-        for name, mode, sc in configs:
-            times[(name, mode)].append(timed_render(sc, spp, 1 + r, evaluated=(mode == "evaluated"))[1])
+        for name, mode, d in configs:
+            times[(name, mode)].append(run(d, mode, 1 + r))
         print(f"repeat {r + 1}/{a.repeats}", flush=True)
     med = {k: statistics.median(v) for k, v in times.items()}
     lo_hi = {k: (min(v), max(v)) for k, v in times.items()}
@@ -220,7 +234,8 @@ def speed(a):
         "kernel; **evaluated**: symbolic loops and calls off, every bounce a numpy round trip to the",
         "Rust runtime (the previous plugin). `roughconductor`: Mitsuba's built-in BSDF in place of",
         f"the three neural materials. Median of {a.repeats} renders, run interleaved in one process",
-        "(min–max in brackets); compile time excluded (warm-up render).",
+        "(min–max in brackets); compile time excluded (warm-up render), the Python tracing of",
+        "the plugin included (the symbolic plugin's code is traced again at every `mi.render`).",
         "",
         "| sampler | symbolic ns/sample | evaluated ns/sample | evaluated ÷ symbolic | symbolic s/spp | sampler share (symbolic) |",
         "|---|---:|---:|---:|---:|---:|",
@@ -263,8 +278,8 @@ def main():
     e.add_argument("--ref-spp", type=int, default=2048)
     s = sub.add_parser("speed")
     s.add_argument("--repeats", type=int, default=5)
-    s.add_argument("--res", type=int, default=96)
-    s.add_argument("--spp", type=int, default=8)
+    s.add_argument("--res", type=int, default=128)
+    s.add_argument("--spp", type=int, default=16)
     a = ap.parse_args()
     if a.cmd == "equal-time":
         equal_time(a)
