@@ -190,7 +190,7 @@ def test_a_wrong_weight_is_detected():
     d = nd.Sampler(path, Float)
     params = neusample.Blob(path).tensor("params").copy()
     params[-2] += 0.01  # the logit of the first Gaussian
-    d.kind = nd.AnalyticMixture(d.t, params, "f32")
+    d.kind = nd.AnalyticMixture(d.t, params, "f32")  # an array stands for the blob's params
     wo_r, _ = neusample.Sampler(path).sample_scalar(phi, wi, u)
     q = np.array(d.pdf(jit(phi), jit(wi), jit(wo_r)))
     with pytest.raises(AssertionError):

@@ -24,8 +24,14 @@ Networks run as cooperative-vector matrix products (``drjit.nn.matvec``). Their 
 ``"f32"`` by default on the LLVM backend (the Rust runtime's arithmetic; agreement is tested)
 and ``"f16"`` on CUDA, where OptiX's cooperative vectors need half-precision matrices.
 
-A sampler kind is one class with ``prepare``, ``sample_point`` and ``pdf_disk``; the
-defensive mixture (α of version-2 blobs) wraps any of them (:class:`Sampler`).
+A sampler kind is one :class:`Kind` subclass (``prepare``, ``sample_point``, ``pdf_disk``)
+and one entry of :data:`KIND_CLASSES`; the defensive mixture (α of version-2 blobs) wraps
+any of them (:class:`Sampler`).
+
+On the LLVM backend this code is correct but slower than the Rust runtime's SIMD kernels:
+Dr.Jit's CPU fallback for cooperative vectors evaluates a matrix product as a loop over the
+weights, and inside Mitsuba's BSDF calls it loads every weight with a vector gather
+(``docs/mitsuba_speed.md``).
 """
 
 from __future__ import annotations
@@ -64,9 +70,8 @@ MIN_ROTATION_NORM2 = 1e-24
 # Neural material.
 LOG_F_MIN, LOG_F_MAX = -20.0, 12.0
 
-KINDS = ("cosine", "baseline", "analytic", "flow", "histogram-mixture")
-"""Sampler kinds this module implements (affine-flow and direct-histogram are baselines of
-the paper's comparison, not samplers to ship; they stay on the Rust path)."""
+# Sampler kinds implemented here: KIND_CLASSES / KINDS below (affine-flow and
+# direct-histogram, the paper's comparison baselines, stay on the Rust path).
 
 
 # --- types ----------------------------------------------------------------------------------
@@ -389,7 +394,7 @@ class Kind:
 class Cosine(Kind):
     name = "cosine"
 
-    def __init__(self, t: Types):
+    def __init__(self, t: Types, blob=None, precision=None):
         self.t = t
 
     def prepare(self, phi, wi):
@@ -409,8 +414,9 @@ class ImprovedBaseline(Kind):
 
     name = "baseline"
 
-    def __init__(self, t: Types, params, precision):
+    def __init__(self, t: Types, blob, precision):
         self.t = t
+        params = _params(blob)
         self.net = Mlp(t, params, 0, [(30, 32), (32, 32), (32, 32), (32, 5)], precision)
 
     def prepare(self, phi, wi):
@@ -441,8 +447,9 @@ class AnalyticMixture(Kind):
 
     name = "analytic"
 
-    def __init__(self, t: Types, params, precision):
+    def __init__(self, t: Types, blob, precision):
         self.t = t
+        params = _params(blob)
         self.net = Mlp(t, params, 0, [(30, 32), (32, 11)], precision)
 
     def prepare(self, phi, wi):
@@ -584,8 +591,9 @@ class Flow(Kind):
     HIDDEN = 32
     RAW = 3 * SPLINE_BINS - 1
 
-    def __init__(self, t: Types, params, precision):
+    def __init__(self, t: Types, blob, precision):
         self.t = t
+        params = _params(blob)
         self.base = Mlp(t, params, 0, [(30, 32), (32, 4)], precision)
         c0 = self.base.end
         self.coupling = []
@@ -637,8 +645,9 @@ class HistogramMixture(Kind):
     SEARCH_STEPS = 7
     SNAP_STEPS = 4
 
-    def __init__(self, t: Types, blob: Blob, params, precision):
+    def __init__(self, t: Types, blob: Blob, precision):
         self.t = t
+        params = _params(blob)
         h = blob.header
         self.T = int(h["t_levels"])
         self.n = int(h["resolution"])
@@ -834,6 +843,22 @@ class HistogramMixture(Kind):
         return px, py, ok
 
 
+def _params(blob):
+    """The network parameters: a blob's `params` tensor, or a float32 array as is (tests)."""
+    return blob if isinstance(blob, np.ndarray) else blob.tensor("params")
+
+
+KIND_CLASSES = {
+    "cosine": Cosine,
+    "baseline": ImprovedBaseline,
+    "analytic": AnalyticMixture,
+    "flow": Flow,
+    "histogram-mixture": HistogramMixture,
+}
+"""Blob kind name → its :class:`Kind` (a new kind is one class and one entry here)."""
+KINDS = tuple(KIND_CLASSES)
+
+
 # --- the sampler with its defensive weight ------------------------------------------------------
 
 
@@ -863,18 +888,7 @@ class Sampler:
             raise ValueError(
                 f"neusample.drjit: sampler kind {kind!r} is not implemented in Dr.Jit "
                 f"(kinds: {', '.join(KINDS)}); use the evaluated-mode plugin for it")
-        if kind == "cosine":
-            self.kind = Cosine(t)
-            return
-        params = blob.tensor("params")
-        if kind == "baseline":
-            self.kind = ImprovedBaseline(t, params, self.precision)
-        elif kind == "analytic":
-            self.kind = AnalyticMixture(t, params, self.precision)
-        elif kind == "flow":
-            self.kind = Flow(t, params, self.precision)
-        else:
-            self.kind = HistogramMixture(t, blob, params, self.precision)
+        self.kind = KIND_CLASSES[kind](t, blob, self.precision)
 
     @property
     def name(self):
