@@ -25,8 +25,9 @@ Properties:
     (:mod:`neusample.drjit`) traced into Mitsuba's own kernels, in its default symbolic
     mode, on the LLVM and CUDA variants. ``"evaluated"``: whole wavefronts leave the kernel
     for the Rust runtime (numpy round trip, any sampler kind); it needs
-    :func:`evaluated_mode`, which makes every BSDF of the scene slower, but on the LLVM
-    backend it is still the faster of the two (``docs/mitsuba_speed.md``).
+    :func:`evaluated_mode`. The symbolic plugin works under those flags too, and on the
+    LLVM backend that is the fastest configuration: Dr.Jit's CPU code for cooperative
+    vectors is slow inside Mitsuba's symbolic calls (``docs/mitsuba_speed.md``).
 ``precision`` (string, optional; symbolic mode)
     The networks' arithmetic: ``"f32"`` (default on LLVM) or ``"f16"`` (default on CUDA,
     where cooperative vectors need it).
