@@ -50,12 +50,13 @@ _CLASSES: dict = {}
 
 
 def evaluated_mode() -> None:
-    """Let Python BSDFs see concrete wavefronts in the JIT variants (``llvm_ad_rgb``).
+    """Mitsuba's evaluated mode for the JIT variants (``llvm_ad_rgb``, ``cuda_ad_rgb``).
 
-    Mitsuba traces Python plugins into symbolic kernels by default; their arrays cannot be
-    read. With both flags off, the path integrator calls the plugin once per bounce with the
-    active lanes. This makes every BSDF (built-in ones too) slower, by about 4–6× here;
-    compare samplers within the same mode.
+    Mitsuba traces BSDFs into symbolic kernels by default; their arrays cannot be read. With
+    both flags off, the path integrator calls each BSDF once per bounce with the lanes that
+    hit it, as concrete arrays: the Rust wavefront plugin (``"mode": "evaluated"``) needs
+    this, and the Dr.Jit plugin runs fastest this way on a CPU. Mitsuba's own BSDFs become
+    slower (1.4–2.3× here, ``docs/mitsuba_speed.md``).
     """
     import drjit as dr
 
