@@ -50,9 +50,14 @@ else
 fi
 
 step "C ABI: C and C++ examples (system compilers)"
-# The test profile (output in target/debug) shares core and its dependencies with the
-# `cargo test` runs before: only this crate is rebuilt.
-cargo build --profile test -p neusample-capi
+# `cargo test --workspace` already built the static library (crate-type staticlib) with the
+# workspace's unified features; `--no-run` only checks it is fresh. `-p neusample-capi` alone
+# would resolve other features and rebuild core and every dependency a second time.
+if [ "${NEUSAMPLE_BINDINGS_CARGO_TESTED:-0}" = 1 ]; then
+  cargo test --workspace --no-run
+else
+  cargo build --profile test -p neusample-capi
+fi
 mkdir -p "$target/capi"
 lib="$target/debug/libneusample_capi.a"
 cc -std=c99 -Wall -Wextra -Werror -pedantic -O2 -Ibindings/c/include \
