@@ -69,7 +69,7 @@ pub struct SampledFit {
 }
 
 /// Samples per condition of [`SampledFit`].
-pub const FIT_SAMPLES: usize = 4096;
+pub const FIT_SAMPLES: usize = 16384;
 
 /// [`SampledFit`]'s figures at one condition: `(E[w], E[w²] − 1, KL, χ²)`; `a` is the
 /// condition's quadrature albedo.

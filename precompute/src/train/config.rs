@@ -227,6 +227,11 @@ pub struct Reparam {
     pub defensive: f32,
     /// The pdf network's loss.
     pub density_loss: DensityLoss,
+    /// Weight λ of a χ² term added to the warp's loss (0: the release's objective): per
+    /// condition `ln(E_z[w²]/E_z[w]²)` with `w = f⊥(T(z))·det J/N(z)`, the log of `1 + χ²(p* ‖
+    /// q)` estimated on the batch's samples: the render's variance, which the KL term (mode
+    /// seeking) lets grow where the warp under-covers the integrand.
+    pub chi2_weight: f32,
 }
 
 impl Default for Reparam {
@@ -244,6 +249,7 @@ impl Default for Reparam {
             samples_per_condition: 64,
             defensive: 1e-3,
             density_loss: DensityLoss::GeneralizedKl,
+            chi2_weight: 0.0,
         }
     }
 }

@@ -32,7 +32,8 @@ use super::config::{Common, DensityLoss, Reparam};
 use super::data::{encoded_condition_f64, Pool};
 use super::source::GtCondition;
 use crate::nn::{
-    mlp_f64, optimise, tensor2, to_host, train_device, Activation, Mlp, OptimSettings,
+    log_sum_exp_last, mlp_f64, optimise, tensor2, to_host, train_device, Activation, Mlp,
+    OptimSettings,
 };
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -165,6 +166,8 @@ struct WarpBatch {
     z: Vec<f32>,
     /// `f⊥(F(z))·det J_F`, `[n]`.
     fixed: Vec<f32>,
+    /// `ln N(z; 0, I)`, `[n]`.
+    log_normal: Vec<f32>,
     s: usize,
 }
 
@@ -227,6 +230,7 @@ fn warp_batch(
         cond: Vec::with_capacity(b * s * CONDITION_DIM),
         z: Vec::with_capacity(2 * b * s),
         fixed: Vec::with_capacity(b * s),
+        log_normal: Vec::with_capacity(b * s),
         s,
     };
     for (c, enc, z, fixed) in rows {
@@ -234,34 +238,47 @@ fn warp_batch(
         for _ in 0..s {
             out.cond.extend_from_slice(&enc);
         }
+        out.log_normal.extend(
+            z.iter()
+                .map(|v| -0.5 * v.length_squared() - LN_TWO_PI as f32),
+        );
         out.z.extend(z.iter().flat_map(|v| [v.x, v.y]));
         out.fixed.extend(fixed);
     }
     out
 }
 
-/// The warp loss of a batch (module docs).
+/// The warp loss of a batch (module docs; with the χ² term of [`Reparam::chi2_weight`]).
 fn warp_loss(
     m: &WarpModel,
     batch: &WarpBatch,
     integrand: &dyn Integrand,
-    alpha: f32,
+    cfg: &Reparam,
     device: &Device,
 ) -> Tensor<1> {
     let n = batch.z.len() / 2;
+    let alpha = cfg.defensive;
     let cond = tensor2(batch.cond.clone(), n, CONDITION_DIM, device);
     let z = tensor2(batch.z.clone(), n, 2, device);
     let w = warp_graph(&m.net, cond, z);
-    let f = integrand
-        .log_f(&batch.conds, batch.s, w.wo, device)
-        .clamp(
-            neusample::neural_material::LOG_F_MIN,
-            neusample::neural_material::LOG_F_MAX,
-        )
-        .exp();
+    let log_f = integrand.log_f(&batch.conds, batch.s, w.wo, device).clamp(
+        neusample::neural_material::LOG_F_MIN,
+        neusample::neural_material::LOG_F_MAX,
+    );
+    let det = activation::relu(w.det);
     let fixed = tensor2(batch.fixed.clone(), n, 1, device);
-    let mixed = f * activation::relu(w.det) * (1.0 - alpha) + fixed * alpha;
-    (mixed + 1e-30).log().mean().neg()
+    let mixed = log_f.clone().exp() * det.clone() * (1.0 - alpha) + fixed * alpha;
+    let kl = (mixed + 1e-30).log().mean().neg();
+    if !(cfg.chi2_weight > 0.0) {
+        return kl;
+    }
+    // ln w = ln f + ln det − ln N(z), per condition: ln E[w²] − 2 ln E[w].
+    let b = batch.conds.len();
+    let log_normal = tensor2(batch.log_normal.clone(), n, 1, device);
+    let lw = (log_f + (det + 1e-30).log() - log_normal).reshape([b, batch.s]);
+    let chi =
+        log_sum_exp_last(lw.clone() * 2.0) - log_sum_exp_last(lw) * 2.0 + (batch.s as f32).ln();
+    kl + chi.mean() * cfg.chi2_weight
 }
 
 /// The full parameter array with the pdf network's part zero.
@@ -469,7 +486,7 @@ pub fn train(
         optimise(warp, &settings("reparam warp", &cfg.schedule), |m, step| {
             pool.maybe_refresh(step)?;
             let batch = warp_batch(pool, integrand, b, s, common.seed, step);
-            Ok(warp_loss(m, &batch, integrand, cfg.defensive, &device))
+            Ok(warp_loss(m, &batch, integrand, cfg, &device))
         })?;
     let mut warp_params = Vec::new();
     warp.net.export(&mut warp_params);
