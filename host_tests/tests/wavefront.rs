@@ -166,6 +166,18 @@ where
     let mut fused_pdf = vec![-7.0f32; n];
     s.pdf_fused(soa.phi(), soa.wi(), soa.wo(), &mut fused_pdf)
         .unwrap();
+    // The MIS density of every sample (`Prepared::mis_pdf`).
+    let mut mis = out.pdf.clone();
+    s.mis_pdf_batch(
+        &states,
+        Vec3s {
+            x: &out.wo[0],
+            y: &out.wo[1],
+            z: &out.wo[2],
+        },
+        &mut mis,
+    )
+    .unwrap();
 
     for (i, l) in lanes.iter().enumerate() {
         let ctx = || format!("{what}: lane {i} of {n}: {l:?}");
@@ -189,6 +201,12 @@ where
                 ctx()
             );
         }
+        let want_mis = match (&p, sample) {
+            (Some(p), Some(x)) => p.mis_pdf(&x),
+            _ => 0.0,
+        };
+        assert_eq!(bits(mis[i]), bits(want_mis), "mis_pdf {}", ctx());
+        assert_eq!(s.exact_pdf(), p.as_ref().is_none_or(|p| p.exact_pdf()));
         let want = p.as_ref().map_or(0.0, |p| p.pdf(l.wo));
         assert_eq!(bits(pdf[i]), bits(want), "pdf {}", ctx());
         assert_eq!(bits(fused_pdf[i]), bits(want), "pdf (fused) {}", ctx());
@@ -296,6 +314,7 @@ fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) {
         AnySampler::AffineFlow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
         AnySampler::DirectHistogram(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
         AnySampler::HistogramMixture(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::Reparam(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
     }
 }
 

@@ -215,6 +215,10 @@ pub(crate) fn fixture_methods(
             fixture_config()
         };
         cfg.common.seed = 1;
+        if needs_integrand(method) {
+            // A short run: one thread, so that it reproduces on any machine's core count.
+            cfg.common.threads = 1;
+        }
         let trained = train::train(m, method, &cfg)?;
         let label = format!(
             "fixture material={name} method={method_name} steps={} seed=1",

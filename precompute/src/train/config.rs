@@ -209,6 +209,9 @@ pub enum DensityLoss {
     /// `p̂` is also pushed towards 0 where the warp does not reach (where a non-zero `p̂`
     /// would bias MIS).
     GeneralizedKl,
+    /// [`DensityLoss::LogL1`] plus `π·E_u[p̂]` over uniform points of the disk (a pull
+    /// towards 0 wherever the warp's samples do not hold `p̂` up).
+    LogL1Mass,
 }
 
 /// The reparameterization sampler: the warp's run, then the pdf network's
@@ -227,7 +230,8 @@ pub struct Reparam {
     pub defensive: f32,
     /// The pdf network's loss.
     pub density_loss: DensityLoss,
-    /// Weight λ of a χ² term added to the warp's loss (0: the release's objective): per
+    /// Weight λ of a χ² term added to the warp's loss (0: the release's objective; 0.1 by
+    /// default, `docs/reparam/` has the ablation): per
     /// condition `ln(E_z[w²]/E_z[w]²)` with `w = f⊥(T(z))·det J/N(z)`, the log of `1 + χ²(p* ‖
     /// q)` estimated on the batch's samples: the render's variance, which the KL term (mode
     /// seeking) lets grow where the warp under-covers the integrand.
@@ -238,8 +242,8 @@ impl Default for Reparam {
     fn default() -> Self {
         Reparam {
             schedule: Schedule {
-                steps: 3000,
-                lr: 3e-3,
+                steps: 5000,
+                lr: 1e-2,
             },
             density_schedule: Schedule {
                 steps: 1500,
@@ -249,7 +253,7 @@ impl Default for Reparam {
             samples_per_condition: 64,
             defensive: 1e-3,
             density_loss: DensityLoss::GeneralizedKl,
-            chi2_weight: 0.0,
+            chi2_weight: 0.1,
         }
     }
 }

@@ -421,8 +421,19 @@ fn density_loss(
     let x = tensor2(b.x.clone(), nq, 2, device);
     let lp = density_graph(&m.net, cond, x).clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX);
     let lq = tensor2(b.log_q.clone(), nq, 1, device);
+    let uniform_mass = || {
+        let nu = b.u.len() / 2;
+        let cu = tensor2(b.cond_u.clone(), nu, CONDITION_DIM, device);
+        let u = tensor2(b.u.clone(), nu, 2, device);
+        density_graph(&m.net, cu, u)
+            .clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX)
+            .exp()
+            .mean()
+            * std::f32::consts::PI
+    };
     match kind {
         DensityLoss::LogL1 => (lp - lq).abs().mean(),
+        DensityLoss::LogL1Mass => (lp - lq).abs().mean() + uniform_mass(),
         DensityLoss::GeneralizedKl => {
             // Per condition: −E_q[ln p̂] + ∫p̂, with ∫p̂ estimated half from the warp's own
             // samples (E_q[p̂/q]) and half from uniform points (π·E_u[p̂]), averaged over the
