@@ -25,12 +25,15 @@ pub enum SamplerKind {
     /// [`crate::neural_material`]), the BRDF the samplers are trained for. Opened with
     /// [`Blob::neural_material`](crate::Blob::neural_material); [`Blob::sampler`](crate::Blob::sampler) refuses it. Not in [`SamplerKind::ALL`].
     NeuralMaterial,
+    /// Reparameterization sampler (Wu et al. 2025): an MLP warp of a Gaussian with its exact
+    /// Jacobian weight, and a pdf network for MIS ([`crate::samplers::reparam`]).
+    Reparam,
 }
 
 impl SamplerKind {
     /// Every sampler kind, in a stable order ([`SamplerKind::NeuralMaterial`], which is not a
     /// sampler, is not listed).
-    pub const ALL: [SamplerKind; 7] = [
+    pub const ALL: [SamplerKind; 8] = [
         SamplerKind::Cosine,
         SamplerKind::ImprovedBaseline,
         SamplerKind::AnalyticMixture,
@@ -38,6 +41,7 @@ impl SamplerKind {
         SamplerKind::AffineFlow,
         SamplerKind::DirectHistogram,
         SamplerKind::HistogramMixture,
+        SamplerKind::Reparam,
     ];
 
     /// The kind's stable name (CLI and JSON).
@@ -52,7 +56,16 @@ impl SamplerKind {
             SamplerKind::DirectHistogram => "direct-histogram",
             SamplerKind::HistogramMixture => "histogram-mixture",
             SamplerKind::NeuralMaterial => "neural-material",
+            SamplerKind::Reparam => "reparam",
         }
+    }
+
+    /// Whether a sample's density is the kind's `pdf` at the sampled direction (every kind
+    /// but [`SamplerKind::Reparam`], whose samples carry the warp's exact density and whose
+    /// `pdf` is its pdf network's: see [`Prepared::mis_pdf`](crate::Prepared::mis_pdf)).
+    #[must_use]
+    pub const fn exact_pdf(self) -> bool {
+        !matches!(self, SamplerKind::Reparam)
     }
 
     /// Whether the kind is a sampler (every kind but [`SamplerKind::NeuralMaterial`]).

@@ -99,7 +99,7 @@ pub use samplers::{
     AnyPrepared, AnySampler, BlobSampler, CosinePrepared, CosineSampler, Defensive,
     DefensivePrepared, DirectHistogramPrepared, DirectHistogramSampler, FlowPrepared, FlowSampler,
     HistogramMixturePrepared, HistogramMixtureSampler, ImprovedBaselinePrepared,
-    ImprovedBaselineSampler, Prepared, Sample, Sampler,
+    ImprovedBaselineSampler, Prepared, ReparamPrepared, ReparamSampler, Sample, Sampler,
 };
 pub use warp::Frame;
 pub use weights::{Tensor, Weights};

@@ -27,4 +27,4 @@ pub use crate::batch::{
     current_isa, detected_isa, prefer_isa, BatchSampler, Features, FeaturesMut, Isa, LaneState,
     RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut, FUSED_CHUNK,
 };
-pub use crate::samplers::{AffineLane, AnyLane, FlowLane, MixtureLane};
+pub use crate::samplers::{AffineLane, AnyLane, FlowLane, MixtureLane, ReparamLane};

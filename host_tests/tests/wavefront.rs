@@ -166,6 +166,18 @@ where
     let mut fused_pdf = vec![-7.0f32; n];
     s.pdf_fused(soa.phi(), soa.wi(), soa.wo(), &mut fused_pdf)
         .unwrap();
+    // The MIS density of every sample (`Prepared::mis_pdf`).
+    let mut mis = out.pdf.clone();
+    s.mis_pdf_batch(
+        &states,
+        Vec3s {
+            x: &out.wo[0],
+            y: &out.wo[1],
+            z: &out.wo[2],
+        },
+        &mut mis,
+    )
+    .unwrap();
 
     for (i, l) in lanes.iter().enumerate() {
         let ctx = || format!("{what}: lane {i} of {n}: {l:?}");
@@ -188,6 +200,14 @@ where
                 if k == 1 { " (fused)" } else { "" },
                 ctx()
             );
+        }
+        let want_mis = match (&p, sample) {
+            (Some(p), Some(x)) => p.mis_pdf(&x),
+            _ => 0.0,
+        };
+        assert_eq!(bits(mis[i]), bits(want_mis), "mis_pdf {}", ctx());
+        if let Some(p) = &p {
+            assert_eq!(s.exact_pdf(), p.exact_pdf(), "exact_pdf {}", ctx());
         }
         let want = p.as_ref().map_or(0.0, |p| p.pdf(l.wo));
         assert_eq!(bits(pdf[i]), bits(want), "pdf {}", ctx());
@@ -296,6 +316,7 @@ fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) {
         AnySampler::AffineFlow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
         AnySampler::DirectHistogram(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
         AnySampler::HistogramMixture(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::Reparam(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
     }
 }
 

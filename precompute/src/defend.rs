@@ -12,6 +12,13 @@
 //! α within [`ALPHA_TOLERANCE`] of the best second moment wins: the learned part keeps as
 //! much of the samples as the variance allows.
 //! [`with_defensive`] rewrites a blob with the chosen α, its tensors unchanged.
+//!
+//! A sampler whose samples carry a density other than its `pdf` (the reparameterization
+//! sampler: the warp's exact `q`, a pdf network for MIS) has no closed form on a quadrature:
+//! its mixture divides each sample by a one-sample-MIS density (`neusample::Defensive`).
+//! There the second moment is estimated from [`SAMPLED_PER_CONDITION`] stratified samples of
+//! each mixture, the same uniforms for every α (common random numbers, so the comparison
+//! between α is far less noisy than each estimate).
 
 use anyhow::{bail, Context, Result};
 use neusample::{Blob, BlobWriter, Prepared, Sampler, SamplerKind};
@@ -29,6 +36,9 @@ pub const ALPHA_GRID: [f32; 7] = [0.0, 0.01, 0.02, 0.05, 0.1, 0.15, 0.2];
 
 /// How much above the smallest second moment a smaller α may be and still be chosen.
 pub const ALPHA_TOLERANCE: f64 = 0.1;
+
+/// Samples per condition and α of the sampled estimate (module docs).
+pub const SAMPLED_PER_CONDITION: usize = 4096;
 
 /// Conditions [`choose_alpha`] averages over by default.
 pub const DEFAULT_CONDITIONS: usize = 128;
@@ -73,6 +83,10 @@ pub fn choose_alpha(
     let sampler = *blob.sampler()?.inner();
     let conds = groundtruth::conditions(material, conditions, seed);
     let nodes = rim_quadrature(radial, RIM_ANGULAR);
+    if !sampler.kind().exact_pdf() {
+        let per = sampled_moments(&sampler, material, &conds, &nodes, seed);
+        return Ok(choice(&per));
+    }
     // Per condition: albedo² and, per α, ∫ Y(f)²/p_α over the disk (rim included).
     let per: Vec<(f64, Vec<f64>)> = conds
         .par_iter()
@@ -105,7 +119,70 @@ pub fn choose_alpha(
     if per.is_empty() {
         bail!("no conditions to choose the defensive weight on");
     }
-    let n = per.len() as f64;
+    Ok(choice(&per))
+}
+
+/// Per condition, albedo² and per α of [`ALPHA_GRID`] `E[w²]/a²` of the mixture's samples
+/// (`w = Y(f)/pdf_disk`, `pdf_disk` the density a sample is divided by; refused samples
+/// count as 0), the same stratified uniforms for every α.
+fn sampled_moments(
+    sampler: &neusample::AnySampler<'_>,
+    material: &dyn Material,
+    conds: &[groundtruth::Condition],
+    nodes: &[(glam::Vec2, f64)],
+    seed: u64,
+) -> Vec<(f64, Vec<f64>)> {
+    use rand::RngExt;
+    let k = (SAMPLED_PER_CONDITION as f64).sqrt() as usize;
+    conds
+        .par_iter()
+        .enumerate()
+        .map(|(ci, c)| {
+            let f = groundtruth::rim_luminance(material, c, nodes);
+            let a: f64 = f.iter().zip(nodes).map(|(y, n)| y * n.1).sum();
+            let a2 = a * a;
+            if !(a2 > 0.0) {
+                return (0.0, vec![1.0; ALPHA_GRID.len()]);
+            }
+            let mut rng = crate::util::rng::rng_for(seed, 0xde5a, ci as u64);
+            let us: Vec<glam::Vec2> = (0..k * k)
+                .map(|i| {
+                    let mut cell = |j: usize| {
+                        ((j as f32 + rng.random::<f32>()) / k as f32)
+                            .min(neusample::ONE_MINUS_EPSILON)
+                    };
+                    glam::Vec2::new(cell(i % k), cell(i / k))
+                })
+                .collect();
+            let m2 = ALPHA_GRID
+                .iter()
+                .map(|&alpha| {
+                    let d = neusample::Defensive::new_unchecked(*sampler, alpha);
+                    let Some(prep) = d.prepare(&c.phi, c.wi) else {
+                        return 1.0;
+                    };
+                    let mut sum = 0.0f64;
+                    for &u in &us {
+                        let Some(s) = prep.sample(u) else { continue };
+                        let y = f64::from(crate::materials::luminance(
+                            material.eval(&c.phi, c.wi, s.wo),
+                        ));
+                        if y > 0.0 && y.is_finite() {
+                            let w = y / f64::from(s.pdf_disk);
+                            sum += w * w;
+                        }
+                    }
+                    sum / us.len() as f64 / a2
+                })
+                .collect();
+            (a2, m2)
+        })
+        .collect()
+}
+
+/// The α of per-condition `(a², E[w²]/a² per α)` (module docs).
+fn choice(per: &[(f64, Vec<f64>)]) -> AlphaChoice {
+    let n = per.len().max(1) as f64;
     let weighted = |k: usize| per.iter().map(|(a2, m)| a2 * m[k]).sum::<f64>() / n;
     let base = weighted(0).max(f64::MIN_POSITIVE);
     let scores: Vec<AlphaScore> = ALPHA_GRID
@@ -129,11 +206,11 @@ pub fn choose_alpha(
         .iter()
         .find(|s| s.relative_second_moment <= least * (1.0 + ALPHA_TOLERANCE))
         .map_or(0.0, |s| s.alpha);
-    Ok(AlphaChoice {
+    AlphaChoice {
         alpha: best,
         conditions: per.len(),
         scores,
-    })
+    }
 }
 
 /// `bytes` rewritten with the defensive weight `alpha` (format version 2, or version 1 when

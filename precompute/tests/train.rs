@@ -12,7 +12,7 @@ use neusample::SamplerKind;
 use neusample::{AffineFlowSampler, FlowSampler};
 use neusample::{AnalyticMixtureSampler, ImprovedBaselineSampler};
 use neusample::{DirectHistogramSampler, HistogramMixtureSampler};
-use neusample::{Prepared, Sampler, Vec2, Vec3};
+use neusample::{Prepared, ReparamSampler, Sampler, Vec2, Vec3};
 use neusample_precompute::train::{
     self, graph_log_pdf, model_pdf_disk, parse_method, train_with, SyntheticSource, TargetSource,
     TrainConfig, Trained, METHODS,
@@ -80,6 +80,10 @@ fn core_pdf(t: &Trained, phi: &[f32; 8], wi: Vec3, p: Vec2) -> f32 {
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p))
         }
+        SamplerKind::Reparam => ReparamSampler::new(w)
+            .expect("reparam parameter count")
+            .prepare(phi, wi)
+            .map_or(0.0, |s| s.pdf_disk(p)),
         SamplerKind::Cosine | SamplerKind::NeuralMaterial => unreachable!("not trained"),
     }
 }
@@ -92,6 +96,7 @@ fn expected_len(m: SamplerKind) -> usize {
         SamplerKind::AffineFlow => AffineFlowSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::Reparam => ReparamSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::Cosine | SamplerKind::NeuralMaterial => unreachable!("not trained"),
     }
 }
@@ -137,9 +142,16 @@ fn check(kind: SamplerKind) {
         "{method}: finite params"
     );
 
-    // The loss falls.
-    let h = &t.loss_history;
-    assert_eq!(h.len(), TrainConfig::quick().schedule(kind).unwrap().steps);
+    // The loss falls (the reparameterization sampler's history is the warp's run, then the
+    // pdf network's: the warp's is checked here).
+    let steps = TrainConfig::quick().schedule(kind).unwrap().steps;
+    let extra = if kind == SamplerKind::Reparam {
+        TrainConfig::quick().reparam.density_schedule.steps
+    } else {
+        0
+    };
+    assert_eq!(t.loss_history.len(), steps + extra);
+    let h = &t.loss_history[..steps];
     let k = 20;
     let (first, last) = (mean(&h[..k]), mean(&h[h.len() - k..]));
     eprintln!(
@@ -208,6 +220,47 @@ fn affine_flow_learns_and_matches_runtime() {
 #[test]
 fn direct_histogram_learns_and_matches_runtime() {
     check(SamplerKind::DirectHistogram);
+}
+
+#[test]
+fn reparam_learns_and_matches_runtime() {
+    check(SamplerKind::Reparam);
+    // The warp: the runtime's point and Jacobian determinant equal the f64 mirror of the
+    // trained model, and the samples' density is N(z)/det J.
+    let t = quick(SamplerKind::Reparam);
+    let s = ReparamSampler::new(t.params.as_slice()).unwrap();
+    let gts = SyntheticSource.draw(6, 8, 778).unwrap();
+    let mut rng = Pcg64::seed_from_u64(6);
+    let (mut worst_point, mut worst_det, mut positive, mut n) = (0.0f64, 0.0f64, 0usize, 0usize);
+    for g in &gts {
+        let p = s.prepare(&g.phi, g.wi).unwrap();
+        for _ in 0..200 {
+            let u = Vec2::new(rng.random(), rng.random());
+            let z = neusample::distrib::gaussian::box_muller(u);
+            let w = p.warp(z);
+            let (point, det) = train::reparam::warp_f64(&t.params, &g.phi, g.wi, z);
+            worst_point = worst_point.max(f64::from((w.point - point).length()));
+            worst_det = worst_det.max(rel_err(f64::from(w.det), det));
+            n += 1;
+            if let Some(smp) = p.sample(u) {
+                positive += 1;
+                assert!(w.det > 0.0);
+                let q = (-0.5 * f64::from(z.length_squared())).exp()
+                    / (std::f64::consts::TAU * f64::from(w.det));
+                assert!(rel_err(f64::from(smp.pdf_disk), q) < 1e-4);
+                assert_eq!(smp.wo.x, w.point.x);
+            } else {
+                assert!(!(w.det > 0.0) || w.point.length_squared() >= 1.0);
+            }
+        }
+    }
+    eprintln!(
+        "reparam warp: {n} points, worst |Δpoint| {worst_point:.2e}, worst relative Δdet \
+         {worst_det:.2e}, {positive} orientation-preserving"
+    );
+    assert!(worst_point < 1e-4 && worst_det < 1e-3);
+    // Most of the trained warp preserves orientation.
+    assert!(positive * 10 > 9 * n, "{positive} of {n} samples kept");
 }
 
 #[test]

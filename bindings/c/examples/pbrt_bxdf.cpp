@@ -55,13 +55,18 @@ std::unique_ptr<NsBlob, BlobDel> OpenBlob(const std::string &path) {
 }
 
 // The BxDF of one shading point: φ from the texture at uv; the sampler prepared for pbrt's
-// `wo` by one helper that both Sample_f and PDF call, so they cannot disagree.
+// `wo` by one helper that both Sample_f and PDF call, so they cannot disagree. pbrt's
+// integrators weigh a sample by f·cos/pdf and use the same pdf for MIS; for a sampler whose
+// samples carry another density than its PDF (ns_sampler_exact_pdf false: the
+// reparameterization sampler), Sample_f returns PDF's value and scales f by PDF/q, so that
+// f·cos/pdf is still the sample's exact weight f·cos/q.
 class NeuralBxDF {
  public:
   NeuralBxDF(const NsMaterial *material, const NsSampler *sampler, NsPrepared *scratch,
              Point2f uv)
       : material_(material), sampler_(sampler), scratch_(scratch) {
     Check(ns_material_features(material_, {uv.x, uv.y}, &phi_), "features");
+    Check(ns_sampler_exact_pdf(sampler_, &exact_), "exact_pdf");
   }
 
   // BRDF value (no cosine).
@@ -78,7 +83,12 @@ class NeuralBxDF {
     if (st == NS_REFUSED) return std::nullopt;
     Check(st, "sample");
     Vector3f wi{s.wo.x, s.wo.y, s.wo.z};
-    return BSDFSample{f(wo, wi), wi, s.pdf};
+    RGB value = f(wo, wi);
+    if (exact_) return BSDFSample{value, wi, s.pdf};
+    float pdf = PDF(wo, wi);
+    if (!(pdf > 0.0f)) return std::nullopt;
+    float k = pdf / s.pdf;
+    return BSDFSample{{value.r * k, value.g * k, value.b * k}, wi, pdf};
   }
 
   float PDF(Vector3f wo, Vector3f wi) const {
@@ -104,6 +114,7 @@ class NeuralBxDF {
   const NsSampler *sampler_;
   NsPrepared *scratch_;
   NsPhi phi_{};
+  bool exact_ = true;
   mutable bool prepared_ = false, ok_ = false;
   mutable Vector3f wo_{};
 };
@@ -118,7 +129,7 @@ int main(int argc, char **argv) {
     Check(ns_material_new(OpenBlob(root + "/materials/neural/goat_leather_neural.nsb").get(), &m),
           "material");
     Material material(m);
-    for (const char *method : {"flow", "histogram-mixture"}) {
+    for (const char *method : {"flow", "histogram-mixture", "reparam"}) {
       NsSampler *s = nullptr;
       Check(ns_sampler_new(OpenBlob(root + "/blobs/goat_leather_neural/" + method + ".nsb").get(), &s),
             method);

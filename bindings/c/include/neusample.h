@@ -93,6 +93,9 @@ typedef enum NsKind {
   NS_KIND_HISTOGRAM_MIXTURE = 6,
   // A neural material (not a sampler).
   NS_KIND_NEURAL_MATERIAL = 7,
+  // Reparameterization sampler (Wu et al. 2025): its samples carry the warp's exact
+  // density, its pdf is a network's approximation (`ns_sampler_exact_pdf` is false).
+  NS_KIND_REPARAM = 8,
 } NsKind;
 
 // A validated blob that owns a copy of its bytes. Opaque.
@@ -169,7 +172,9 @@ typedef struct NsRgb {
 } NsRgb;
 
 // A sampled direction and its density with respect to solid angle (the number a renderer
-// divides `f · cos θo` by). A refused sample is `wo = 0, pdf = 0`.
+// divides `f · cos θo` by). A refused sample is `wo = 0, pdf = 0`. For a sampler whose
+// `ns_sampler_exact_pdf` is false (the reparameterization sampler), MIS weights use
+// `ns_prepared_pdf` at `wo` instead of `pdf`.
 typedef struct NsSample {
   // The direction (local shading frame, unit length, `wo.z > 0`).
   struct NsVec3 wo;
@@ -308,6 +313,15 @@ void ns_sampler_free(struct NsSampler *sampler);
 // # Safety
 // `sampler` is NULL or a live handle; `out` is NULL or writable.
 enum NsStatus ns_sampler_kind(const struct NsSampler *sampler, enum NsKind *out);
+
+// Whether the sampler's samples carry its pdf (`*out = true`: `ns_prepared_pdf(wo)` equals
+// a sample's `pdf`, every kind but one). `false` for the reparameterization sampler: a
+// sample's `pdf` is the density it was drawn with (divide `f·cos θo` by it), and MIS
+// weights must use `ns_prepared_pdf` at its direction, as every other strategy's do.
+//
+// # Safety
+// `sampler` is NULL or a live handle; `out` is NULL or writable.
+enum NsStatus ns_sampler_exact_pdf(const struct NsSampler *sampler, bool *out);
 
 // Builds the neural material of a neural-material blob and stores a new handle in `*out`
 // (free it with `ns_material_free`). `NS_ERR_WRONG_KIND` for a sampler blob.

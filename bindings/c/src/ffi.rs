@@ -356,6 +356,28 @@ pub unsafe extern "C" fn ns_sampler_kind(sampler: *const NsSampler, out: *mut Ns
     })
 }
 
+/// Whether the sampler's samples carry its pdf (`*out = true`: `ns_prepared_pdf(wo)` equals
+/// a sample's `pdf`, every kind but one). `false` for the reparameterization sampler: a
+/// sample's `pdf` is the density it was drawn with (divide `f·cos θo` by it), and MIS
+/// weights must use `ns_prepared_pdf` at its direction, as every other strategy's do.
+///
+/// # Safety
+/// `sampler` is NULL or a live handle; `out` is NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ns_sampler_exact_pdf(
+    sampler: *const NsSampler,
+    out: *mut bool,
+) -> NsStatus {
+    guard(|| {
+        // SAFETY: live handle or NULL (contract).
+        let s = unsafe { get(sampler, "sampler") }?;
+        // SAFETY: writable or NULL (contract).
+        let out = unsafe { get_mut(out, "out") }?;
+        *out = s.0.kind().exact_pdf();
+        Ok(())
+    })
+}
+
 /// Builds the neural material of a neural-material blob and stores a new handle in `*out`
 /// (free it with `ns_material_free`). `NS_ERR_WRONG_KIND` for a sampler blob.
 ///

@@ -87,6 +87,9 @@ pub enum NsKind {
     NS_KIND_HISTOGRAM_MIXTURE = 6,
     /// A neural material (not a sampler).
     NS_KIND_NEURAL_MATERIAL = 7,
+    /// Reparameterization sampler (Wu et al. 2025): its samples carry the warp's exact
+    /// density, its pdf is a network's approximation (`ns_sampler_exact_pdf` is false).
+    NS_KIND_REPARAM = 8,
 }
 
 impl From<SamplerKind> for NsKind {
@@ -100,6 +103,7 @@ impl From<SamplerKind> for NsKind {
             SamplerKind::DirectHistogram => NsKind::NS_KIND_DIRECT_HISTOGRAM,
             SamplerKind::HistogramMixture => NsKind::NS_KIND_HISTOGRAM_MIXTURE,
             SamplerKind::NeuralMaterial => NsKind::NS_KIND_NEURAL_MATERIAL,
+            SamplerKind::Reparam => NsKind::NS_KIND_REPARAM,
         }
     }
 }
@@ -151,7 +155,9 @@ pub struct NsRgb {
 }
 
 /// A sampled direction and its density with respect to solid angle (the number a renderer
-/// divides `f · cos θo` by). A refused sample is `wo = 0, pdf = 0`.
+/// divides `f · cos θo` by). A refused sample is `wo = 0, pdf = 0`. For a sampler whose
+/// `ns_sampler_exact_pdf` is false (the reparameterization sampler), MIS weights use
+/// `ns_prepared_pdf` at `wo` instead of `pdf`.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct NsSample {

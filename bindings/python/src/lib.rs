@@ -253,11 +253,20 @@ impl Sampler {
         self.inner.get().alpha()
     }
 
+    /// Whether a sample's `pdf` is `pdf(wo)` at its direction (every kind but
+    /// `"reparam"`, whose samples carry the density of its warp while `pdf` is its pdf
+    /// network: divide by the sample's pdf, weigh MIS with `pdf(wo)`).
+    #[getter]
+    fn exact_pdf(&self) -> bool {
+        self.inner.kind().exact_pdf()
+    }
+
     /// Prepares the sampler for each lane's `(phi, wi)` and draws one direction from `u`.
     ///
     /// `phi`: (8, N), `wi`: (3, N), `u`: (2, N) float32 in [0, 1). Returns `(wo, pdf)`:
-    /// (3, N) directions and (N,) solid-angle densities; a refused lane (`wi` below the
-    /// horizon, NaN input, sample outside the support) has `wo = 0`, `pdf = 0`.
+    /// (3, N) directions and (N,) solid-angle densities (the densities they were drawn with:
+    /// divide `f·cos` by them); a refused lane (`wi` below the horizon, NaN input, sample
+    /// outside the support) has `wo = 0`, `pdf = 0`.
     #[pyo3(signature = (phi, wi, u, *, threads = 1))]
     fn sample<'py>(
         &self,

@@ -197,3 +197,29 @@ def test_inspect_and_header():
     assert flow["format_version"] == 2 and 0.0 < flow["defensive"] < 1.0
     assert neusample.Sampler(sampler_path("victorian_fabric_neural", "flow")).alpha == flow["defensive"]
     assert neusample.Sampler.cosine().alpha == 0.0
+
+
+def test_reparam_samples_carry_their_own_density():
+    """The reparameterization sampler divides by its warp's density and reports its pdf
+    network for MIS: `exact_pdf` is False (True for every other kind), the two densities
+    differ, and the sample weights estimate the albedo that cosine sampling estimates."""
+    m = neusample.NeuralMaterial(material_path("goat_leather_neural"))
+    s = neusample.Sampler(sampler_path("goat_leather_neural", "reparam"))
+    assert s.kind == "reparam" and not s.exact_pdf
+    assert neusample.Sampler(sampler_path("goat_leather_neural", "flow")).exact_pdf
+    assert neusample.Sampler.cosine().exact_pdf
+    n = 200_000
+    rng = np.random.default_rng(3)
+    uv = np.tile(np.array([[0.3], [0.6]], np.float32), n)
+    wi = np.tile(col([0.36, -0.48, 0.8]), n)
+    phi = m.features(uv)
+    wo, pdf = s.sample(phi, wi, rng.random((2, n), dtype=np.float32))
+    ok = pdf > 0
+    assert ok.mean() > 0.95
+    assert not np.array_equal(s.pdf(phi, wi, wo)[ok], pdf[ok])
+    w = np.where(ok, m.eval(phi, wi, wo)[1] * wo[2] / np.where(ok, pdf, 1.0), 0.0)
+    c = neusample.Sampler.cosine()
+    wo_c, pdf_c = c.sample(phi, wi, rng.random((2, n), dtype=np.float32))
+    w_c = m.eval(phi, wi, wo_c)[1] * wo_c[2] / pdf_c
+    se = np.hypot(w.std() / np.sqrt(n), w_c.std() / np.sqrt(n))
+    assert abs(w.mean() - w_c.mean()) < 5 * se, (w.mean(), w_c.mean(), se)

@@ -17,6 +17,8 @@ pub trait ChunkedSampler {
     type Lane: super::LaneState;
     /// Lanes per chunk.
     const CHUNK: usize;
+    /// See [`BatchSampler::exact_pdf`].
+    const EXACT_PDF: bool = true;
     /// [`BatchSampler::prepare_batch`] of one chunk.
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]);
     /// [`BatchSampler::sample_batch`] of one chunk.
@@ -131,6 +133,11 @@ impl<S: ChunkedSampler> Kernel for Invert<'_, '_, S> {
 
 impl<S: ChunkedSampler> BatchSampler for S {
     type Lane = S::Lane;
+
+    #[inline]
+    fn exact_pdf(&self) -> bool {
+        S::EXACT_PDF
+    }
 
     fn prepare_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [S::Lane]) -> Result<()> {
         check_prepare_args(&phi, &wi, lanes)?;

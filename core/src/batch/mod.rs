@@ -50,6 +50,26 @@ pub trait BatchSampler {
         ok: &mut [bool],
     ) -> Result<()>;
 
+    /// Whether `sample_batch`'s densities are `pdf_batch`'s at the sampled directions (as
+    /// [`Prepared::exact_pdf`](crate::Prepared::exact_pdf): every kind but the
+    /// reparameterization sampler).
+    #[inline]
+    fn exact_pdf(&self) -> bool {
+        true
+    }
+
+    /// Turns the densities `pdf[i]` that [`BatchSampler::sample_batch`] wrote for the
+    /// directions `wo[i]` into the densities MIS weights must use (as
+    /// [`Prepared::mis_pdf`](crate::Prepared::mis_pdf)): unchanged where
+    /// [`BatchSampler::exact_pdf`], else `pdf_batch` at `wo` (0 for refused lanes).
+    fn mis_pdf_batch(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+        if self.exact_pdf() {
+            check_pdf_args(lanes, &wo, pdf).map(|_| ())
+        } else {
+            self.pdf_batch(lanes, wo, pdf)
+        }
+    }
+
     /// [`BatchSampler::prepare_batch`] then [`BatchSampler::sample_batch`], in chunks of
     /// [`FUSED_CHUNK`] lanes whose states stay on the stack.
     fn sample_fused(

@@ -7,6 +7,7 @@ use crate::samplers::histogram_mixture;
 use crate::samplers::{
     AffineFlowSampler, AnalyticMixtureSampler, AnySampler, CosineSampler, Defensive,
     DirectHistogramSampler, FlowSampler, HistogramMixtureSampler, ImprovedBaselineSampler,
+    ReparamSampler,
 };
 use crate::weights::{Tensor, Weights};
 
@@ -306,6 +307,14 @@ impl<'a> Blob<'a> {
         Ok(self.defend(s))
     }
 
+    /// The reparameterization sampler (with the blob's defensive weight), or
+    /// [`Error::WrongKind`].
+    pub fn reparam(&self) -> Result<Defensive<ReparamSampler<Tensor<'a>>>> {
+        self.expect(SamplerKind::Reparam)?;
+        let s = ReparamSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
+        Ok(self.defend(s))
+    }
+
     /// The direct histogram sampler, or [`Error::WrongKind`].
     pub fn direct_histogram(&self) -> Result<Defensive<DirectHistogramSampler<Tensor<'a>>>> {
         self.expect(SamplerKind::DirectHistogram)?;
@@ -379,6 +388,7 @@ impl<'a> Blob<'a> {
             SamplerKind::HistogramMixture => {
                 AnySampler::HistogramMixture(self.histogram_mixture_part()?)
             }
+            SamplerKind::Reparam => AnySampler::Reparam(*self.reparam()?.inner()),
             SamplerKind::NeuralMaterial => {
                 return Err(Error::NotASampler {
                     found: SamplerKind::NeuralMaterial,

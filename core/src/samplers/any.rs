@@ -10,7 +10,7 @@ use crate::weights::Tensor;
 
 use super::{
     AffineFlowSampler, AnalyticMixtureSampler, CosineSampler, DirectHistogramSampler, FlowSampler,
-    HistogramMixtureSampler, ImprovedBaselineSampler, Prepared, Sample, Sampler,
+    HistogramMixtureSampler, ImprovedBaselineSampler, Prepared, ReparamSampler, Sample, Sampler,
 };
 
 impl SamplerKind {
@@ -26,6 +26,7 @@ impl SamplerKind {
             SamplerKind::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::NeuralMaterial => NeuralMaterial::<&[f32]>::PARAM_COUNT,
+            SamplerKind::Reparam => ReparamSampler::<&[f32]>::PARAM_COUNT,
         }
     }
 }
@@ -48,6 +49,8 @@ pub enum AnySampler<'a> {
     DirectHistogram(DirectHistogramSampler<Tensor<'a>>),
     /// [`SamplerKind::HistogramMixture`].
     HistogramMixture(HistogramMixtureSampler<Tensor<'a>>),
+    /// [`SamplerKind::Reparam`].
+    Reparam(ReparamSampler<Tensor<'a>>),
 }
 
 /// The prepared state of an [`AnySampler`].
@@ -67,6 +70,8 @@ pub enum AnyPrepared<'s, 'a: 's> {
     DirectHistogram(<DirectHistogramSampler<Tensor<'a>> as Sampler>::Prepared<'s>),
     /// See [`AnySampler::HistogramMixture`].
     HistogramMixture(<HistogramMixtureSampler<Tensor<'a>> as Sampler>::Prepared<'s>),
+    /// See [`AnySampler::Reparam`].
+    Reparam(<ReparamSampler<Tensor<'a>> as Sampler>::Prepared<'s>),
 }
 
 impl<'a> AnySampler<'a> {
@@ -81,6 +86,7 @@ impl<'a> AnySampler<'a> {
             AnySampler::AffineFlow(_) => SamplerKind::AffineFlow,
             AnySampler::DirectHistogram(_) => SamplerKind::DirectHistogram,
             AnySampler::HistogramMixture(_) => SamplerKind::HistogramMixture,
+            AnySampler::Reparam(_) => SamplerKind::Reparam,
         }
     }
 }
@@ -101,6 +107,7 @@ impl<'a> Sampler for AnySampler<'a> {
             AnySampler::AffineFlow(s) => AnyPrepared::AffineFlow(s.prepare(phi, wi)?),
             AnySampler::DirectHistogram(s) => AnyPrepared::DirectHistogram(s.prepare(phi, wi)?),
             AnySampler::HistogramMixture(s) => AnyPrepared::HistogramMixture(s.prepare(phi, wi)?),
+            AnySampler::Reparam(s) => AnyPrepared::Reparam(s.prepare(phi, wi)?),
         })
     }
 }
@@ -115,6 +122,7 @@ macro_rules! dispatch {
             AnyPrepared::AffineFlow($p) => $e,
             AnyPrepared::DirectHistogram($p) => $e,
             AnyPrepared::HistogramMixture($p) => $e,
+            AnyPrepared::Reparam($p) => $e,
         }
     };
 }
@@ -136,6 +144,10 @@ impl Prepared for AnyPrepared<'_, '_> {
     fn invert(&self, wo: Vec3) -> Option<Vec2> {
         dispatch!(self, p => p.invert(wo))
     }
+    #[inline]
+    fn exact_pdf(&self) -> bool {
+        dispatch!(self, p => p.exact_pdf())
+    }
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -150,7 +162,7 @@ mod batch {
     use crate::error::{Error, Result};
     use crate::samplers::{
         AffineLane, AnalyticMixturePrepared, CosinePrepared, DirectHistogramPrepared, FlowLane,
-        ImprovedBaselinePrepared, MixtureLane,
+        ImprovedBaselinePrepared, MixtureLane, ReparamLane,
     };
 
     /// The lane of an [`AnySampler`]: the concrete sampler's lane. It is as large as the
@@ -176,6 +188,8 @@ mod batch {
         DirectHistogram(DirectHistogramPrepared),
         /// [`SamplerKind::HistogramMixture`].
         HistogramMixture(MixtureLane),
+        /// [`SamplerKind::Reparam`].
+        Reparam(ReparamLane),
     }
 
     impl LaneState for AnyLane {
@@ -220,12 +234,18 @@ mod batch {
                 AnySampler::AffineFlow(s) => $m!(s, AffineFlow, AffineLane),
                 AnySampler::DirectHistogram(s) => $m!(s, DirectHistogram, DirectHistogramPrepared),
                 AnySampler::HistogramMixture(s) => $m!(s, HistogramMixture, MixtureLane),
+                AnySampler::Reparam(s) => $m!(s, Reparam, ReparamLane),
             }
         };
     }
 
     impl BatchSampler for AnySampler<'_> {
         type Lane = AnyLane;
+
+        #[inline]
+        fn exact_pdf(&self) -> bool {
+            self.kind().exact_pdf()
+        }
 
         fn prepare_batch(
             &self,

@@ -16,6 +16,19 @@
 //!
 //! With α = 0 every call is the learned sampler's own, bit for bit: version-1 blobs, which
 //! have no α, behave as before.
+//!
+//! A learned part whose samples carry a density other than its `pdf`
+//! ([`Prepared::exact_pdf`] false: the reparameterization sampler, exact density `q`, pdf
+//! network `p̂`) cannot give the mixture's density at a cosine sample (`q` is unknown
+//! there). The two parts are then combined as one-sample MIS with the balance heuristic
+//! over `p̂` (Veach 1997, §9.2.4), which stays unbiased because the weights sum to one:
+//!
+//! ```text
+//! cosine sample:   divide by (1 − α)·p̂ + α·cos θo/π          (= pdf(wo), as before)
+//! learned sample:  divide by ((1 − α)·p̂ + α·cos θo/π) · q/p̂  (q where p̂ = q)
+//! ```
+//!
+//! and MIS with other strategies uses `pdf(wo) = (1 − α)·p̂ + α·cos θo/π`.
 
 use glam::{Vec2, Vec3};
 
@@ -115,6 +128,18 @@ fn mix(alpha: f32, p_learned: f32, cos_theta: f32) -> f32 {
     (1.0 - alpha) * p_learned + alpha * (cos_theta * INV_PI)
 }
 
+/// The density a learned sample of an inexact part ([`Prepared::exact_pdf`] false) is
+/// divided by in the mixture (module docs): `mix(p̂)·q/p̂`, with `q` its own solid-angle
+/// density and `p̂` the part's `pdf` there; 0 (refused: its MIS weight is 0) where `p̂` is not
+/// positive.
+#[inline(always)]
+fn mis_divisor(alpha: f32, q: f32, p_hat: f32, cos_theta: f32) -> f32 {
+    if !(p_hat > 0.0) {
+        return 0.0;
+    }
+    mix(alpha, p_hat, cos_theta) / p_hat * q
+}
+
 /// The mixture's sample from its solid-angle density, or `None` when it is not finite and
 /// positive.
 #[inline(always)]
@@ -190,8 +215,18 @@ impl<P: Prepared> Prepared for DefensivePrepared<P> {
             mixed_sample(wo, mix(self.alpha, self.inner.pdf(wo), wo.z))
         } else {
             let s = self.inner.sample(u)?;
-            mixed_sample(s.wo, mix(self.alpha, s.pdf, s.wo.z))
+            if self.inner.exact_pdf() {
+                mixed_sample(s.wo, mix(self.alpha, s.pdf, s.wo.z))
+            } else {
+                let p_hat = self.inner.pdf(s.wo);
+                mixed_sample(s.wo, mis_divisor(self.alpha, s.pdf, p_hat, s.wo.z))
+            }
         }
+    }
+
+    #[inline]
+    fn exact_pdf(&self) -> bool {
+        self.inner.exact_pdf()
     }
 
     #[inline]
@@ -241,6 +276,11 @@ mod batch {
 
     impl<S: BatchSampler> BatchSampler for Defensive<S> {
         type Lane = S::Lane;
+
+        #[inline]
+        fn exact_pdf(&self) -> bool {
+            self.inner.exact_pdf()
+        }
 
         #[inline]
         fn prepare_batch(
@@ -310,6 +350,20 @@ mod batch {
                     },
                     chunk.range(0, m),
                 )?;
+                // An inexact learned part: its pdf at its own samples (module docs).
+                let exact = self.inner.exact_pdf();
+                let mut p_hat = [0.0f32; FUSED_CHUNK];
+                if !exact {
+                    self.inner.pdf_batch(
+                        &lanes[a..b],
+                        Vec3s {
+                            x: &chunk.wo.x[..m],
+                            y: &chunk.wo.y[..m],
+                            z: &chunk.wo.z[..m],
+                        },
+                        &mut p_hat[..m],
+                    )?;
+                }
                 for i in 0..m {
                     // Learned lanes: the mixture's density; refused and cosine lanes: refused
                     // here, the cosine ones filled in below.
@@ -317,7 +371,11 @@ mod batch {
                         None
                     } else {
                         let wo = Vec3::new(chunk.wo.x[i], chunk.wo.y[i], chunk.wo.z[i]);
-                        mixed_sample(wo, mix(alpha, chunk.pdf[i], wo.z))
+                        if exact {
+                            mixed_sample(wo, mix(alpha, chunk.pdf[i], wo.z))
+                        } else {
+                            mixed_sample(wo, mis_divisor(alpha, chunk.pdf[i], p_hat[i], wo.z))
+                        }
                     };
                     chunk.set(i, s);
                 }

@@ -9,6 +9,7 @@
 //! | [`affine_flow`] | Xie et al. 2019 | affine coupling flow |
 //! | [`direct_histogram`] | Zhu et al. 2021 | MLP → 16 × 16 histogram |
 //! | [`histogram_mixture`] | Eq. 5–6 | MLP → weights, rotations, latent codes of baked tables |
+//! | [`reparam`] | Wu et al. 2025 | MLP warp of a Gaussian (exact Jacobian weights) + pdf network for MIS |
 //! | [`defensive`] | — | `(1 − α)·p_learned + α/π`: any of the above mixed with cosine |
 //!
 //! Each module also holds its architecture's constants (layer sizes and parameter offsets,
@@ -24,6 +25,7 @@ pub mod direct_histogram;
 pub mod histogram_mixture;
 pub mod lobes;
 mod mixture_tables;
+pub mod reparam;
 pub mod spline_flow;
 mod traits;
 
@@ -39,5 +41,6 @@ pub use lobes::{
     AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,
     ImprovedBaselineSampler,
 };
+pub use reparam::{ReparamLane, ReparamPrepared, ReparamSampler};
 pub use spline_flow::{FlowLane, FlowPrepared, FlowSampler};
 pub use traits::{Prepared, Sample, Sampler};

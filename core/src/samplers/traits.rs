@@ -24,7 +24,9 @@ pub struct Sample {
     /// The sampled direction in the local shading frame (unit length, `wo.z > 0`).
     pub wo: Vec3,
     /// Its density with respect to **solid angle**: `pdf_disk · wo.z`. This is what a
-    /// renderer divides by (pbrt `Sample_f().pdf`, Mitsuba `BSDFSample3f::pdf`).
+    /// renderer divides by (pbrt `Sample_f().pdf`, Mitsuba `BSDFSample3f::pdf`): the density
+    /// the sample was drawn with. MIS weights use [`Prepared::mis_pdf`], which is this
+    /// number for every kind but the reparameterization sampler.
     pub pdf: f32,
     /// Its density with respect to **area on the projected unit disk**.
     pub pdf_disk: f32,
@@ -74,12 +76,34 @@ pub trait Prepared {
 
     /// Density of direction `wo` (local frame; normalised here) with respect to **solid
     /// angle**: `pdf_disk(wo⊥) · cos θo`. 0 at or below the horizon and for non-finite `wo`.
-    /// Equal to [`Sample::pdf`] for every direction [`Prepared::sample`] returns.
+    /// Equal to [`Sample::pdf`] for every direction [`Prepared::sample`] returns, unless
+    /// [`Prepared::exact_pdf`] is false ([`Prepared::mis_pdf`]).
     #[inline]
     fn pdf(&self, wo: Vec3) -> f32 {
         match warp::upper_hemisphere(wo) {
             Some(w) => warp::disk_to_solid_angle(self.pdf_disk(warp::to_disk(w)), w.z),
             None => 0.0,
+        }
+    }
+
+    /// Whether [`Sample::pdf`] is [`Prepared::pdf`] at the sampled direction (true for every
+    /// kind but the reparameterization sampler, whose samples carry the warp's exact density
+    /// while `pdf` is its pdf network's approximation, `core/ARCHITECTURES.md` §8).
+    #[inline]
+    fn exact_pdf(&self) -> bool {
+        true
+    }
+
+    /// The density MIS weights must use for a sample `s` this state drew: [`Prepared::pdf`]
+    /// at `s.wo`, the function every other strategy's MIS weight evaluates too, so that the
+    /// weights sum to one. `s.pdf` itself where [`Prepared::exact_pdf`] (no extra work).
+    /// Divide `f·cos θo` by `s.pdf`; weigh with `mis_pdf(&s)`.
+    #[inline]
+    fn mis_pdf(&self, s: &Sample) -> f32 {
+        if self.exact_pdf() {
+            s.pdf
+        } else {
+            self.pdf(s.wo)
         }
     }
 

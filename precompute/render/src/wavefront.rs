@@ -163,6 +163,8 @@ struct Batch<L> {
     u: Rows<2>,
     wo: Rows<3>,
     pdf: Vec<f32>,
+    /// With MIS: the density the BSDF sample's MIS weight uses (`mis_pdf_batch`).
+    mis_pdf: Vec<f32>,
     f: Rows<3>,
     /// With MIS: the environment sample per lane (world direction, density), its local
     /// direction, the sampler's density there and the BRDF there.
@@ -184,6 +186,7 @@ impl<L: LaneState> Batch<L> {
             u: Rows::new(cap),
             wo: Rows::new(cap),
             pdf: vec![0.0; cap],
+            mis_pdf: vec![0.0; cap],
             f: Rows::new(cap),
             env: vec![None; cap],
             env_wo: Rows::new(cap),
@@ -284,6 +287,10 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
                 b.f.rgb_mut(n),
             );
             if mis {
+                b.mis_pdf[..n].copy_from_slice(&b.pdf[..n]);
+                let _ = surface
+                    .sampler
+                    .mis_pdf_batch(lanes, b.wo.view(n), &mut b.mis_pdf[..n]);
                 for i in 0..n {
                     let r = &randoms[b.slots[i]];
                     let s = scene.env.sample(r.env_pick, r.env);
@@ -428,7 +435,7 @@ fn bsdf_term<L>(
     }
     let env = &scene.env;
     let w = if opts.estimator == Estimator::Mis {
-        power_heuristic(pdf, env.pdf(wo_w))
+        power_heuristic(b.mis_pdf[i], env.pdf(wo_w))
     } else {
         1.0
     };

@@ -16,7 +16,7 @@ use crate::jobs::material::{train_material, TrainMaterialJob};
 use crate::materials::neural::NeuralMaterialModel;
 use crate::materials::{self, Material};
 use crate::train::neural_material::NeuralTrainConfig;
-use crate::train::{self, TrainConfig, METHODS};
+use crate::train::{self, needs_integrand, TrainConfig, METHODS};
 use crate::util::io;
 use crate::util::progress::stages_bar;
 
@@ -126,6 +126,25 @@ pub fn regenerate_fixtures(
     Ok(())
 }
 
+/// `neusample fixtures --set neural --methods …`: only `methods`, trained on the committed
+/// neural versions of the built-ins `names` (`<materials>/<name>_neural.nsb`, not retrained)
+/// into `<out>/<name>_neural/`, with the fixtures' settings; the other blobs stay as they are.
+pub fn regenerate_methods(
+    out: &Path,
+    materials_out: &Path,
+    names: &[&str],
+    methods: &[SamplerKind],
+    quick: bool,
+) -> Result<()> {
+    for name in names {
+        let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
+        let m = NeuralMaterialModel::load(&path)?;
+        fixture_methods(out, &m, methods, quick)?;
+    }
+    eprintln!("fixtures written to {}", out.display());
+    Ok(())
+}
+
 /// The neural version of each built-in in `names` (`train-material` defaults, seed 1) into
 /// `<materials_out>/<name>_neural.nsb`, then every method trained on it into
 /// `<out>/<name>_neural/`.
@@ -167,12 +186,27 @@ fn write_conditions(out: &Path, m: &dyn Material) -> Result<()> {
     )
 }
 
-/// Every method trained on `m` into `<out>/<m.name()>/`, plus the conditions file.
+/// Every method trained on `m` into `<out>/<m.name()>/`, plus the conditions file (the
+/// reparameterization sampler only on a neural material: it trains on the integrand).
 fn fixture_samplers(out: &Path, m: &dyn Material, quick: bool) -> Result<()> {
+    let methods: Vec<SamplerKind> = METHODS
+        .into_iter()
+        .filter(|&k| !needs_integrand(k) || m.neural().is_some())
+        .collect();
+    fixture_methods(out, m, &methods, quick)
+}
+
+/// `methods` trained on `m` into `<out>/<m.name()>/`, plus the conditions file.
+pub(crate) fn fixture_methods(
+    out: &Path,
+    m: &dyn Material,
+    methods: &[SamplerKind],
+    quick: bool,
+) -> Result<()> {
     let name = io::slug(m.name());
-    let pb = stages_bar(METHODS.len() as u64, &format!("fixtures {name}"));
+    let pb = stages_bar(methods.len() as u64, &format!("fixtures {name}"));
     write_conditions(out, m)?;
-    for method in METHODS {
+    for &method in methods {
         let method_name = method.name();
         pb.set_message(format!("{name}/{method_name}"));
         let mut cfg = if quick {
@@ -181,6 +215,10 @@ fn fixture_samplers(out: &Path, m: &dyn Material, quick: bool) -> Result<()> {
             fixture_config()
         };
         cfg.common.seed = 1;
+        if needs_integrand(method) {
+            // A short run: one thread, so that it reproduces on any machine's core count.
+            cfg.common.threads = 1;
+        }
         let trained = train::train(m, method, &cfg)?;
         let label = format!(
             "fixture material={name} method={method_name} steps={} seed=1",

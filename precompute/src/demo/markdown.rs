@@ -213,6 +213,25 @@ pub fn markdown(r: &Report) -> String {
             );
         }
         let _ = writeln!(s);
+        for x in &m.methods {
+            if let Some(sf) = &x.sampled {
+                let _ = writeln!(
+                    s,
+                    "`{}` draws with the density of its warp and reports its pdf network for MIS \
+                     (the fit columns above are the pdf network's). On its own samples ({} per \
+                     condition): weight mean E[f·cos/pdf]/albedo {:.4} (worst condition {:.4}; 1 is \
+                     unbiased), χ²(p*‖q) of the sampling density {}, pdf network against it: \
+                     KL(q‖p̂) {:.4}, χ²(q‖p̂) {}.\n",
+                    x.method,
+                    crate::eval::FIT_SAMPLES,
+                    sf.weight_mean,
+                    sf.weight_mean_worst,
+                    fmt_chi2(sf.chi2),
+                    sf.mis_kl,
+                    fmt_chi2(sf.mis_chi2),
+                );
+            }
+        }
         if let (Some(rf), Some(fg)) = (&m.reference, &m.figures) {
             let _ = writeln!(s, "### Rendering\n");
             let _ = writeln!(

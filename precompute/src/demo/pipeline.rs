@@ -31,7 +31,7 @@ use crate::eval::{self, Fit, OracleSampler};
 use crate::groundtruth::{self, TargetPdf};
 use crate::materials::Material;
 use crate::train::neural_material::NeuralTrainConfig;
-use crate::train::{self, TrainConfig, METHODS};
+use crate::train::{self, needs_integrand, TrainConfig, METHODS};
 use crate::util::io::{self, slug};
 use crate::util::progress::stages_bar;
 
@@ -126,6 +126,11 @@ pub fn run(a: &DemoConfig) -> Result<()> {
 
         for method in METHODS {
             let method_name = method.name();
+            if needs_integrand(method) && m.neural().is_none() {
+                // Trained on the integrand itself: only neural materials have one.
+                pb.inc(if a.no_render { 1 } else { 4 });
+                continue;
+            }
             pb.set_message(format!("{mname}/{method_name}"));
             let (bytes, secs, loss, check) = if a.use_fixtures {
                 let dir = a.blobs.clone().unwrap_or_else(fixtures_dir);

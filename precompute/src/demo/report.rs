@@ -103,6 +103,11 @@ pub struct MethodReport {
     /// Mass inside the disk.
     #[serde(deserialize_with = "f64_or_nan")]
     pub mass_in_disk: f64,
+    /// A sampler whose `pdf` is not its samples' density (the reparameterization sampler:
+    /// the fields above are its pdf network's) measured on its own samples: weight mean,
+    /// χ² of the sampling density, the pdf network's mismatch; absent for the others.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampled: Option<crate::eval::SampledFit>,
     /// For a neural material with a known source: mean KL(p*_source ‖ p) in nats, the
     /// sampler (conditioned on the neural φ) against the source material's ground truth at
     /// the same uv and wi; null otherwise.
@@ -269,6 +274,7 @@ pub(crate) fn method_report(
         chi2_worst: fit.chi2_worst,
         pdf_mse: fit.pdf_mse,
         mass_in_disk: fit.mass_in_disk,
+        sampled: fit.sampled,
         kl_vs_source: None,
         ns_per_sample: cost.total_ns,
         cost_vs_material_eval: cost.total_ns / cost.material_eval_ns.max(1e-9),

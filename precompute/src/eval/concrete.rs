@@ -30,5 +30,6 @@ pub fn with_concrete<W: WithSampler>(s: BlobSampler<'_>, work: W) -> W::Output {
         AnySampler::AffineFlow(x) => work.run(d(x, alpha)),
         AnySampler::DirectHistogram(x) => work.run(d(x, alpha)),
         AnySampler::HistogramMixture(x) => work.run(d(x, alpha)),
+        AnySampler::Reparam(x) => work.run(d(x, alpha)),
     }
 }

@@ -40,6 +40,78 @@ pub struct Fit {
     /// Mean probability mass the sampler puts inside the disk.
     #[serde(deserialize_with = "f64_or_nan")]
     pub mass_in_disk: f64,
+    /// Samplers whose samples carry a density other than their `pdf`
+    /// (`Prepared::exact_pdf` false: the reparameterization sampler), measured on their own
+    /// samples ([`SampledFit`]); `None` for the others, whose fields above say it all.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampled: Option<SampledFit>,
+}
+
+/// A sampler measured on its own samples, for kinds whose `pdf` (the MIS density) is not
+/// the density of their samples: [`FIT_SAMPLES`] stratified samples per condition, `w =
+/// Y(f)/(a·pdf_disk)` with `a` the quadrature albedo `∫ Y(f)` of [`groundtruth::rim_moments`]
+/// (`pdf_disk` of a sample: the density it is divided by). Means over the conditions.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub struct SampledFit {
+    /// `E[w]`: the sample-weight estimate of `∫ f cos θo dωo` over the quadrature albedo, 1
+    /// for an unbiased sampler (a warp that folds or misses part of the disk moves it).
+    pub weight_mean: f64,
+    /// Its worst (farthest from 1) condition.
+    pub weight_mean_worst: f64,
+    /// `E[w²] − 1`: χ²(p* ‖ q) of the density the samples are drawn with (the render's
+    /// relative variance per sample; the [`Fit::chi2`] above is the pdf network's).
+    pub chi2: f64,
+    /// `E_q[ln(q/p̂)]` over the samples: KL(q ‖ p̂) of the MIS density `p̂` (`Prepared::pdf`)
+    /// to the samples' density `q`.
+    pub mis_kl: f64,
+    /// `E_q[q/p̂] − 1`: χ²(q ‖ p̂).
+    pub mis_chi2: f64,
+}
+
+/// Samples per condition of [`SampledFit`].
+pub const FIT_SAMPLES: usize = 16384;
+
+/// [`SampledFit`]'s figures at one condition: `(E[w], E[w²] − 1, KL, χ²)`; `a` is the
+/// condition's quadrature albedo.
+fn sampled_fit<P: Prepared>(
+    prep: &P,
+    m: &dyn Material,
+    c: &groundtruth::Condition,
+    a: f64,
+    seed: u64,
+) -> (f64, f64, f64, f64) {
+    let k = (FIT_SAMPLES as f64).sqrt() as usize;
+    let n = k * k;
+    let mut rng = crate::util::rng::rng_for(seed, 0x5a3f, 0);
+    let (mut w1, mut w2, mut kl, mut x2, mut kept) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0usize);
+    for i in 0..n {
+        use rand::RngExt;
+        let u = Vec2::new(
+            (((i % k) as f32 + rng.random::<f32>()) / k as f32).min(neusample::ONE_MINUS_EPSILON),
+            (((i / k) as f32 + rng.random::<f32>()) / k as f32).min(neusample::ONE_MINUS_EPSILON),
+        );
+        let Some(s) = prep.sample(u) else { continue };
+        let f = f64::from(crate::materials::luminance(m.eval(&c.phi, c.wi, s.wo)));
+        let q = f64::from(s.pdf_disk);
+        if f > 0.0 && f.is_finite() && a > 0.0 {
+            let w = f / (a * q);
+            w1 += w;
+            w2 += w * w;
+        }
+        let p_mis = f64::from(prep.mis_pdf(&s)) / f64::from(s.wo.z);
+        if p_mis > 0.0 && p_mis.is_finite() {
+            kl += (q / p_mis).ln();
+            x2 += q / p_mis;
+            kept += 1;
+        }
+    }
+    let kept = kept.max(1) as f64;
+    (
+        w1 / n as f64,
+        w2 / n as f64 - 1.0,
+        kl / kept,
+        x2 / kept - 1.0,
+    )
 }
 
 /// Mean fit of `sampler` to `material`'s ground truth at `conditions` random conditions.
@@ -68,9 +140,11 @@ pub fn fit_to<S: Sampler + Sync>(
 ) -> Fit {
     let conds = groundtruth::conditions(material, conditions, seed);
     let nodes = groundtruth::rim_quadrature(groundtruth::RIM_RADIAL, groundtruth::RIM_ANGULAR);
-    let per: Vec<(f64, f64, f64, f64)> = conds
+    type Sampled = Option<(f64, f64, f64, f64)>;
+    let per: Vec<(f64, f64, f64, f64, Sampled)> = conds
         .par_iter()
-        .map(|c| {
+        .enumerate()
+        .map(|(ci, c)| {
             let (target_material, tc) = match reference {
                 None => (material, *c),
                 Some(r) => (
@@ -83,12 +157,14 @@ pub fn fit_to<S: Sampler + Sync>(
             };
             let target = TargetPdf::new(target_material, &tc, res);
             let Some(prep) = sampler.prepare(&c.phi, c.wi) else {
-                return (f64::INFINITY, f64::INFINITY, 0.0, f64::INFINITY);
+                return (f64::INFINITY, f64::INFINITY, 0.0, f64::INFINITY, None);
             };
             let kl = target.kl_from(|p| prep.pdf_disk(p));
             let (a, m2) =
                 groundtruth::rim_moments(target_material, &tc, &nodes, |p| prep.pdf_disk(p));
             let chi2 = if a > 0.0 { m2 / (a * a) - 1.0 } else { 0.0 };
+            let sampled = (!prep.exact_pdf())
+                .then(|| sampled_fit(&prep, target_material, &tc, a, mix_seed(seed, ci as u64)));
             let h = 2.0 / res as f64;
             let (mut se, mut mass, mut n) = (0.0, 0.0, 0usize);
             for r in 0..res {
@@ -104,9 +180,26 @@ pub fn fit_to<S: Sampler + Sync>(
                     n += 1;
                 }
             }
-            (kl, se / n as f64, mass, chi2)
+            (kl, se / n as f64, mass, chi2, sampled)
         })
         .collect();
+    let with: Vec<(f64, f64, f64, f64)> = per.iter().filter_map(|p| p.4).collect();
+    let sampled = (!with.is_empty()).then(|| {
+        let k = with.len() as f64;
+        SampledFit {
+            weight_mean: with.iter().map(|s| s.0).sum::<f64>() / k,
+            weight_mean_worst: with.iter().map(|s| s.0).fold(1.0, |w, x| {
+                if (x - 1.0).abs() > (w - 1.0).abs() {
+                    x
+                } else {
+                    w
+                }
+            }),
+            chi2: with.iter().map(|s| s.1).sum::<f64>() / k,
+            mis_kl: with.iter().map(|s| s.2).sum::<f64>() / k,
+            mis_chi2: with.iter().map(|s| s.3).sum::<f64>() / k,
+        }
+    });
     let n = per.len().max(1) as f64;
     let (chi2_worst_condition, chi2_worst) =
         per.iter()
@@ -124,6 +217,7 @@ pub fn fit_to<S: Sampler + Sync>(
         chi2_worst_condition,
         pdf_mse: per.iter().map(|p| p.1).sum::<f64>() / n,
         mass_in_disk: per.iter().map(|p| p.2).sum::<f64>() / n,
+        sampled,
     }
 }
 

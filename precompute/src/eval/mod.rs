@@ -18,5 +18,5 @@ mod oracle;
 
 pub use concrete::{with_concrete, WithSampler};
 pub use cost::{cost, cost_any, cost_scalar, eval_cost, Cost, EvalCost, COST_BATCH};
-pub use fit::{fit, fit_report, fit_to, Fit, FitReport};
+pub use fit::{fit, fit_report, fit_to, Fit, FitReport, SampledFit, FIT_SAMPLES};
 pub use oracle::{OraclePrepared, OracleSampler};

@@ -105,6 +105,11 @@ pub struct SummaryRow {
     /// Largest χ²(p* ‖ p) over the conditions.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub chi2_worst: Option<f64>,
+    /// A sampler whose samples carry their own density (the reparameterization sampler)
+    /// measured on its samples: weight mean, χ² of the sampling density, the MIS density's
+    /// mismatch ([`eval::SampledFit`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sampled: Option<eval::SampledFit>,
     /// Mean squared pdf difference on the disk.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pdf_mse: Option<f64>,
@@ -178,6 +183,7 @@ pub fn sweep(material: &dyn Material, job: &SweepJob) -> Result<Summary> {
                     kl: Some(fit.kl_divergence),
                     chi2: Some(fit.chi2),
                     chi2_worst: Some(fit.chi2_worst),
+                    sampled: fit.sampled,
                     pdf_mse: Some(fit.pdf_mse),
                     train_seconds: Some(trained.seconds),
                     steps: job.config.schedule(method).map(|s| s.steps),

@@ -29,6 +29,13 @@ pub trait Material: Send + Sync {
         true
     }
 
+    /// The runtime's view of the material when it is a neural material (feature texture +
+    /// decoder): the reparameterization sampler trains through its decoder. `None` for every
+    /// other model.
+    fn neural(&self) -> Option<neusample::NeuralMaterial<&[f32]>> {
+        None
+    }
+
     /// [`Material::features`] of every `uv[i]` (structure of arrays, equal lengths); by
     /// default lane by lane. The neural material runs core's batched path.
     fn features_batch(&self, uv: Vec2s<'_>, phi: FeaturesMut<'_>) {

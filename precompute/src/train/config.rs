@@ -197,6 +197,81 @@ impl HistogramMixture {
     }
 }
 
+/// How the reparameterization sampler's pdf network is fitted to the warp's density `q`
+/// on the warp's own samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DensityLoss {
+    /// `mean |ln p̂ − ln q|` (a relative error, as the release's L1 of `p̂·det J` against
+    /// `N(z)`); nothing pulls `p̂` down where the warp never lands.
+    LogL1,
+    /// The generalised KL `∫ q ln(q/p̂) − q + p̂` (minimised by `p̂ = q`): `−E_q[ln p̂] + ∫p̂`,
+    /// with `∫p̂` estimated half from the warp's samples and half from uniform points, so
+    /// `p̂` is also pushed towards 0 where the warp does not reach (where a non-zero `p̂`
+    /// would bias MIS).
+    GeneralizedKl,
+    /// [`DensityLoss::LogL1`] plus `π·E_u[p̂]` over uniform points of the disk (a pull
+    /// towards 0 wherever the warp's samples do not hold `p̂` up).
+    LogL1Mass,
+}
+
+/// The reparameterization sampler: the warp's run, then the pdf network's
+/// (`super::reparam`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reparam {
+    /// The warp's steps and learning rate.
+    pub schedule: Schedule,
+    /// The pdf network's steps and learning rate (after the warp).
+    pub density_schedule: Schedule,
+    /// Conditions per batch.
+    pub batch_conditions: usize,
+    /// Latent points per condition (stratified; a square is best).
+    pub samples_per_condition: usize,
+    /// Weight of the fixed warp `z/√(1 + |z|²)` in the warp's loss (the release: 10⁻³).
+    pub defensive: f32,
+    /// The pdf network's loss.
+    pub density_loss: DensityLoss,
+    /// Weight λ of a χ² term added to the warp's loss (0: the release's objective; 0.1 by
+    /// default, `docs/reparam/` has the ablation): per
+    /// condition `ln(E_z[w²]/E_z[w]²)` with `w = f⊥(T(z))·det J/N(z)`, the log of `1 + χ²(p* ‖
+    /// q)` estimated on the batch's samples: the render's variance, which the KL term (mode
+    /// seeking) lets grow where the warp under-covers the integrand.
+    pub chi2_weight: f32,
+}
+
+impl Default for Reparam {
+    fn default() -> Self {
+        Reparam {
+            schedule: Schedule {
+                steps: 5000,
+                lr: 1e-2,
+            },
+            density_schedule: Schedule {
+                steps: 1500,
+                lr: 3e-3,
+            },
+            batch_conditions: 32,
+            samples_per_condition: 64,
+            defensive: 1e-3,
+            density_loss: DensityLoss::GeneralizedKl,
+            chi2_weight: 0.1,
+        }
+    }
+}
+
+impl Reparam {
+    /// Small batches, the quick schedule for both networks.
+    #[must_use]
+    pub fn quick() -> Self {
+        Reparam {
+            schedule: Schedule::quick(),
+            density_schedule: Schedule::quick(),
+            batch_conditions: 8,
+            samples_per_condition: 64,
+            ..Reparam::default()
+        }
+    }
+}
+
 /// Training hyper-parameters of every method.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrainConfig {
@@ -214,6 +289,8 @@ pub struct TrainConfig {
     pub direct_histogram: MaxLikelihood,
     /// Histogram mixture.
     pub histogram_mixture: HistogramMixture,
+    /// Reparameterization sampler.
+    pub reparam: Reparam,
 }
 
 impl Default for TrainConfig {
@@ -227,6 +304,7 @@ impl Default for TrainConfig {
             affine_flow: MaxLikelihood::with_schedule(2000, 4e-3),
             direct_histogram: MaxLikelihood::default(),
             histogram_mixture: HistogramMixture::default(),
+            reparam: Reparam::default(),
         }
     }
 }
@@ -243,6 +321,7 @@ impl TrainConfig {
             affine_flow: MaxLikelihood::quick(),
             direct_histogram: MaxLikelihood::quick(),
             histogram_mixture: HistogramMixture::quick(),
+            reparam: Reparam::quick(),
         }
     }
 
@@ -262,6 +341,7 @@ impl TrainConfig {
             SamplerKind::AffineFlow => Some(&mut self.affine_flow.schedule),
             SamplerKind::DirectHistogram => Some(&mut self.direct_histogram.schedule),
             SamplerKind::HistogramMixture => Some(&mut self.histogram_mixture.schedule),
+            SamplerKind::Reparam => Some(&mut self.reparam.schedule),
             SamplerKind::Cosine | SamplerKind::NeuralMaterial => None,
         }
     }
@@ -274,6 +354,8 @@ impl TrainConfig {
                 s.steps = ((s.steps as f64 * factor).round() as usize).max(1);
             }
         }
+        let d = &mut self.reparam.density_schedule;
+        d.steps = ((d.steps as f64 * factor).round() as usize).max(1);
         self
     }
 }

@@ -14,9 +14,13 @@ use super::config::TrainConfig;
 use super::data::{Batch, HostBatch, Pool};
 use super::histogram_mixture::{self, BakedTables};
 use super::source::{GtCondition, MaterialSource, TargetSource};
-use super::{direct_histogram, flow, lobes};
+use super::{direct_histogram, flow, lobes, reparam};
 use crate::materials::Material;
 use crate::nn::{infer_device, to_host};
+
+/// Ground-truth resolution of the reparameterization sampler's pool: it trains on the
+/// integrand and uses only the pool's conditions.
+const REPARAM_POOL_RES: usize = 8;
 
 /// A trained sampler.
 #[derive(Clone, Debug)]
@@ -59,13 +63,13 @@ pub fn train_with(
         .build()?;
     threads.install(|| {
         let c = &cfg.common;
-        let mut pool = Pool::new(
-            source,
-            c.pool_conditions,
-            c.gt_res,
-            c.seed,
-            c.pool_refresh_every,
-        )?;
+        // The reparameterization sampler uses the pool's conditions, not its targets.
+        let res = if method == SamplerKind::Reparam {
+            REPARAM_POOL_RES
+        } else {
+            c.gt_res
+        };
+        let mut pool = Pool::new(source, c.pool_conditions, res, c.seed, c.pool_refresh_every)?;
         let plain = |(p, h)| (p, None, h);
         let (params, tables, loss_history) = match method {
             SamplerKind::ImprovedBaseline => {
@@ -84,6 +88,15 @@ pub fn train_with(
             SamplerKind::HistogramMixture => {
                 histogram_mixture::train(&mut pool, c, &cfg.histogram_mixture)
                     .map(|(p, t, h)| (p, Some(t), h))?
+            }
+            SamplerKind::Reparam => {
+                let integrand = source.integrand().ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "the reparameterization sampler trains on the integrand itself: it \
+                         needs a neural material (or the synthetic target)"
+                    )
+                })?;
+                reparam::train(&mut pool, c, &cfg.reparam, integrand).map(plain)?
             }
             SamplerKind::Cosine | SamplerKind::NeuralMaterial => {
                 unreachable!("schedule() is None for the kinds that are not trained")
@@ -122,6 +135,7 @@ pub fn model_pdf_disk(trained: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: 
             Some(t) => histogram_mixture::pdf_f64(w, t, phi, wi, p),
             None => 0.0,
         },
+        SamplerKind::Reparam => reparam::pdf_f64(w, phi, wi, p),
         SamplerKind::Cosine | SamplerKind::NeuralMaterial => 0.0,
     };
     if v.is_finite() && v > 0.0 {
@@ -144,6 +158,9 @@ pub fn graph_log_pdf(
     points: &[Vec2],
 ) -> Option<Vec<f32>> {
     let wi = check_condition(phi, wi)?;
+    if method == SamplerKind::Reparam {
+        return Some(reparam::graph_log_pdf(params, phi, wi, points));
+    }
     let device = infer_device();
     let batch = Batch::upload(HostBatch::single(phi, wi, points), &device);
     let lp = match method {
@@ -152,9 +169,10 @@ pub fn graph_log_pdf(
         SamplerKind::Flow => flow::SplineFlow::from_flat(params, &device).log_pdf(&batch),
         SamplerKind::AffineFlow => flow::AffineFlow::from_flat(params, &device).log_pdf(&batch),
         SamplerKind::DirectHistogram => direct_histogram::graph_log_pdf(params, &batch),
-        SamplerKind::HistogramMixture | SamplerKind::Cosine | SamplerKind::NeuralMaterial => {
-            return None
-        }
+        SamplerKind::HistogramMixture
+        | SamplerKind::Cosine
+        | SamplerKind::NeuralMaterial
+        | SamplerKind::Reparam => return None,
     };
     Some(to_host(lp))
 }

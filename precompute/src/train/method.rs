@@ -1,17 +1,19 @@
 //! The trainable methods, named by the runtime's [`SamplerKind`] (the names of
 //! [`SamplerKind::name`]: `baseline`, `analytic`, `flow`, `affine-flow`, `direct-histogram`,
-//! `histogram-mixture`).
+//! `histogram-mixture`, `reparam`).
 
 use neusample::SamplerKind;
 
-/// Every trainable method, in the paper's order (every sampler kind but cosine).
-pub const METHODS: [SamplerKind; 6] = [
+/// Every trainable method, in the paper's order (every sampler kind but cosine), then the
+/// reparameterization sampler (which needs an integrand: [`needs_integrand`]).
+pub const METHODS: [SamplerKind; 7] = [
     SamplerKind::ImprovedBaseline,
     SamplerKind::AnalyticMixture,
     SamplerKind::Flow,
     SamplerKind::AffineFlow,
     SamplerKind::DirectHistogram,
     SamplerKind::HistogramMixture,
+    SamplerKind::Reparam,
 ];
 
 /// The trainable method named `name`; the error lists the names.
@@ -25,4 +27,11 @@ pub fn parse_method(name: &str) -> anyhow::Result<SamplerKind> {
                 names.join(", ")
             )
         })
+}
+
+/// Whether `method` trains on the integrand itself (a neural material or the synthetic
+/// target) rather than on samples of p*: only the reparameterization sampler.
+#[must_use]
+pub fn needs_integrand(method: SamplerKind) -> bool {
+    method == SamplerKind::Reparam
 }

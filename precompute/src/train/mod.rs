@@ -8,6 +8,9 @@
 //! * Histogram mixture: the L2 loss of Eq. 7 plus the latent-code quantisation term, plus
 //!   (our addition, on by default) a self-normalised NLL term, then baking of the basis
 //!   network into tables ([`histogram_mixture`]).
+//! * Reparameterization sampler: a warp trained on the integrand itself (the neural
+//!   material's decoder, through which gradients flow), then a pdf network fitted to the
+//!   warp's own density ([`reparam`]).
 //!
 //! The forward passes are `core/ARCHITECTURES.md` operation for operation; the layouts are
 //! the runtime's (input-major weights, bias after weights, layers in the listed order).
@@ -30,6 +33,7 @@
 mod config;
 mod data;
 mod dispatch;
+mod integrand;
 mod method;
 mod source;
 
@@ -38,13 +42,17 @@ pub mod flow;
 pub mod histogram_mixture;
 pub mod lobes;
 pub mod neural_material;
+pub mod reparam;
 pub mod spline;
 
-pub use config::{Common, HistogramMixture, MaxLikelihood, Schedule, TrainConfig};
+pub use config::{
+    Common, DensityLoss, HistogramMixture, MaxLikelihood, Reparam, Schedule, TrainConfig,
+};
 pub use data::{Batch, HostBatch, PointKind, Pool};
 pub use dispatch::{
     graph_log_pdf, mean_kl, model_pdf_disk, network_mean_kl, train, train_with, Trained,
 };
 pub use histogram_mixture::BakedTables;
-pub use method::{parse_method, METHODS};
+pub use integrand::{NeuralIntegrand, SyntheticIntegrand};
+pub use method::{needs_integrand, parse_method, METHODS};
 pub use source::{GtCondition, MaterialSource, SyntheticSource, TargetSource};

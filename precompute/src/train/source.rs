@@ -8,6 +8,8 @@ use rand::RngExt;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
+use super::integrand::{NeuralIntegrand, SyntheticIntegrand};
+use super::reparam::Integrand;
 use crate::groundtruth::{self, TargetPdf};
 use crate::materials::Material;
 use crate::util::rng::rng_for;
@@ -27,18 +29,29 @@ pub trait TargetSource: Sync {
     /// `n` random conditions with their targets tabulated at `res × res`, a pure function
     /// of `(n, res, seed)`.
     fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>>;
+
+    /// The unnormalised target with a differentiable training graph, which the
+    /// reparameterization sampler trains on; `None` where the source has none (a material
+    /// that is not a neural material).
+    fn integrand(&self) -> Option<&dyn Integrand> {
+        None
+    }
 }
 
 /// Draws training conditions of a material with [`groundtruth::batch`].
 pub struct MaterialSource<'a> {
     material: &'a dyn Material,
+    integrand: Option<NeuralIntegrand<'a>>,
 }
 
 impl<'a> MaterialSource<'a> {
-    /// The source of `material`.
+    /// The source of `material` (with the integrand of a neural material).
     #[must_use]
     pub fn new(material: &'a dyn Material) -> Self {
-        MaterialSource { material }
+        MaterialSource {
+            material,
+            integrand: material.neural().map(NeuralIntegrand::new),
+        }
     }
 }
 
@@ -52,6 +65,10 @@ impl TargetSource for MaterialSource<'_> {
                 target,
             })
             .collect())
+    }
+
+    fn integrand(&self) -> Option<&dyn Integrand> {
+        self.integrand.as_ref().map(|i| i as &dyn Integrand)
     }
 }
 
@@ -68,9 +85,10 @@ fn sigmoid(x: f32) -> f32 {
 }
 
 impl SyntheticSource {
-    /// The unnormalised target f(p | φ, wi).
+    /// The lobes of condition `(φ, wi)`: `[m1.x, m1.y, s1.x, s1.y, m2.x, m2.y, s2, w2,
+    /// floor]` (means, widths, the second lobe's weight and the Lambert floor).
     #[must_use]
-    pub fn density(phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f32 {
+    pub fn lobes(phi: &[f32; FEATURE_DIM], wi: Vec3) -> [f32; 9] {
         let m1 = Vec2::new(-wi.x, -wi.y) + 0.3 * Vec2::new(phi[0], phi[1]);
         let s1 = Vec2::new(
             0.04 + 0.2 * sigmoid(2.0 * phi[2]),
@@ -80,6 +98,18 @@ impl SyntheticSource {
         let s2 = 0.15 + 0.1 * sigmoid(phi[7]);
         let w2 = 0.4 * sigmoid(3.0 * phi[4]);
         let floor = 0.05 + 0.1 * sigmoid(2.0 * phi[7]);
+        [m1.x, m1.y, s1.x, s1.y, m2.x, m2.y, s2, w2, floor]
+    }
+
+    /// The unnormalised target f(p | φ, wi).
+    #[must_use]
+    pub fn density(phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f32 {
+        let [m1x, m1y, s1x, s1y, m2x, m2y, s2, w2, floor] = Self::lobes(phi, wi);
+        let (m1, s1, m2) = (
+            Vec2::new(m1x, m1y),
+            Vec2::new(s1x, s1y),
+            Vec2::new(m2x, m2y),
+        );
         let g = |m: Vec2, s: Vec2| {
             let d = (p - m) / s;
             (-0.5 * d.length_squared()).exp() / (std::f32::consts::TAU * s.x * s.y)
@@ -106,6 +136,10 @@ impl SyntheticSource {
 }
 
 impl TargetSource for SyntheticSource {
+    fn integrand(&self) -> Option<&dyn Integrand> {
+        Some(&SyntheticIntegrand)
+    }
+
     fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>> {
         Ok((0..n)
             .into_par_iter()

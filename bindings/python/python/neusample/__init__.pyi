@@ -22,7 +22,7 @@ FEATURE_DIM: int
 """Length of the feature vector φ (8)."""
 SAMPLER_KINDS: List[str]
 """Every sampler kind: "cosine", "baseline", "analytic", "flow", "affine-flow",
-"direct-histogram", "histogram-mixture"."""
+"direct-histogram", "histogram-mixture", "reparam"."""
 HAS_TRAINING: bool
 """Whether the module was built with the ``train`` cargo feature."""
 
@@ -69,6 +69,10 @@ class Sampler:
     @property
     def alpha(self) -> float:
         """The defensive weight: the density is (1 − α)·p_learned + α·cos θ/π."""
+    @property
+    def exact_pdf(self) -> bool:
+        """Whether a sample's pdf is ``pdf(wo)`` (False for "reparam": divide by the
+        sample's pdf, weigh MIS with ``pdf(wo)``)."""
     def sample(self, phi: F32, wi: F32, u: F32, *, threads: int = 1) -> Tuple[F32, F32]:
         """phi (8, N), wi (3, N), u (2, N) in [0, 1) → (wo (3, N), pdf (N,)); refused
         lanes (wi below the horizon, NaN, sample outside the support) are wo = 0, pdf = 0."""

@@ -162,6 +162,10 @@ def bsdf_class():
             ok = pdf > 0
             weight = np.where(ok, f_cos / np.where(ok, pdf, 1.0), 0.0).astype(np.float32)
             enabled = ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
+            if not self.sampler.exact_pdf:
+                # Mitsuba weighs MIS with bs.pdf and the estimate with the weight: the
+                # sampler's MIS density (its pdf at wo) there, the sample's own density here.
+                pdf = np.where(ok, self._pdf(phi, wi, wo), 0.0).astype(np.float32)
             bs = dr.zeros(mi.BSDFSample3f, n if jit else 1)
             bs.wo = to_vec3(wo)
             bs.pdf = to_float(pdf)

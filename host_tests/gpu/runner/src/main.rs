@@ -611,6 +611,17 @@ fn main() {
         hm_w.len(),
         neusample::HistogramMixtureSampler::<&[f32]>::PARAM_COUNT
     );
+    let mut reparam_w = Vec::new();
+    mlp_params(
+        &mut rng,
+        &[(32, 16), (16, 16), (16, 3), (32, 16), (16, 1)],
+        1.0,
+        &mut reparam_w,
+    );
+    assert_eq!(
+        reparam_w.len(),
+        neusample::ReparamSampler::<&[f32]>::PARAM_COUNT
+    );
     let (levels, cells) = (HM_LEVELS, HM_CELLS);
     let tables = histogram_tables(&mut rng, levels, cells);
     tables.validate().expect("baked tables are valid");
@@ -649,6 +660,7 @@ fn main() {
     let anw: &[f32] = &analytic_w;
     let dw: &[f32] = &direct_w;
     let hw: &[f32] = &hm_w;
+    let rw: &[f32] = &reparam_w;
     let (tm, tt, tmg, tc): (&[f32], &[f32], &[f32], &[f32]) = (
         &tables.mass,
         &tables.table,
@@ -760,6 +772,24 @@ fn main() {
             params: p(n),
             tol: flow_tol,
             cpu: cpu!(neusample_gpu_shader::defensive_flow, fw),
+        },
+        // After the cases above, for the same reason. The warp's density runs through a
+        // Jacobian of three layers (tolerance as the flow's).
+        Case {
+            label: "reparam",
+            entry: "reparam",
+            buffers: vec![rw],
+            params: p(n),
+            tol: flow_tol,
+            cpu: cpu!(neusample_gpu_shader::reparam, rw),
+        },
+        Case {
+            label: "defensive_reparam",
+            entry: "defensive_reparam",
+            buffers: vec![rw],
+            params: p(n),
+            tol: flow_tol,
+            cpu: cpu!(neusample_gpu_shader::defensive_reparam, rw),
         },
     ];
 

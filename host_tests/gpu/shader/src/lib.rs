@@ -16,7 +16,8 @@
 //!
 //! `flags` = 1 (prepared) + 2 (sampled) + 4 (`invert(wo2)` is `Some`), stored as an exact
 //! small float. `pdf`/`pdf_disk` are the sample's solid-angle / projected-disk densities;
-//! `pdf(wo)` re-evaluates `Prepared::pdf` at the sampled direction (must equal `pdf`);
+//! `pdf(wo)` re-evaluates `Prepared::pdf` at the sampled direction (equal to `pdf` but for
+//! the reparameterization sampler, whose pdf is its pdf network's);
 //! `pdf(wo2)` is the density of an unrelated direction, as MIS needs.
 //!
 //! The neural material's entry points (`neural_features`, `neural_eval`) use the same
@@ -100,6 +101,12 @@ weighted_entry!(
     AffineFlowSampler
 );
 
+weighted_entry!(
+    /// Reparameterization sampler: warp MLP with its Jacobian weight, pdf network for MIS.
+    reparam,
+    ReparamSampler
+);
+
 /// The defensive weight of [`defensive_flow`] (a blob's α on a host; a constant here).
 pub const DEFENSIVE_ALPHA: f32 = 0.25;
 
@@ -117,6 +124,26 @@ pub fn defensive_flow(
     if i < params.n && kernel::in_range(i, input.len(), output.len()) {
         let s = neusample::Defensive::new_unchecked(
             neusample::FlowSampler::new_unchecked(weights),
+            DEFENSIVE_ALPHA,
+        );
+        kernel::run(&s, i, input, output);
+    }
+}
+
+/// The reparameterization sampler mixed with cosine sampling at weight [`DEFENSIVE_ALPHA`]
+/// (one-sample MIS over its pdf network: `neusample::Defensive`).
+#[spirv(compute(threads(64)))]
+pub fn defensive_reparam(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(push_constant)] params: &Params,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] output: &mut [f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] weights: &[f32],
+) {
+    let i = id.x;
+    if i < params.n && kernel::in_range(i, input.len(), output.len()) {
+        let s = neusample::Defensive::new_unchecked(
+            neusample::ReparamSampler::new_unchecked(weights),
             DEFENSIVE_ALPHA,
         );
         kernel::run(&s, i, input, output);

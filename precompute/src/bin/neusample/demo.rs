@@ -118,6 +118,10 @@ pub struct FixturesArgs {
     /// Quick training (for tests of the command itself).
     #[arg(long)]
     pub quick: bool,
+    /// With `--set neural`: only these methods (comma-separated), trained on the committed
+    /// neural materials without retraining them; the other blobs are kept.
+    #[arg(long, value_delimiter = ',')]
+    pub methods: Vec<String>,
 }
 
 /// The names of [`FixtureSet::NAMES`], listed in `--help`.
@@ -129,6 +133,18 @@ fn fixture_set_parser() -> impl TypedValueParser<Value = FixtureSet> {
 /// `neusample fixtures`.
 pub fn fixtures(a: &FixturesArgs) -> Result<()> {
     let names: Vec<&str> = a.materials.iter().map(String::as_str).collect();
+    if !a.methods.is_empty() {
+        anyhow::ensure!(
+            a.set == demo::FixtureSet::Neural,
+            "--methods retrains samplers on the committed neural materials: use it with --set neural"
+        );
+        let methods = a
+            .methods
+            .iter()
+            .map(|m| neusample_precompute::train::parse_method(m))
+            .collect::<Result<Vec<_>>>()?;
+        return demo::regenerate_methods(&a.out, &a.materials_out, &names, &methods, a.quick);
+    }
     demo::regenerate_fixtures(&a.out, &a.materials_out, a.set, &names, a.quick)
 }
 

@@ -188,6 +188,9 @@ impl Material for NeuralMaterialModel {
     fn reciprocal(&self) -> bool {
         false
     }
+    fn neural(&self) -> Option<NeuralMaterial<&[f32]>> {
+        Some(self.parts.material())
+    }
     fn features_batch(&self, uv: Vec2s<'_>, phi: FeaturesMut<'_>) {
         // Lengths agree by the trait's contract; a mismatch leaves `phi` as it was.
         let _ = self.parts.material().features_batch(uv, phi);

@@ -1,0 +1,615 @@
+//! The reparameterization sampler (`core/ARCHITECTURES.md` §8; after Wu et al. 2025): a warp
+//! MLP trained on the integrand itself, then a pdf network fitted to the warp's own density.
+//!
+//! * **Warp** (`dense(32,16)` SiLU, `dense(16,16)` SiLU, `dense(16,3)`): its 2 × 2 Jacobian is
+//!   computed on the training graph by forward-mode tangents, the same formulas as the runtime
+//!   ([`warp_graph`]). Loss, over stratified standard-normal `z` per condition:
+//!   `−mean ln((1 − α)·f⊥(T(z))·relu(det J) + α·f⊥(F(z))·det J_F)` with the fixed warp
+//!   `F(z) = z/√(1 + |z|²)` and `α` = [`Reparam::defensive`] (the release's 10⁻³): KL(q ‖ p*)
+//!   up to constants, where `f⊥` is the integrand on the disk ([`Integrand`]: the neural
+//!   material's luminance through its burn decoder, so gradients flow through `f(T(z))`).
+//!   `relu` pushes towards an orientation-preserving warp; at initialisation the output's
+//!   `b` row is negated if most of a batch has `det J < 0` (a reversed start gets no gradient).
+//! * **pdf network** (`dense(32,16)` ReLU, `dense(16,1)`, `p̂ = exp(o)`), trained with the warp
+//!   frozen on its samples `x = T(z)` with their exact `q(x) = N(z)/det J` (computed by the
+//!   runtime's own warp): [`DensityLoss`].
+
+use anyhow::{bail, ensure, Result};
+use burn::module::Module;
+use burn::tensor::activation;
+use burn::tensor::{Device, Tensor};
+use glam::{Vec2, Vec3};
+use neusample::distrib::gaussian::box_muller;
+use neusample::nn::{check_condition, encode_condition, CONDITION_DIM};
+use neusample::samplers::reparam::{
+    DENSITY_L0, LOG_DENSITY_MAX, LOG_DENSITY_MIN, REPARAM_HIDDEN, REPARAM_INPUTS,
+    REPARAM_PARAM_COUNT, WARP_OUTPUTS,
+};
+use neusample::{ReparamSampler, Sampler, FEATURE_DIM};
+use rand::RngExt;
+
+use super::config::{Common, DensityLoss, Reparam};
+use super::data::{encoded_condition_f64, Pool};
+use super::source::GtCondition;
+use crate::nn::{
+    log_sum_exp_last, mlp_f64, optimise, tensor2, to_host, train_device, Activation, Mlp,
+    OptimSettings,
+};
+use crate::util::rng::{mix_seed, rng_for};
+
+/// Layer sizes of the warp.
+pub const WARP_SIZES: [usize; 4] = [REPARAM_INPUTS, REPARAM_HIDDEN, REPARAM_HIDDEN, WARP_OUTPUTS];
+/// Layer sizes of the pdf network.
+pub const DENSITY_SIZES: [usize; 3] = [REPARAM_INPUTS, REPARAM_HIDDEN, 1];
+
+const LN_TWO_PI: f64 = 1.837_877_066_409_345_5;
+
+/// The unnormalised target of the reparameterization sampler on the projected disk,
+/// `f⊥(ω⊥ | φ, wi)` (for a material, the luminance of its BRDF: p* up to its normaliser),
+/// with a differentiable training graph.
+pub trait Integrand: Sync {
+    /// `ln f⊥` at the directions `wo` (`[n, 3]`, unit, on the training graph) of the rows:
+    /// row `i` belongs to condition `conds[i / repeat]`. Returns `[n, 1]`.
+    fn log_f(
+        &self,
+        conds: &[([f32; FEATURE_DIM], Vec3)],
+        repeat: usize,
+        wo: Tensor<2>,
+        device: &Device,
+    ) -> Tensor<2>;
+
+    /// `f⊥` at one direction on the host (no gradient), ≥ 0.
+    fn f(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32;
+}
+
+/// The warp's outputs on the training graph, `[n, 1]` each.
+pub struct WarpGraph {
+    /// `v = (a, b, softplus(w)) / |·|`, the sampled direction, `[n, 3]`.
+    pub wo: Tensor<2>,
+    /// `det ∂T/∂z`, `[n, 1]`.
+    pub det: Tensor<2>,
+}
+
+fn layer(net: &Mlp, l: usize) -> (Tensor<2>, Tensor<2>) {
+    let lin = &net.layers[l];
+    let b = lin
+        .bias
+        .as_ref()
+        .expect("every layer has a bias")
+        .val()
+        .unsqueeze_dim(0);
+    (lin.weight.val(), b)
+}
+
+/// `(silu(a), silu'(a))`.
+fn silu_slope(a: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
+    let s = activation::sigmoid(a.clone());
+    let y = a.clone() * s.clone();
+    let d = s.clone() * ((a * (s.neg() + 1.0)) + 1.0);
+    (y, d)
+}
+
+fn col(t: &Tensor<2>, j: usize) -> Tensor<2> {
+    t.clone().narrow(1, j, 1)
+}
+
+/// The warp `T(z)` of encoded conditions `cond` (`[n, 30]`) at latent points `z` (`[n, 2]`)
+/// with `det ∂T/∂z` by forward-mode tangents: `ARCHITECTURES.md` §8 on tensors.
+pub fn warp_graph(net: &Mlp, cond: Tensor<2>, z: Tensor<2>) -> WarpGraph {
+    let n = z.dims()[0];
+    let (w0, b0) = layer(net, 0);
+    let a1 = Tensor::cat(vec![cond, z], 1).matmul(w0.clone()) + b0;
+    let r0 = w0.clone().narrow(0, CONDITION_DIM, 1);
+    let r1 = w0.narrow(0, CONDITION_DIM + 1, 1);
+    let (h1, d1) = silu_slope(a1);
+    // Both tangents stacked: rows 0..n are ∂/∂z.x, rows n..2n ∂/∂z.y.
+    let t1 = Tensor::cat(vec![d1.clone() * r0, d1 * r1], 0);
+    let (w1, b1) = layer(net, 1);
+    let a2 = h1.matmul(w1.clone()) + b1;
+    let u2 = t1.matmul(w1);
+    let (h2, d2) = silu_slope(a2);
+    let t2 = Tensor::cat(vec![d2.clone(), d2], 0) * u2;
+    let (w2, b2) = layer(net, 2);
+    let o = h2.matmul(w2.clone()) + b2;
+    let dout = t2.matmul(w2);
+    let (g0, g1) = (dout.clone().narrow(0, 0, n), dout.narrow(0, n, n));
+    let s = activation::softplus(col(&o, 2), 1.0);
+    let ds = activation::sigmoid(col(&o, 2));
+    let len =
+        (col(&o, 0).powi_scalar(2) + col(&o, 1).powi_scalar(2) + s.clone().powi_scalar(2)).sqrt();
+    let inv = len.recip();
+    let (vx, vy, vz) = (
+        col(&o, 0) * inv.clone(),
+        col(&o, 1) * inv.clone(),
+        s * inv.clone(),
+    );
+    let tangent = |g: &Tensor<2>| {
+        let t =
+            vx.clone() * col(g, 0) + vy.clone() * col(g, 1) + vz.clone() * ds.clone() * col(g, 2);
+        let x = (col(g, 0) - vx.clone() * t.clone()) * inv.clone();
+        let y = (col(g, 1) - vy.clone() * t) * inv.clone();
+        (x, y)
+    };
+    let (x0, y0) = tangent(&g0);
+    let (x1, y1) = tangent(&g1);
+    WarpGraph {
+        wo: Tensor::cat(vec![vx, vy, vz], 1),
+        det: x0 * y1 - x1 * y0,
+    }
+}
+
+/// The pdf network's log-density (before the runtime's clamp) at disk points `p` (`[n, 2]`).
+pub fn density_graph(net: &Mlp, cond: Tensor<2>, p: Tensor<2>) -> Tensor<2> {
+    net.forward(Tensor::cat(vec![cond, p], 1), Activation::Relu)
+}
+
+/// The warp model being trained.
+#[derive(Module, Debug)]
+pub struct WarpModel {
+    /// The warp MLP.
+    pub net: Mlp,
+}
+
+/// The pdf network being trained.
+#[derive(Module, Debug)]
+pub struct DensityModel {
+    /// The pdf MLP.
+    pub net: Mlp,
+}
+
+/// One step's data: conditions, latent points and the defensive warp's term.
+struct WarpBatch {
+    conds: Vec<([f32; FEATURE_DIM], Vec3)>,
+    /// Encoded conditions repeated per sample, `[n, 30]`.
+    cond: Vec<f32>,
+    /// `z`, `[n, 2]`.
+    z: Vec<f32>,
+    /// `f⊥(F(z))·det J_F`, `[n]`.
+    fixed: Vec<f32>,
+    /// `ln N(z; 0, I)`, `[n]`.
+    log_normal: Vec<f32>,
+    s: usize,
+}
+
+/// `s` stratified standard-normal points (`k × k` jittered cells of `[0, 1)²`, Box–Muller).
+fn stratified_z(s: usize, rng: &mut rand_pcg::Pcg64) -> Vec<Vec2> {
+    let k = (s as f64).sqrt().round().max(1.0) as usize;
+    (0..s)
+        .map(|i| {
+            let (a, b) = ((i % k) as f32, ((i / k) % k) as f32);
+            let u = Vec2::new(
+                ((a + rng.random::<f32>()) / k as f32).min(neusample::ONE_MINUS_EPSILON),
+                ((b + rng.random::<f32>()) / k as f32).min(neusample::ONE_MINUS_EPSILON),
+            );
+            box_muller(u)
+        })
+        .collect()
+}
+
+/// `F(z) = z/√(1 + |z|²)` as a direction, and `det J_F = (1 + |z|²)⁻²`.
+fn fixed_warp(z: Vec2) -> (Vec3, f32) {
+    let q = 1.0 + z.length_squared();
+    let inv = 1.0 / q.sqrt();
+    (Vec3::new(z.x * inv, z.y * inv, inv), 1.0 / (q * q))
+}
+
+/// The batch of `step`: `b` pool conditions (with replacement) × `s` latent points.
+fn warp_batch(
+    pool: &Pool<'_>,
+    integrand: &dyn Integrand,
+    b: usize,
+    s: usize,
+    seed: u64,
+    step: usize,
+) -> WarpBatch {
+    use rayon::prelude::*;
+    let items = pool.items();
+    let mut pick = rng_for(mix_seed(seed, 0x7e9a), step as u64, 0);
+    let chosen: Vec<&GtCondition> = (0..b)
+        .map(|_| &items[pick.random_range(0..items.len())])
+        .collect();
+    let rows: Vec<_> = chosen
+        .par_iter()
+        .enumerate()
+        .map(|(j, g)| {
+            let mut rng = rng_for(mix_seed(seed, 0x2a7b), step as u64, j as u64);
+            let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
+            let z = stratified_z(s, &mut rng);
+            let fixed: Vec<f32> = z
+                .iter()
+                .map(|&z| {
+                    let (wo, det) = fixed_warp(z);
+                    integrand.f(&g.phi, wi, wo) * det
+                })
+                .collect();
+            ((g.phi, wi), encode_condition(&g.phi, wi), z, fixed)
+        })
+        .collect();
+    let mut out = WarpBatch {
+        conds: Vec::with_capacity(b),
+        cond: Vec::with_capacity(b * s * CONDITION_DIM),
+        z: Vec::with_capacity(2 * b * s),
+        fixed: Vec::with_capacity(b * s),
+        log_normal: Vec::with_capacity(b * s),
+        s,
+    };
+    for (c, enc, z, fixed) in rows {
+        out.conds.push(c);
+        for _ in 0..s {
+            out.cond.extend_from_slice(&enc);
+        }
+        out.log_normal.extend(
+            z.iter()
+                .map(|v| -0.5 * v.length_squared() - LN_TWO_PI as f32),
+        );
+        out.z.extend(z.iter().flat_map(|v| [v.x, v.y]));
+        out.fixed.extend(fixed);
+    }
+    out
+}
+
+/// The warp loss of a batch (module docs; with the χ² term of [`Reparam::chi2_weight`]).
+fn warp_loss(
+    m: &WarpModel,
+    batch: &WarpBatch,
+    integrand: &dyn Integrand,
+    cfg: &Reparam,
+    device: &Device,
+) -> Tensor<1> {
+    let n = batch.z.len() / 2;
+    let alpha = cfg.defensive;
+    let cond = tensor2(batch.cond.clone(), n, CONDITION_DIM, device);
+    let z = tensor2(batch.z.clone(), n, 2, device);
+    let w = warp_graph(&m.net, cond, z);
+    let log_f = integrand.log_f(&batch.conds, batch.s, w.wo, device).clamp(
+        neusample::neural_material::LOG_F_MIN,
+        neusample::neural_material::LOG_F_MAX,
+    );
+    let det = activation::relu(w.det);
+    let fixed = tensor2(batch.fixed.clone(), n, 1, device);
+    let mixed = log_f.clone().exp() * det.clone() * (1.0 - alpha) + fixed * alpha;
+    let kl = (mixed + 1e-30).log().mean().neg();
+    if !(cfg.chi2_weight > 0.0) {
+        return kl;
+    }
+    // ln w = ln f + ln det − ln N(z), per condition: ln E[w²] − 2 ln E[w].
+    let b = batch.conds.len();
+    let log_normal = tensor2(batch.log_normal.clone(), n, 1, device);
+    let lw = (log_f + (det + 1e-30).log() - log_normal).reshape([b, batch.s]);
+    let chi =
+        log_sum_exp_last(lw.clone() * 2.0) - log_sum_exp_last(lw) * 2.0 + (batch.s as f32).ln();
+    kl + chi.mean() * cfg.chi2_weight
+}
+
+/// The full parameter array with the pdf network's part zero.
+fn with_zero_density(warp: &[f32]) -> Vec<f32> {
+    let mut p = warp.to_vec();
+    p.resize(REPARAM_PARAM_COUNT, 0.0);
+    p
+}
+
+/// Mean sign of `det J` of a warp (exported parameters) over a few pool conditions.
+fn orientation(warp: &[f32], pool: &Pool<'_>, seed: u64) -> f64 {
+    let params = with_zero_density(warp);
+    let s = ReparamSampler::new(params.as_slice()).expect("parameter count");
+    let mut rng = rng_for(mix_seed(seed, 0x0e1e), 0, 0);
+    let (mut sum, mut n) = (0.0, 0usize);
+    for g in pool.items().iter().take(16) {
+        let Some(p) = s.prepare(&g.phi, g.wi) else {
+            continue;
+        };
+        for z in stratified_z(64, &mut rng) {
+            let d = p.warp(z).det;
+            if d.is_finite() {
+                sum += f64::from(d.signum());
+                n += 1;
+            }
+        }
+    }
+    sum / n.max(1) as f64
+}
+
+/// A fresh warp: PyTorch-style initialisation, with the `b` output negated when most of the
+/// pool's first conditions see `det J < 0`.
+fn init_warp(pool: &Pool<'_>, seed: u64, device: &Device) -> Mlp {
+    let mut rng = rng_for(mix_seed(seed, 0x3a4b), 0, 0);
+    let net = Mlp::new(&WARP_SIZES, 1.0, &mut rng, device);
+    let mut flat = Vec::new();
+    net.export(&mut flat);
+    if orientation(&flat, pool, seed) >= 0.0 {
+        return net;
+    }
+    // The last layer is W [16 × 3] then b [3]: negate column 1 and its bias.
+    let h = REPARAM_HIDDEN;
+    let last = flat.len() - (h * WARP_OUTPUTS + WARP_OUTPUTS);
+    for i in 0..h {
+        flat[last + i * WARP_OUTPUTS + 1] *= -1.0;
+    }
+    flat[last + h * WARP_OUTPUTS + 1] *= -1.0;
+    Mlp::from_flat(&WARP_SIZES, &flat, device)
+}
+
+/// One step's data of the pdf network: warp samples with their log-density and uniform
+/// points of the disk.
+struct DensityBatch {
+    /// Conditions with at least one warp sample, and per condition its rows.
+    cond_q: Vec<f32>,
+    x: Vec<f32>,
+    log_q: Vec<f32>,
+    /// Condition index of each warp sample.
+    owner: Vec<usize>,
+    cond_u: Vec<f32>,
+    u: Vec<f32>,
+    conditions: usize,
+}
+
+fn density_batch(
+    pool: &Pool<'_>,
+    warp: &ReparamSampler<&[f32]>,
+    b: usize,
+    s: usize,
+    seed: u64,
+    step: usize,
+) -> DensityBatch {
+    use rayon::prelude::*;
+    let items = pool.items();
+    let mut pick = rng_for(mix_seed(seed, 0xde75), step as u64, 0);
+    let chosen: Vec<&GtCondition> = (0..b)
+        .map(|_| &items[pick.random_range(0..items.len())])
+        .collect();
+    let rows: Vec<_> = chosen
+        .par_iter()
+        .enumerate()
+        .map(|(j, g)| {
+            let mut rng = rng_for(mix_seed(seed, 0x9d3e), step as u64, j as u64);
+            let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
+            let enc = encode_condition(&g.phi, wi);
+            let mut xs = Vec::with_capacity(s);
+            if let Some(p) = warp.prepare(&g.phi, wi) {
+                for z in stratified_z(s, &mut rng) {
+                    let t = p.warp(z);
+                    let lq =
+                        -0.5 * f64::from(z.length_squared()) - LN_TWO_PI - f64::from(t.det).ln();
+                    if t.det > 0.0 && lq.is_finite() && t.point.length_squared() < 1.0 {
+                        xs.push((t.point, lq as f32));
+                    }
+                }
+            }
+            let us: Vec<Vec2> = (0..s)
+                .map(|_| {
+                    let r = rng.random::<f32>().sqrt();
+                    let a = std::f32::consts::TAU * rng.random::<f32>();
+                    Vec2::new(r * a.cos(), r * a.sin()) * 0.9999
+                })
+                .collect();
+            (enc, xs, us)
+        })
+        .collect();
+    let mut out = DensityBatch {
+        cond_q: Vec::new(),
+        x: Vec::new(),
+        log_q: Vec::new(),
+        owner: Vec::new(),
+        cond_u: Vec::new(),
+        u: Vec::new(),
+        conditions: b,
+    };
+    for (j, (enc, xs, us)) in rows.into_iter().enumerate() {
+        for (p, lq) in xs {
+            out.cond_q.extend_from_slice(&enc);
+            out.x.extend([p.x, p.y]);
+            out.log_q.push(lq);
+            out.owner.push(j);
+        }
+        for p in us {
+            out.cond_u.extend_from_slice(&enc);
+            out.u.extend([p.x, p.y]);
+        }
+    }
+    out
+}
+
+/// The pdf network's loss of a batch ([`DensityLoss`]).
+fn density_loss(
+    m: &DensityModel,
+    b: &DensityBatch,
+    kind: DensityLoss,
+    device: &Device,
+) -> Tensor<1> {
+    let nq = b.log_q.len();
+    let cond = tensor2(b.cond_q.clone(), nq, CONDITION_DIM, device);
+    let x = tensor2(b.x.clone(), nq, 2, device);
+    let lp = density_graph(&m.net, cond, x).clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX);
+    let lq = tensor2(b.log_q.clone(), nq, 1, device);
+    let uniform_mass = || {
+        let nu = b.u.len() / 2;
+        let cu = tensor2(b.cond_u.clone(), nu, CONDITION_DIM, device);
+        let u = tensor2(b.u.clone(), nu, 2, device);
+        density_graph(&m.net, cu, u)
+            .clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX)
+            .exp()
+            .mean()
+            * std::f32::consts::PI
+    };
+    match kind {
+        DensityLoss::LogL1 => (lp - lq).abs().mean(),
+        DensityLoss::LogL1Mass => (lp - lq).abs().mean() + uniform_mass(),
+        DensityLoss::GeneralizedKl => {
+            // Per condition: −E_q[ln p̂] + ∫p̂, with ∫p̂ estimated half from the warp's own
+            // samples (E_q[p̂/q]) and half from uniform points (π·E_u[p̂]), averaged over the
+            // batch's conditions.
+            let nu = b.u.len() / 2;
+            let cu = tensor2(b.cond_u.clone(), nu, CONDITION_DIM, device);
+            let u = tensor2(b.u.clone(), nu, 2, device);
+            let pu = density_graph(&m.net, cu, u)
+                .clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX)
+                .exp();
+            let c = b.conditions.max(1) as f32;
+            let mut counts = vec![0usize; b.conditions];
+            for &o in &b.owner {
+                counts[o] += 1;
+            }
+            // Each warp sample's weight 1/(count of its condition · conditions).
+            let wq: Vec<f32> = b
+                .owner
+                .iter()
+                .map(|&o| 1.0 / (counts[o].max(1) as f32 * c))
+                .collect();
+            let wq = tensor2(wq, nq, 1, device);
+            let nll = (lp.clone().neg() * wq.clone()).sum();
+            let ratio = ((lp - lq).exp() * wq).sum() * 0.5;
+            let uniform = pu.mean() * (0.5 * std::f32::consts::PI);
+            nll + ratio + uniform
+        }
+    }
+}
+
+/// Trains the warp, then the pdf network (module docs). Returns the runtime's parameter
+/// array (warp, then pdf network) and the loss of every step of both phases.
+pub fn train(
+    pool: &mut Pool<'_>,
+    common: &Common,
+    cfg: &Reparam,
+    integrand: &dyn Integrand,
+) -> Result<(Vec<f32>, Vec<f32>)> {
+    ensure!(
+        cfg.samples_per_condition > 0 && cfg.batch_conditions > 0,
+        "the reparameterization sampler needs samples and conditions per batch"
+    );
+    if !(cfg.defensive >= 0.0 && cfg.defensive < 1.0) {
+        bail!("the warp's defensive weight must be in [0, 1)");
+    }
+    let device = train_device();
+    let warp = WarpModel {
+        net: init_warp(pool, common.seed, &device),
+    };
+    let settings = |name: &str, schedule: &super::config::Schedule| OptimSettings {
+        name: name.to_string(),
+        steps: schedule.steps,
+        lr: schedule.lr,
+        weight_decay: common.weight_decay,
+        grad_clip: common.grad_clip,
+        progress: common.progress,
+        report_every: 10,
+    };
+    let (b, s) = (cfg.batch_conditions, cfg.samples_per_condition);
+    let (warp, mut history) =
+        optimise(warp, &settings("reparam warp", &cfg.schedule), |m, step| {
+            pool.maybe_refresh(step)?;
+            let batch = warp_batch(pool, integrand, b, s, common.seed, step);
+            Ok(warp_loss(m, &batch, integrand, cfg, &device))
+        })?;
+    let mut warp_params = Vec::new();
+    warp.net.export(&mut warp_params);
+    let frozen = with_zero_density(&warp_params);
+    let sampler = ReparamSampler::new(frozen.as_slice()).expect("parameter count");
+    let mut rng = rng_for(mix_seed(common.seed, 0xd3a5), 0, 0);
+    let bias = [(0usize, (1.0f32 / std::f32::consts::PI).ln())];
+    let density = DensityModel {
+        net: Mlp::new_with_output_bias(&DENSITY_SIZES, 0.1, &bias, &mut rng, &device),
+    };
+    let offset = cfg.schedule.steps;
+    let (density, h2) = optimise(
+        density,
+        &settings("reparam pdf", &cfg.density_schedule),
+        |m, step| {
+            pool.maybe_refresh(offset + step)?;
+            let batch = density_batch(pool, &sampler, b, s, common.seed, offset + step);
+            Ok(density_loss(m, &batch, cfg.density_loss, &device))
+        },
+    )?;
+    history.extend(h2);
+    let mut params = warp_params;
+    density.net.export(&mut params);
+    debug_assert_eq!(params.len(), REPARAM_PARAM_COUNT);
+    Ok((params, history))
+}
+
+/// The pdf network `p̂` of exported parameters at disk point `p` in f64 (`wi` normalised); 0
+/// outside the open unit disk.
+#[must_use]
+pub fn pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+    if !(p.length_squared() < 1.0) {
+        return 0.0;
+    }
+    let mut x = encoded_condition_f64(phi, wi);
+    x.extend([f64::from(p.x), f64::from(p.y)]);
+    let mut at = DENSITY_L0;
+    let o = mlp_f64(params, &mut at, &DENSITY_SIZES, Activation::Relu, &x)[0];
+    o.clamp(f64::from(LOG_DENSITY_MIN), f64::from(LOG_DENSITY_MAX))
+        .exp()
+}
+
+/// The warp of exported parameters at latent point `z` in f64 (`wi` normalised): the disk
+/// point and `det ∂T/∂z`, by forward-mode tangents as the runtime computes them.
+#[must_use]
+pub fn warp_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, z: Vec2) -> (Vec2, f64) {
+    let mut x = encoded_condition_f64(phi, wi);
+    x.extend([f64::from(z.x), f64::from(z.y)]);
+    // Value and the two tangents through each layer.
+    let mut at = 0usize;
+    let mut h = x;
+    let mut t: [Vec<f64>; 2] = [vec![0.0; REPARAM_INPUTS], vec![0.0; REPARAM_INPUTS]];
+    t[0][CONDITION_DIM] = 1.0;
+    t[1][CONDITION_DIM + 1] = 1.0;
+    for l in 0..WARP_SIZES.len() - 1 {
+        let (i, o) = (WARP_SIZES[l], WARP_SIZES[l + 1]);
+        let w = &params[at..at + i * o];
+        let bias = &params[at + i * o..at + i * o + o];
+        let mut y: Vec<f64> = bias.iter().map(|&v| f64::from(v)).collect();
+        let mut dy = [vec![0.0; o], vec![0.0; o]];
+        for (k, row) in w.chunks_exact(o).enumerate() {
+            for j in 0..o {
+                let wk = f64::from(row[j]);
+                y[j] += h[k] * wk;
+                dy[0][j] += t[0][k] * wk;
+                dy[1][j] += t[1][k] * wk;
+            }
+        }
+        at += i * o + o;
+        if l + 2 < WARP_SIZES.len() {
+            for j in 0..o {
+                let s = 1.0 / (1.0 + (-y[j]).exp());
+                let d = s * (1.0 + y[j] * (1.0 - s));
+                y[j] *= s;
+                dy[0][j] *= d;
+                dy[1][j] *= d;
+            }
+        }
+        h = y;
+        t = dy;
+    }
+    let s = crate::nn::softplus_f64(h[2]);
+    let ds = 1.0 / (1.0 + (-h[2]).exp());
+    let n = (h[0] * h[0] + h[1] * h[1] + s * s).sqrt();
+    let v = [h[0] / n, h[1] / n, s / n];
+    let d = |g: &Vec<f64>| {
+        let tt = v[0] * g[0] + v[1] * g[1] + v[2] * ds * g[2];
+        ((g[0] - v[0] * tt) / n, (g[1] - v[1] * tt) / n)
+    };
+    let (x0, y0) = d(&t[0]);
+    let (x1, y1) = d(&t[1]);
+    (Vec2::new(v[0] as f32, v[1] as f32), x0 * y1 - x1 * y0)
+}
+
+/// The pdf network's log-density on the training graph for exported parameters at `points`
+/// of one condition (for checks against the runtime).
+pub fn graph_log_pdf(
+    params: &[f32],
+    phi: &[f32; FEATURE_DIM],
+    wi: Vec3,
+    points: &[Vec2],
+) -> Vec<f32> {
+    let device = crate::nn::infer_device();
+    let net = Mlp::from_flat(&DENSITY_SIZES, &params[DENSITY_L0..], &device);
+    let n = points.len();
+    let enc = encode_condition(phi, wi);
+    let cond: Vec<f32> = (0..n).flat_map(|_| enc).collect();
+    let p: Vec<f32> = points.iter().flat_map(|p| [p.x, p.y]).collect();
+    let o = density_graph(
+        &net,
+        tensor2(cond, n, CONDITION_DIM, &device),
+        tensor2(p, n, 2, &device),
+    );
+    to_host(o.clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX))
+}
