@@ -1,7 +1,8 @@
 //! [`V8`]: eight `f32` lanes with element-wise operations written as plain loops over a
-//! fixed array, which LLVM turns into one 256-bit operation under AVX2, two 128-bit ones
-//! under SSE2 or NEON, and scalar code elsewhere. Only separate multiplies and adds: no
-//! fused multiply-add, so every instruction set gives the same bits.
+//! fixed array, which LLVM turns into one 256-bit operation under AVX2 or AVX-512, two
+//! 128-bit ones under SSE2 or NEON, and scalar code elsewhere. Only separate multiplies and
+//! adds (no fused multiply-add): every instruction set gives the same bits here (the dense
+//! layers are where the paths differ).
 
 use core::ops::{Add, Mul};
 

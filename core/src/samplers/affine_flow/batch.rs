@@ -56,15 +56,15 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
             }
         }
         let l0 = off + AFFINE_NET_L0 as u32;
-        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(
+        dense::accumulate_act::<W, OTHER_DIM, HIDDEN, CHUNK>(
             w,
             l0,
             CONDITION_DIM as u32,
             &e,
             &mut h,
             m,
+            Activation::Relu,
         );
-        dense::activate(Activation::Relu, &mut h, m);
         let mut g: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
         dense::dense(
             w,

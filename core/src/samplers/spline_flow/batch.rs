@@ -1,7 +1,7 @@
 //! [`FlowSampler`] over wavefronts ([`BatchSampler`]). Lanes run in chunks of [`CHUNK`]: the
 //! networks as matrix products over the chunk's lanes ([`dense`]), the splines, Box–Muller and
-//! the densities per lane through the scalar path's own functions, so both paths give the
-//! same bits.
+//! the densities per lane through the scalar path's own functions (the paths agree within
+//! the `wavefront` tolerances).
 
 use glam::Vec2;
 
@@ -58,15 +58,15 @@ impl<W: Weights + Copy> FlowSampler<W> {
             }
         }
         let l0 = off + SPLINE_NET_L0 as u32;
-        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(
+        dense::accumulate_act::<W, OTHER_DIM, HIDDEN, CHUNK>(
             w,
             l0,
             CONDITION_DIM as u32,
             &e,
             &mut h,
             m,
+            Activation::LeakyRelu,
         );
-        dense::activate(Activation::LeakyRelu, &mut h, m);
         let mut h2: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
         let l1 = off + SPLINE_NET_L1 as u32;
         dense::dense::<W, HIDDEN, HIDDEN, CHUNK>(w, l1, &h, Activation::LeakyRelu, &mut h2, m);
