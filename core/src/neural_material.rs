@@ -293,8 +293,8 @@ impl<W: Weights> NeuralMaterial<W> {
 #[cfg(not(target_arch = "spirv"))]
 mod batch {
     //! The neural material over wavefronts: features per lane (texture reads), the decoder as
-    //! matrix products over a chunk's lanes; the same numbers as [`NeuralMaterial::features`]
-    //! and [`NeuralMaterial::eval`].
+    //! matrix products over a chunk's lanes: [`NeuralMaterial::features`] bit for bit,
+    //! [`NeuralMaterial::eval`] within the `wavefront` tolerances.
 
     use super::*;
     use crate::batch::simd::{dispatch, Kernel};

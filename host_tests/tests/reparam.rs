@@ -402,13 +402,16 @@ fn check<S: Sampler + BatchSampler>(s: &S, r: &mut neusample_host_tests::TestRng
     }
 }
 
-/// Every committed reparameterization blob: `(name, blob bytes, conditions, material bytes)`.
-fn reparam_fixtures() -> Vec<(
+/// A committed reparameterization blob: `(name, blob bytes, conditions, material bytes)`.
+type ReparamFixture = (
     String,
     Vec<u8>,
     Vec<neusample_host_tests::Condition>,
     Vec<u8>,
-)> {
+);
+
+/// Every committed reparameterization blob.
+fn reparam_fixtures() -> Vec<ReparamFixture> {
     let root = neusample_host_tests::fixture_blobs_dir();
     let mut dirs: Vec<_> = std::fs::read_dir(&root)
         .unwrap()

@@ -2,14 +2,15 @@
 //! (and f16 and unaligned copies of some), every neural material, both instruction-set paths
 //! (portable and run-time dispatched), batches of awkward sizes mixed with adversarial lanes
 //! (NaN, ±∞, below the horizon, zero vectors, u = 1, u out of range), prepare / sample / pdf /
-//! invert / fused calls must give the scalar path's results **bit for bit** per lane, and
-//! bad lanes must not disturb the others. Length mismatches are errors that write nothing.
+//! invert / fused calls must give the scalar path's results within stated tolerances per
+//! lane (and agree exactly inside one batched path), and bad lanes must not disturb the
+//! others. Length mismatches are errors that write nothing.
 
 use std::path::PathBuf;
 
 use neusample::wavefront::{
-    prefer_isa, BatchSampler, Features, FeaturesMut, Isa, SamplesMut, Vec2s, Vec2sMut, Vec3s,
-    Vec3sMut,
+    prefer_isa, BatchSampler, Features, FeaturesMut, Isa, LaneState, SamplesMut, Vec2s, Vec2sMut,
+    Vec3s, Vec3sMut,
 };
 use neusample::{
     AnySampler, Blob, BlobSampler, BlobWriter, DType, Defensive, Error, Prepared, Sampler,
@@ -135,8 +136,58 @@ fn bits(v: f32) -> u32 {
     v.to_bits()
 }
 
-/// Checks every batched call of `s` against its scalar API on `lanes`.
-fn check_sampler<S>(s: &S, lanes: &[Lane], what: &str)
+/// Relative tolerance between the batched path (any instruction set) and the scalar path on
+/// a density at the same direction (`wavefront` docs): the x86-64 paths run the networks with
+/// fused multiply-adds, which moves a network output by about its own rounding error, and a
+/// flow's density is `exp` of a sum of spline log-derivatives whose steepest bins amplify
+/// that. Measured over every fixture blob with adversarial lanes: at most 6.3e-5.
+const PDF_RTOL: f64 = 5e-4;
+/// Relative tolerance between the batched and the scalar neural material's `eval`: `exp`
+/// of a network output whose rounding differs as above.
+const EVAL_RTOL: f64 = 1e-4;
+/// Absolute tolerance on a sampled direction (unit vector) or an inverted `u` (measured: at
+/// most 1.2e-4 away from u = 1, where the sampling maps are steep).
+const DIR_ATOL: f64 = 1e-3;
+
+/// `|a − b|` relative to the larger magnitude (0 when both are 0).
+fn rel(a: f32, b: f32) -> f64 {
+    let (a, b) = (f64::from(a), f64::from(b));
+    let m = a.abs().max(b.abs());
+    if m == 0.0 {
+        0.0
+    } else {
+        (a - b).abs() / m
+    }
+}
+
+/// The largest deviations of a batched path from the scalar one, and the lanes that differ
+/// discretely (one path refuses what the other accepts, or a sample lands elsewhere).
+#[derive(Default, Debug)]
+struct Deviation {
+    lanes: usize,
+    pdf: f64,
+    sample_pdf: f64,
+    wo: f64,
+    u: f64,
+    discrete: Vec<String>,
+}
+
+impl Deviation {
+    fn add(&mut self, o: Deviation) {
+        self.lanes += o.lanes;
+        self.pdf = self.pdf.max(o.pdf);
+        self.sample_pdf = self.sample_pdf.max(o.sample_pdf);
+        self.wo = self.wo.max(o.wo);
+        self.u = self.u.max(o.u);
+        self.discrete.extend(o.discrete);
+    }
+}
+
+/// Checks every batched call of `s` against its scalar API on `lanes`: within one batched
+/// path exactly (a sample's pdf is `pdf_batch` at its direction bit for bit; fused calls equal
+/// unfused ones; no lane is disturbed by another), against the scalar path within the
+/// tolerances (returned, for the caller to bound).
+fn check_sampler<S>(s: &S, lanes: &[Lane], what: &str) -> Deviation
 where
     S: Sampler + BatchSampler,
 {
@@ -166,6 +217,18 @@ where
     let mut fused_pdf = vec![-7.0f32; n];
     s.pdf_fused(soa.phi(), soa.wi(), soa.wo(), &mut fused_pdf)
         .unwrap();
+    // The density of every sampled direction, through the same path.
+    let mut again = vec![-7.0f32; n];
+    s.pdf_batch(
+        &states,
+        Vec3s {
+            x: &out.wo[0],
+            y: &out.wo[1],
+            z: &out.wo[2],
+        },
+        &mut again,
+    )
+    .unwrap();
     // The MIS density of every sample (`Prepared::mis_pdf`).
     let mut mis = out.pdf.clone();
     s.mis_pdf_batch(
@@ -179,50 +242,48 @@ where
     )
     .unwrap();
 
+    let mut dev = Deviation {
+        lanes: n,
+        ..Deviation::default()
+    };
     for (i, l) in lanes.iter().enumerate() {
         let ctx = || format!("{what}: lane {i} of {n}: {l:?}");
-        let p = s.prepare(&l.phi, l.wi);
-        let sample = p.as_ref().and_then(|p| p.sample(l.u));
-        let (wo, spdf) = match sample {
-            Some(x) => (x.wo, x.pdf),
-            None => (Vec3::ZERO, 0.0),
-        };
-        for (k, f) in [&out, &fused].into_iter().enumerate() {
+        // Inside the batched path: exact.
+        let got = [out.wo[0][i], out.wo[1][i], out.wo[2][i], out.pdf[i]];
+        let got_fused = [fused.wo[0][i], fused.wo[1][i], fused.wo[2][i], fused.pdf[i]];
+        assert_eq!(
+            got.map(bits),
+            got_fused.map(bits),
+            "sample (fused) {}",
+            ctx()
+        );
+        assert_eq!(bits(pdf[i]), bits(fused_pdf[i]), "pdf (fused) {}", ctx());
+        assert!(pdf[i] >= 0.0 && pdf[i].is_finite(), "pdf {}", ctx());
+        assert!(
+            out.pdf[i] >= 0.0 && out.pdf[i].is_finite(),
+            "sample pdf {}",
+            ctx()
+        );
+        assert!(mis[i] >= 0.0 && mis[i].is_finite(), "mis_pdf {}", ctx());
+        if out.pdf[i] > 0.0 {
+            // An exact kind's sample carries pdf(wo); an inexact one's MIS density is its pdf.
+            let at_sample = if s.exact_pdf() { out.pdf[i] } else { mis[i] };
             assert_eq!(
-                [
-                    bits(f.wo[0][i]),
-                    bits(f.wo[1][i]),
-                    bits(f.wo[2][i]),
-                    bits(f.pdf[i])
-                ],
-                [bits(wo.x), bits(wo.y), bits(wo.z), bits(spdf)],
-                "sample{} {}",
-                if k == 1 { " (fused)" } else { "" },
+                bits(again[i]),
+                bits(at_sample),
+                "pdf at the sample {}",
                 ctx()
             );
-        }
-        let want_mis = match (&p, sample) {
-            (Some(p), Some(x)) => p.mis_pdf(&x),
-            _ => 0.0,
-        };
-        assert_eq!(bits(mis[i]), bits(want_mis), "mis_pdf {}", ctx());
-        if let Some(p) = &p {
-            assert_eq!(s.exact_pdf(), p.exact_pdf(), "exact_pdf {}", ctx());
-        }
-        let want = p.as_ref().map_or(0.0, |p| p.pdf(l.wo));
-        assert_eq!(bits(pdf[i]), bits(want), "pdf {}", ctx());
-        assert_eq!(bits(fused_pdf[i]), bits(want), "pdf (fused) {}", ctx());
-        assert!(pdf[i] >= 0.0 && pdf[i].is_finite(), "pdf {}", ctx());
-        let inv = p.as_ref().and_then(|p| p.invert(l.wo));
-        assert_eq!(ok[i], inv.is_some(), "invert {}", ctx());
-        if let Some(v) = inv {
-            assert_eq!(
-                [bits(ux[i]), bits(uy[i])],
-                [bits(v.x), bits(v.y)],
-                "invert {}",
+            let len = got[..3].iter().map(|v| f64::from(*v).powi(2)).sum::<f64>();
+            assert!(
+                (len - 1.0).abs() < 1e-5 && got[2] > 0.0,
+                "sample wo {}",
                 ctx()
             );
         } else {
+            assert_eq!(&got[..3], &[0.0; 3], "refused sample {}", ctx());
+        }
+        if !ok[i] {
             assert_eq!(
                 [ux[i], uy[i]],
                 [-7.0, -7.0],
@@ -230,7 +291,74 @@ where
                 ctx()
             );
         }
+        // Against the scalar path: within the tolerances, or a discrete difference.
+        let p = s.prepare(&l.phi, l.wi);
+        assert_eq!(states[i].is_prepared(), p.is_some(), "prepared {}", ctx());
+        let sample = p.as_ref().and_then(|p| p.sample(l.u));
+        if let Some(p) = &p {
+            assert_eq!(s.exact_pdf(), p.exact_pdf(), "exact_pdf {}", ctx());
+        }
+        // u = 1 is clamped below 1 and mapped to the far tail of a lobe or spline, where the
+        // sample moves by far more than its inputs' rounding: only its validity is compared.
+        let edge = l.u.x >= 1.0 || l.u.y >= 1.0;
+        match (&p, sample) {
+            (Some(p), Some(x)) if out.pdf[i] > 0.0 => {
+                let wo = Vec3::new(got[0], got[1], got[2]);
+                // The scalar density at the batched sample: the sample's own pdf, well
+                // conditioned wherever the density is continuous.
+                let r = rel(got[3], p.pdf(wo));
+                let d = (0..3)
+                    .map(|k| (f64::from(got[k]) - f64::from(x.wo[k])).abs())
+                    .fold(0.0, f64::max);
+                // The MIS densities of both samples (close, as the samples are).
+                let r = r.max(rel(mis[i], p.mis_pdf(&x)));
+                if r > PDF_RTOL || (!edge && d > DIR_ATOL) {
+                    dev.discrete
+                        .push(format!("sample {got:?} vs {x:?} {}", ctx()));
+                } else {
+                    dev.sample_pdf = dev.sample_pdf.max(r);
+                    if !edge {
+                        dev.wo = dev.wo.max(d);
+                    }
+                }
+            }
+            (_, None) if out.pdf[i] == 0.0 => {}
+            // Near u = 1 a sample may leave the disk on one path and not on the other.
+            (Some(_), _) if edge => {}
+            _ => dev
+                .discrete
+                .push(format!("sample {got:?} vs {sample:?} {}", ctx())),
+        }
+        let want = p.as_ref().map_or(0.0, |p| p.pdf(l.wo));
+        let r = rel(pdf[i], want);
+        if r > PDF_RTOL {
+            dev.discrete
+                .push(format!("pdf {} vs {want} {}", pdf[i], ctx()));
+        } else {
+            dev.pdf = dev.pdf.max(r);
+        }
+        let inv = p.as_ref().and_then(|p| p.invert(l.wo));
+        match inv {
+            Some(v) if ok[i] => {
+                // u.y is an angle for the Gaussian bases: it wraps around at 1.
+                let dy = (f64::from(uy[i]) - f64::from(v.y)).abs();
+                let d = (f64::from(ux[i]) - f64::from(v.x))
+                    .abs()
+                    .max(dy.min(1.0 - dy));
+                if d > DIR_ATOL {
+                    dev.discrete
+                        .push(format!("invert {} {} vs {v:?} {}", ux[i], uy[i], ctx()));
+                } else {
+                    dev.u = dev.u.max(d);
+                }
+            }
+            None if !ok[i] => {}
+            _ => dev
+                .discrete
+                .push(format!("invert {} vs {inv:?} {}", ok[i], ctx())),
+        }
     }
+    dev
 }
 
 fn fixture_samplers() -> Vec<(PathBuf, Vec<u8>, Vec<Condition>)> {
@@ -264,17 +392,51 @@ fn fixture_samplers() -> Vec<(PathBuf, Vec<u8>, Vec<Condition>)> {
     out
 }
 
-/// Runs `f` with each instruction set this machine has (portable first).
+/// Runs `f` with each instruction set this machine has (portable first). The choice is
+/// global to the process and the paths differ within the tolerances: the tests of this file
+/// take turns.
 fn for_each_isa(mut f: impl FnMut(Isa)) {
-    let best = neusample::wavefront::detected_isa();
-    for isa in [Isa::Portable, best] {
-        assert_eq!(prefer_isa(Some(isa)), isa);
-        f(isa);
-        if best == Isa::Portable {
-            break;
+    static TURN: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _turn = TURN
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    for isa in Isa::ALL {
+        if prefer_isa(Some(isa)) == isa {
+            f(isa);
         }
     }
     prefer_isa(None);
+}
+
+/// Runs the checks of one sampler through [`AnySampler`] and its concrete type.
+fn check_both(s: &BlobSampler<'_>, ls: &[Lane], what: &str) -> Deviation {
+    let mut d = check_sampler(s, ls, &format!("{what} AnySampler"));
+    d.add(check_concrete(s, ls, what));
+    d
+}
+
+/// Bounds the deviations of one instruction set's batched path from the scalar path.
+fn assert_within(isa: Isa, dev: &Deviation, what: &str) {
+    eprintln!(
+        "{what} ({}): {} lanes, largest deviations: pdf {:.2e}, sample pdf {:.2e}, wo {:.2e}, u {:.2e}; {} discrete",
+        isa.name(),
+        dev.lanes,
+        dev.pdf,
+        dev.sample_pdf,
+        dev.wo,
+        dev.u,
+        dev.discrete.len()
+    );
+    for d in dev.discrete.iter().take(5) {
+        eprintln!("  {d}");
+    }
+    assert!(
+        dev.discrete.is_empty(),
+        "{what} ({}): {} lanes beyond the tolerances, e.g. {}",
+        isa.name(),
+        dev.discrete.len(),
+        dev.discrete[0]
+    );
 }
 
 #[test]
@@ -282,14 +444,15 @@ fn every_fixture_sampler_batched_equals_scalar() {
     let blobs = fixture_samplers();
     for_each_isa(|isa| {
         let mut r = rng(7);
+        let mut total = Deviation::default();
         for (path, bytes, conds) in &blobs {
             let blob = Blob::open(bytes).unwrap();
             let sampler = blob.sampler().unwrap();
+            let mut dev = Deviation::default();
             for &n in &SIZES {
                 let ls = lanes(&mut r, conds, n);
                 let what = format!("{} ({}, n = {n})", path.display(), isa.name());
-                check_sampler(&sampler, &ls, &format!("{what} AnySampler"));
-                check_concrete(&sampler, &ls, &what);
+                dev.add(check_both(&sampler, &ls, &what));
             }
             // The same blob with a defensive weight: the learned part's batched kernels
             // with the cosine lanes gathered, against the scalar mixture.
@@ -299,14 +462,16 @@ fn every_fixture_sampler_batched_equals_scalar() {
             let sampler = blob.sampler().unwrap();
             let ls = lanes(&mut r, conds, 97);
             let what = format!("{} α = 0.25 ({})", path.display(), isa.name());
-            check_sampler(&sampler, &ls, &format!("{what} AnySampler"));
-            check_concrete(&sampler, &ls, &what);
+            dev.add(check_both(&sampler, &ls, &what));
+            assert_within(isa, &dev, &path.display().to_string());
+            total.add(dev);
         }
+        assert_within(isa, &total, "all fixtures");
     });
 }
 
 /// The same checks through the concrete sampler type (its own lane type).
-fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) {
+fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) -> Deviation {
     let a = s.alpha();
     match *s.inner() {
         AnySampler::Cosine(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
@@ -356,7 +521,8 @@ fn f16_and_unaligned_blobs_batched_equal_scalar() {
             for_each_isa(|isa| {
                 let ls = lanes(&mut r, conds, 97);
                 let what = format!("{} {label} ({})", path.display(), isa.name());
-                check_concrete(&s, &ls, &what);
+                let dev = check_concrete(&s, &ls, &what);
+                assert_within(isa, &dev, &what);
             });
         }
     }
@@ -382,6 +548,7 @@ fn neural_material_batched_equals_scalar() {
         let m = blob.neural_material().unwrap();
         for_each_isa(|isa| {
             let mut r = rng(3);
+            let mut worst = 0.0f64;
             for &n in &SIZES {
                 let what = format!("{} ({}, n = {n})", f.display(), isa.name());
                 let uv: [Vec<f32>; 2] = [0, 1].map(|_| {
@@ -430,9 +597,19 @@ fn neural_material_batched_equals_scalar() {
                 for (i, l) in ls.iter().enumerate() {
                     let want = m.eval(&l.phi, l.wi, l.wo);
                     let got = [rgb[i], rgb[n + i], rgb[2 * n + i]];
-                    assert_eq!(got.map(bits), want.map(bits), "eval {what} lane {i}: {l:?}");
+                    let r = (0..3).map(|c| rel(got[c], want[c])).fold(0.0, f64::max);
+                    worst = worst.max(r);
+                    assert!(
+                        r <= EVAL_RTOL && got.iter().all(|v| *v >= 0.0 && v.is_finite()),
+                        "eval {what} lane {i}: {got:?} vs {want:?}, {l:?}"
+                    );
                 }
             }
+            eprintln!(
+                "{} ({}): largest eval deviation {worst:.2e}",
+                f.display(),
+                isa.name()
+            );
         });
     }
 }

@@ -2,8 +2,10 @@
  * check.c: loads the fixture blobs through the C ABI and checks, for every sampler of the
  * three demo materials (and the cosine sampler):
  *   - a sample's pdf equals ns_pdf at the sampled direction (bit for bit),
- *   - the prepared path (ns_prepare + ns_prepared_sample/pdf) equals the fused scalar calls,
- *   - the batched calls equal the scalar ones lane by lane (bit for bit),
+ *   - the prepared path (ns_prepare + ns_prepared_sample/pdf) and the batched calls equal
+ *     the scalar calls within the batched runtime's tolerances (5e-4 relative on a pdf, 1e-3
+ *     on a direction), and inside each a sample's pdf is the pdf at the sampled direction
+ *     bit for bit,
  *   - bad input gives the documented status, never a crash: a missing file, a corrupted
  *     blob, a material blob used as a sampler, NULL handles, NaN directions, n = 0,
  *     overlapping output arrays.
@@ -63,6 +65,18 @@ static NsVec3 normalize(float x, float y, float z) {
 
 enum { LANES = 37 };
 
+/* The batched runtime (and the prepared path, which runs it on one lane) agrees with the
+ * scalar calls within its tolerances: 5e-4 relative on a pdf at the same direction, 1e-3 on
+ * a sampled direction. (Near the rim a sample's solid-angle pdf moves with its direction
+ * more than that: compare pdfs at one direction.) */
+static int close_pdfs(float a, float b) { return fabsf(a - b) <= 5e-4f * fmaxf(a, b); }
+
+static int close_samples(const NsSample *a, const NsSample *b) {
+  float d = fmaxf(fabsf(a->wo.x - b->wo.x),
+                  fmaxf(fabsf(a->wo.y - b->wo.y), fabsf(a->wo.z - b->wo.z)));
+  return (a->pdf > 0.0f) == (b->pdf > 0.0f) && d <= 1e-3f;
+}
+
 /* Checks one sampler against one material at a few shading points. */
 static void check_sampler(const char *label, const NsSampler *s, const NsMaterial *m) {
   const NsVec3 wis[3] = {normalize(0.0f, 0.0f, 1.0f), normalize(0.5f, -0.3f, 0.8f),
@@ -88,8 +102,16 @@ static void check_sampler(const char *label, const NsSampler *s, const NsMateria
         NsStatus st = ns_sample(s, &phi, wi, u, &smp);
         CHECK(st == NS_OK || st == NS_REFUSED, "%s: ns_sample -> %s", label, ns_status_name(st));
         NsStatus st2 = ns_prepared_sample(s, prep, u, &smp2);
-        CHECK(st2 == st && memcmp(&smp, &smp2, sizeof smp) == 0,
+        CHECK(st2 == st && close_samples(&smp, &smp2),
               "%s: prepared sample differs from fused sample", label);
+        if (st2 == NS_OK) {
+          float p3 = -1.0f, p4 = -1.0f;
+          EXPECT_STATUS(ns_prepared_pdf(s, prep, smp2.wo, &p3), NS_OK);
+          CHECK(p3 == smp2.pdf, "%s: prepared pdf(sample.wo) = %.9g but sample.pdf = %.9g",
+                label, p3, smp2.pdf);
+          EXPECT_STATUS(ns_pdf(s, &phi, wi, smp2.wo, &p4), NS_OK);
+          CHECK(close_pdfs(p4, p3), "%s: prepared pdf %.9g != fused pdf %.9g", label, p3, p4);
+        }
         scalar[i] = smp;
         if (st != NS_OK) {
           ++refused;
@@ -104,12 +126,12 @@ static void check_sampler(const char *label, const NsSampler *s, const NsMateria
         EXPECT_STATUS(ns_prepared_pdf(s, prep, smp.wo, &p2), NS_OK);
         CHECK(p == smp.pdf, "%s: pdf(sample.wo) = %.9g but sample.pdf = %.9g", label, p,
               smp.pdf);
-        CHECK(p2 == p, "%s: prepared pdf %.9g != fused pdf %.9g", label, p2, p);
+        CHECK(close_pdfs(p2, p), "%s: prepared pdf %.9g != fused pdf %.9g", label, p2, p);
         NsRgb f;
         EXPECT_STATUS(ns_material_eval(m, &phi, wi, smp.wo, &f), NS_OK);
         CHECK(f.r > 0.0f && f.g > 0.0f && f.b > 0.0f, "%s: f not positive", label);
       }
-      /* Batched = scalar, lane by lane, bit for bit. */
+      /* Batched = scalar, lane by lane. */
       float phi_rows[NS_FEATURE_DIM][LANES], wi_rows[3][LANES];
       float wo_rows[3][LANES], pdf[LANES], pdf_again[LANES];
       for (int i = 0; i < LANES; ++i) {
@@ -124,9 +146,16 @@ static void check_sampler(const char *label, const NsSampler *s, const NsMateria
                                     ns_samples_mut_rows(&wo_rows[0][0], pdf, LANES)),
                     NS_OK);
       for (int i = 0; i < LANES; ++i) {
-        CHECK(pdf[i] == scalar[i].pdf && wo_rows[0][i] == scalar[i].wo.x &&
-                  wo_rows[1][i] == scalar[i].wo.y && wo_rows[2][i] == scalar[i].wo.z,
-              "%s: batched sample lane %d differs from scalar", label, i);
+        NsSample b = {{wo_rows[0][i], wo_rows[1][i], wo_rows[2][i]}, pdf[i]};
+        CHECK(close_samples(&b, &scalar[i]),
+              "%s: batched sample lane %d at %.9g %.9g, scalar at %.9g %.9g", label, i, b.wo.x,
+              b.wo.y, scalar[i].wo.x, scalar[i].wo.y);
+        if (b.pdf > 0.0f) {
+          float p = -1.0f;
+          EXPECT_STATUS(ns_pdf(s, &phi, wi, b.wo, &p), NS_OK);
+          CHECK(close_pdfs(b.pdf, p), "%s: batched sample lane %d: pdf %.9g, scalar pdf %.9g",
+                label, i, b.pdf, p);
+        }
       }
       EXPECT_STATUS(
           ns_pdf_batch(s, LANES, fphi, vwi, ns_vec3s_rows(&wo_rows[0][0], LANES), pdf_again),
@@ -137,7 +166,7 @@ static void check_sampler(const char *label, const NsSampler *s, const NsMateria
       }
     }
   }
-  printf("  %-44s %4d samples, %3d refused: sample/pdf agree, batched = scalar\n", label,
+  printf("  %-44s %4d samples, %3d refused: sample/pdf agree, batched = scalar within tolerance\n", label,
          samples, refused);
   ns_prepared_free(prep);
 }

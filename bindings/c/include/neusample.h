@@ -403,7 +403,9 @@ enum NsStatus ns_prepare(const struct NsSampler *sampler,
                          struct NsVec3 wi,
                          struct NsPrepared *prepared);
 
-// Draws one direction from a prepared state (as `ns_sample`, bit for bit).
+// Draws one direction from a prepared state (as `ns_sample`, within the batched runtime's
+// tolerances: the prepared state is a one-lane wavefront; its pdf is `ns_prepared_pdf` at
+// the sampled direction bit for bit).
 //
 // # Safety
 // `sampler` is NULL or a live handle; `prepared` NULL or a live state; `out` NULL or
@@ -413,7 +415,8 @@ enum NsStatus ns_prepared_sample(const struct NsSampler *sampler,
                                  struct NsVec2 u,
                                  struct NsSample *out);
 
-// The solid-angle density of `wo` under a prepared state (as `ns_pdf`, bit for bit).
+// The solid-angle density of `wo` under a prepared state (as `ns_pdf`, within the batched
+// runtime's tolerances).
 //
 // # Safety
 // `sampler` is NULL or a live handle; `prepared` NULL or a live state; `pdf` NULL or

@@ -566,7 +566,9 @@ pub unsafe extern "C" fn ns_prepare(
     })
 }
 
-/// Draws one direction from a prepared state (as `ns_sample`, bit for bit).
+/// Draws one direction from a prepared state (as `ns_sample`, within the batched runtime's
+/// tolerances: the prepared state is a one-lane wavefront; its pdf is `ns_prepared_pdf` at
+/// the sampled direction bit for bit).
 ///
 /// # Safety
 /// `sampler` is NULL or a live handle; `prepared` NULL or a live state; `out` NULL or
@@ -590,7 +592,8 @@ pub unsafe extern "C" fn ns_prepared_sample(
     })
 }
 
-/// The solid-angle density of `wo` under a prepared state (as `ns_pdf`, bit for bit).
+/// The solid-angle density of `wo` under a prepared state (as `ns_pdf`, within the batched
+/// runtime's tolerances).
 ///
 /// # Safety
 /// `sampler` is NULL or a live handle; `prepared` NULL or a live state; `pdf` NULL or

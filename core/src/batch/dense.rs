@@ -1,89 +1,35 @@
 //! Dense layers over a chunk of `B` lanes in structure-of-arrays form: `x[i][b]` is input
-//! `i` of lane `b`. The product runs in register tiles of 4 outputs × 16 lanes, so a weight
-//! is read once per 16 lanes and every multiply and add is a SIMD operation. Per lane the
-//! sum is `bias + x[0]·W[0] + x[1]·W[1] + …` in input order with separate multiplies and
-//! adds: bit for bit the scalar [`nn::dense`](crate::nn::dense).
+//! `i` of lane `b`. The product runs in register tiles of a few outputs × 16 or 32 lanes, so
+//! a weight is read once per tile and every multiply-add is a SIMD operation; a layer's
+//! weights are widened (f16, unaligned bytes) once per tile and chunk.
+//!
+//! Per lane the sum is `bias + x[0]·W[0] + x[1]·W[1] + …` in input order. On x86-64 with
+//! AVX-512 (x86-64-v4) or AVX2 + FMA (x86-64-v3) each step is one fused multiply-add
+//! (`pulp`'s safe intrinsics; one rounding per step); the portable path multiplies and adds
+//! separately, bit for bit the scalar [`nn::dense`](crate::nn::dense). The paths agree to
+//! within the rounding of the products (the tolerance is in the `wavefront` docs); each is
+//! deterministic.
 
 use super::lanes::V8;
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+use super::simd::{self, Isa};
 use crate::nn::Activation;
 use crate::weights::Weights;
 
-/// Outputs per register tile.
-const TJ: usize = 4;
-/// Lanes per register tile (two [`V8`]).
+/// Lanes per register tile of the portable path (two [`V8`]); chunks are whole tiles.
 pub(crate) const TB: usize = 16;
 
-/// `acc[j][b] += Σ_{i < I} x[i][b] · W[offset + (row0 + i)·O + j]` for `j < O`, `b < B`:
-/// rows `row0 .. row0 + I` of the row-major `· × O` matrix at `offset`, as
-/// [`Weights::accumulate`] reads them, for the first `m` lanes (rounded up to a tile; `B`
-/// must be a multiple of 16). Each tile's weights are read (f16 and unaligned bytes widened)
-/// once per chunk.
-#[inline(always)]
-pub(crate) fn accumulate<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
-    w: &W,
-    offset: u32,
-    row0: u32,
-    x: &[[f32; B]; I],
-    acc: &mut [[f32; B]; O],
-    m: usize,
-) {
-    const { assert!(B % TB == 0, "lane chunks are whole tiles") };
-    let base = offset as usize + row0 as usize * O;
-    let slice = w.as_f32_slice().and_then(|s| s.get(base..base + I * O));
-    let mut j0 = 0;
-    while j0 < O {
-        let cols = if O - j0 >= TJ { TJ } else { O - j0 };
-        let mut tile = [[0.0f32; TJ]; I];
-        for (i, row) in tile.iter_mut().enumerate() {
-            for (t, v) in row.iter_mut().enumerate().take(cols) {
-                let k = i * O + j0 + t;
-                *v = match slice {
-                    Some(s) => s[k],
-                    None => w.at((base + k) as u32),
-                };
-            }
-        }
-        let mut b0 = 0;
-        while b0 < m && b0 < B {
-            tile_product::<I, O, B>(&tile, x, acc, j0, cols, b0);
-            b0 += TB;
-        }
-        j0 += TJ;
-    }
-}
-
-/// Outputs `j0 .. j0 + cols` (`cols ≤ 4`) of lanes `b0 .. b0 + 16`, in 8 vector registers.
-#[inline(always)]
-fn tile_product<const I: usize, const O: usize, const B: usize>(
-    tile: &[[f32; TJ]; I],
-    x: &[[f32; B]; I],
-    acc: &mut [[f32; B]; O],
-    j0: usize,
-    cols: usize,
-    b0: usize,
-) {
-    let mut a = [[V8::splat(0.0); 2]; TJ];
-    for t in 0..cols {
-        a[t][0] = V8::load(&acc[j0 + t][b0..]);
-        a[t][1] = V8::load(&acc[j0 + t][b0 + 8..]);
-    }
-    for i in 0..I {
-        let x0 = V8::load(&x[i][b0..]);
-        let x1 = V8::load(&x[i][b0 + 8..]);
-        for t in 0..TJ {
-            let wv = V8::splat(tile[i][t]);
-            a[t][0] = a[t][0] + x0 * wv;
-            a[t][1] = a[t][1] + x1 * wv;
-        }
-    }
-    for t in 0..cols {
-        a[t][0].store(&mut acc[j0 + t][b0..]);
-        a[t][1].store(&mut acc[j0 + t][b0 + 8..]);
-    }
+/// How a product starts: from the bias of the layer (at the weights' `offset + I·O`) or
+/// from the values already in the output.
+#[derive(Copy, Clone, PartialEq, Eq)]
+enum Start {
+    Bias,
+    Output,
 }
 
 /// `y[j][b] = act(b_j + Σ_i x[i][b] · W[i][j])`: the dense layer `dense(I, O)` at `offset`
-/// (weights then bias, `core/ARCHITECTURES.md`) for the first `m` lanes.
+/// (weights then bias, `core/ARCHITECTURES.md`) for the first `m` lanes (rounded up to a
+/// tile; the other lanes of `y` are left as they were or overwritten).
 #[inline(always)]
 pub(crate) fn dense<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
     w: &W,
@@ -93,9 +39,52 @@ pub(crate) fn dense<W: Weights + ?Sized, const I: usize, const O: usize, const B
     y: &mut [[f32; B]; O],
     m: usize,
 ) {
-    bias::<W, I, O, B>(w, offset, y);
-    accumulate::<W, I, O, B>(w, offset, 0, x, y, m);
-    activate(act, y, m);
+    product::<W, I, O, B>(w, offset, 0, x, y, m, Start::Bias, act);
+}
+
+/// `acc[j][b] += Σ_{i < I} x[i][b] · W[offset + (row0 + i)·O + j]` for `j < O`, `b < B`:
+/// rows `row0 .. row0 + I` of the row-major `· × O` matrix at `offset`, as
+/// [`Weights::accumulate`] reads them, for the first `m` lanes (rounded up to a tile; `B`
+/// must be a multiple of 16).
+#[inline(always)]
+pub(crate) fn accumulate<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
+    w: &W,
+    offset: u32,
+    row0: u32,
+    x: &[[f32; B]; I],
+    acc: &mut [[f32; B]; O],
+    m: usize,
+) {
+    product::<W, I, O, B>(
+        w,
+        offset,
+        row0,
+        x,
+        acc,
+        m,
+        Start::Output,
+        Activation::Identity,
+    );
+}
+
+/// [`accumulate`] followed by `act` on the first `m` lanes (fused into the product's
+/// stores where the activation allows).
+#[inline(always)]
+pub(crate) fn accumulate_act<
+    W: Weights + ?Sized,
+    const I: usize,
+    const O: usize,
+    const B: usize,
+>(
+    w: &W,
+    offset: u32,
+    row0: u32,
+    x: &[[f32; B]; I],
+    acc: &mut [[f32; B]; O],
+    m: usize,
+    act: Activation,
+) {
+    product::<W, I, O, B>(w, offset, row0, x, acc, m, Start::Output, act);
 }
 
 /// Every lane of `y[j]` set to the bias `b_j` of the dense layer `dense(I, O)` at `offset`.
@@ -125,6 +114,425 @@ pub(crate) fn activate<const O: usize, const B: usize>(
     for row in y.iter_mut() {
         for v in row[..m].iter_mut() {
             *v = act.apply(*v);
+        }
+    }
+}
+
+/// Whether the tiled kernels apply `act` in their stores (the piecewise-linear ones);
+/// otherwise [`activate`] runs after the product.
+#[inline(always)]
+fn fused(act: Activation) -> bool {
+    matches!(
+        act,
+        Activation::Identity | Activation::Relu | Activation::LeakyRelu
+    )
+}
+
+/// The product behind [`dense`], [`accumulate`] and [`accumulate_act`], on the instruction
+/// set the batched kernels run with ([`simd::current`]).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn product<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
+    w: &W,
+    offset: u32,
+    row0: u32,
+    x: &[[f32; B]; I],
+    y: &mut [[f32; B]; O],
+    m: usize,
+    start: Start,
+    act: Activation,
+) {
+    const { assert!(B % TB == 0, "lane chunks are whole tiles") };
+    let m = if m < B { m } else { B };
+    let fuse = fused(act);
+    let store_act = if fuse { act } else { Activation::Identity };
+    let args = Args {
+        w,
+        offset,
+        row0,
+        x,
+        m,
+        start,
+        act: store_act,
+    };
+    #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+    let done = match simd::current() {
+        Isa::X86V4 => match pulp::x86::V4::try_new() {
+            Some(s) => {
+                s.vectorize(Tiled::<_, W, I, O, B, 8, 2> {
+                    s,
+                    args: &args,
+                    y: &mut *y,
+                });
+                true
+            }
+            None => false,
+        },
+        Isa::X86V3 => match pulp::x86::V3::try_new() {
+            Some(s) => {
+                s.vectorize(Tiled::<_, W, I, O, B, 6, 2> {
+                    s,
+                    args: &args,
+                    y: &mut *y,
+                });
+                true
+            }
+            None => false,
+        },
+        Isa::Portable => false,
+    };
+    #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
+    let done = false;
+    if !done {
+        portable::<W, I, O, B>(&args, y);
+    }
+    if !fuse {
+        activate(act, y, m);
+    }
+}
+
+/// The arguments of one product.
+struct Args<'a, W: ?Sized, const I: usize, const B: usize> {
+    w: &'a W,
+    offset: u32,
+    row0: u32,
+    x: &'a [[f32; B]; I],
+    m: usize,
+    start: Start,
+    /// Applied in the stores: identity, ReLU or leaky ReLU.
+    act: Activation,
+}
+
+impl<W: Weights + ?Sized, const I: usize, const B: usize> Args<'_, W, I, B> {
+    /// Columns `j0 .. j0 + J` of rows `row0 .. row0 + I` of the `· × O` matrix, widened to
+    /// f32 (0 past column `O − 1`).
+    #[inline(always)]
+    fn tile<const O: usize, const J: usize>(&self, j0: usize) -> [[f32; J]; I] {
+        let base = self.offset as usize + self.row0 as usize * O;
+        let mut tile = [[0.0f32; J]; I];
+        let cols = if O - j0 >= J { J } else { O - j0 };
+        match self
+            .w
+            .as_f32_slice()
+            .and_then(|s| s.get(base..base + I * O))
+        {
+            Some(s) => {
+                for (t, row) in tile.iter_mut().zip(s.chunks_exact(O)) {
+                    if let Some(r) = row.get(j0..j0 + cols) {
+                        t[..cols].copy_from_slice(r);
+                    }
+                }
+            }
+            None => {
+                for (i, t) in tile.iter_mut().enumerate() {
+                    for (c, v) in t.iter_mut().enumerate().take(cols) {
+                        *v = self.w.at((base + i * O + j0 + c) as u32);
+                    }
+                }
+            }
+        }
+        tile
+    }
+
+    /// The bias of outputs `j0 .. j0 + J` (0 past column `O − 1`).
+    #[inline(always)]
+    fn bias<const O: usize, const J: usize>(&self, j0: usize) -> [f32; J] {
+        let b: [f32; O] = self.w.read(self.offset + (I * O) as u32);
+        let mut out = [0.0f32; J];
+        for (c, v) in out.iter_mut().enumerate() {
+            if let Some(x) = b.get(j0 + c) {
+                *v = *x;
+            }
+        }
+        out
+    }
+}
+
+/// The portable product: tiles of 4 outputs × 16 lanes ([`V8`] pairs, 8 registers), separate
+/// multiplies and adds.
+#[inline(always)]
+fn portable<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
+    a: &Args<'_, W, I, B>,
+    y: &mut [[f32; B]; O],
+) {
+    const TJ: usize = 4;
+    let mut j0 = 0;
+    while j0 < O {
+        let cols = if O - j0 >= TJ { TJ } else { O - j0 };
+        let tile = a.tile::<O, TJ>(j0);
+        let bias = a.bias::<O, TJ>(j0);
+        let mut b0 = 0;
+        while b0 < a.m {
+            let mut acc = [[V8::splat(0.0); 2]; TJ];
+            for t in 0..cols {
+                acc[t] = match a.start {
+                    Start::Bias => [V8::splat(bias[t]); 2],
+                    Start::Output => [V8::load(&y[j0 + t][b0..]), V8::load(&y[j0 + t][b0 + 8..])],
+                };
+            }
+            for i in 0..I {
+                let x0 = V8::load(&a.x[i][b0..]);
+                let x1 = V8::load(&a.x[i][b0 + 8..]);
+                for t in 0..TJ {
+                    let wv = V8::splat(tile[i][t]);
+                    acc[t][0] = acc[t][0] + x0 * wv;
+                    acc[t][1] = acc[t][1] + x1 * wv;
+                }
+            }
+            for t in 0..cols {
+                for (h, v) in acc[t].iter().enumerate() {
+                    let mut r = v.0;
+                    if a.act != Activation::Identity {
+                        for e in r.iter_mut() {
+                            *e = a.act.apply(*e);
+                        }
+                    }
+                    V8(r).store(&mut y[j0 + t][b0 + 8 * h..]);
+                }
+            }
+            b0 += TB;
+        }
+        j0 += TJ;
+    }
+}
+
+/// A vector instruction set's fused multiply-add on `LANES` f32 lanes (a `pulp` token).
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+trait Fma: Copy {
+    /// The vector.
+    type V: Copy;
+    /// Lanes per vector.
+    const LANES: usize;
+    /// Every lane `x`.
+    fn splat(self, x: f32) -> Self::V;
+    /// `s[at .. at + LANES]` (zeros if out of range).
+    fn load(self, s: &[f32], at: usize) -> Self::V;
+    /// Writes `v` to `s[at .. at + LANES]` (nothing if out of range).
+    fn store(self, v: Self::V, s: &mut [f32], at: usize);
+    /// `a·b + c`, rounded once.
+    fn fma(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
+    /// `act(v)` for identity, ReLU (`x > 0 ? x : 0`, NaN → 0) and leaky ReLU
+    /// (`x ≥ 0 ? x : slope·x`, NaN stays NaN), as [`Activation::apply`].
+    fn act(self, act: Activation, v: Self::V) -> Self::V;
+}
+
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+mod x86 {
+    use super::Fma;
+    use crate::nn::{Activation, LEAKY_RELU_SLOPE};
+    use pulp::x86::{V3, V4};
+    use pulp::{f32x16, f32x8};
+
+    impl Fma for V3 {
+        type V = f32x8;
+        const LANES: usize = 8;
+        #[inline(always)]
+        fn splat(self, x: f32) -> f32x8 {
+            self.splat_f32x8(x)
+        }
+        #[inline(always)]
+        fn load(self, s: &[f32], at: usize) -> f32x8 {
+            match s.get(at..at + 8).and_then(|h| <[f32; 8]>::try_from(h).ok()) {
+                Some(a) => pulp::cast(a),
+                None => self.splat_f32x8(0.0),
+            }
+        }
+        #[inline(always)]
+        fn store(self, v: f32x8, s: &mut [f32], at: usize) {
+            if let Some(h) = s.get_mut(at..at + 8) {
+                h.copy_from_slice(&pulp::cast::<f32x8, [f32; 8]>(v));
+            }
+        }
+        #[inline(always)]
+        fn fma(self, a: f32x8, b: f32x8, c: f32x8) -> f32x8 {
+            self.mul_add_f32x8(a, b, c)
+        }
+        #[inline(always)]
+        fn act(self, act: Activation, v: f32x8) -> f32x8 {
+            match act {
+                // maxps returns its second operand when either is NaN.
+                Activation::Relu => self.max_f32x8(v, self.splat_f32x8(0.0)),
+                Activation::LeakyRelu => {
+                    self.max_f32x8(v, self.mul_f32x8(v, self.splat_f32x8(LEAKY_RELU_SLOPE)))
+                }
+                _ => v,
+            }
+        }
+    }
+
+    impl Fma for V4 {
+        type V = f32x16;
+        const LANES: usize = 16;
+        #[inline(always)]
+        fn splat(self, x: f32) -> f32x16 {
+            self.splat_f32x16(x)
+        }
+        #[inline(always)]
+        fn load(self, s: &[f32], at: usize) -> f32x16 {
+            match s
+                .get(at..at + 16)
+                .and_then(|h| <[f32; 16]>::try_from(h).ok())
+            {
+                Some(a) => pulp::cast(a),
+                None => self.splat_f32x16(0.0),
+            }
+        }
+        #[inline(always)]
+        fn store(self, v: f32x16, s: &mut [f32], at: usize) {
+            if let Some(h) = s.get_mut(at..at + 16) {
+                h.copy_from_slice(&pulp::cast::<f32x16, [f32; 16]>(v));
+            }
+        }
+        #[inline(always)]
+        fn fma(self, a: f32x16, b: f32x16, c: f32x16) -> f32x16 {
+            self.mul_add_f32x16(a, b, c)
+        }
+        #[inline(always)]
+        fn act(self, act: Activation, v: f32x16) -> f32x16 {
+            match act {
+                Activation::Relu => self.max_f32x16(v, self.splat_f32x16(0.0)),
+                Activation::LeakyRelu => {
+                    self.max_f32x16(v, self.mul_f32x16(v, self.splat_f32x16(LEAKY_RELU_SLOPE)))
+                }
+                _ => v,
+            }
+        }
+    }
+}
+
+/// The product in register tiles of `J` outputs × `NV` vectors of lanes, with fused
+/// multiply-adds of the token `S`.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+struct Tiled<
+    'a,
+    S,
+    W: ?Sized,
+    const I: usize,
+    const O: usize,
+    const B: usize,
+    const J: usize,
+    const NV: usize,
+> {
+    s: S,
+    args: &'a Args<'a, W, I, B>,
+    y: &'a mut [[f32; B]; O],
+}
+
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+impl<
+        S: Fma,
+        W: Weights + ?Sized,
+        const I: usize,
+        const O: usize,
+        const B: usize,
+        const J: usize,
+        const NV: usize,
+    > pulp::NullaryFnOnce for Tiled<'_, S, W, I, O, B, J, NV>
+{
+    type Output = ();
+
+    #[inline(always)]
+    fn call(self) {
+        let Tiled { s, args, y } = self;
+        let full = O / J * J;
+        let mut j0 = 0;
+        while j0 < full {
+            block::<S, W, I, O, B, J, NV>(s, args, y, j0);
+            j0 += J;
+        }
+        // The last 1 ‥ J − 1 outputs, with a tile of their width.
+        match O - full {
+            1 => block::<S, W, I, O, B, 1, NV>(s, args, y, full),
+            2 => block::<S, W, I, O, B, 2, NV>(s, args, y, full),
+            3 => block::<S, W, I, O, B, 3, NV>(s, args, y, full),
+            4 => block::<S, W, I, O, B, 4, NV>(s, args, y, full),
+            5 => block::<S, W, I, O, B, 5, NV>(s, args, y, full),
+            6 => block::<S, W, I, O, B, 6, NV>(s, args, y, full),
+            7 => block::<S, W, I, O, B, 7, NV>(s, args, y, full),
+            _ => {}
+        }
+    }
+}
+
+/// Outputs `j0 .. j0 + J` of every tile of lanes up to `m`: tiles of `NV` vectors, then one
+/// vector at a time for what is left.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+#[inline(always)]
+fn block<
+    S: Fma,
+    W: Weights + ?Sized,
+    const I: usize,
+    const O: usize,
+    const B: usize,
+    const J: usize,
+    const NV: usize,
+>(
+    s: S,
+    a: &Args<'_, W, I, B>,
+    y: &mut [[f32; B]; O],
+    j0: usize,
+) {
+    let tile = a.tile::<O, J>(j0);
+    let bias = a.bias::<O, J>(j0);
+    let wide = NV * S::LANES;
+    let mut b0 = 0;
+    while b0 + wide <= B && b0 + wide - S::LANES < a.m {
+        micro::<S, W, I, O, B, J, NV>(s, a, &tile, &bias, y, j0, b0);
+        b0 += wide;
+    }
+    while b0 < a.m {
+        micro::<S, W, I, O, B, J, 1>(s, a, &tile, &bias, y, j0, b0);
+        b0 += S::LANES;
+    }
+}
+
+/// One register tile: outputs `j0 .. j0 + J`, lanes `b0 .. b0 + NV·LANES`.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+#[inline(always)]
+fn micro<
+    S: Fma,
+    W: Weights + ?Sized,
+    const I: usize,
+    const O: usize,
+    const B: usize,
+    const J: usize,
+    const NV: usize,
+>(
+    s: S,
+    a: &Args<'_, W, I, B>,
+    tile: &[[f32; J]; I],
+    bias: &[f32; J],
+    y: &mut [[f32; B]; O],
+    j0: usize,
+    b0: usize,
+) {
+    let l = S::LANES;
+    let mut acc = [[s.splat(0.0); NV]; J];
+    for t in 0..J {
+        for v in 0..NV {
+            acc[t][v] = match (a.start, y.get(j0 + t)) {
+                (Start::Output, Some(row)) => s.load(row, b0 + v * l),
+                _ => s.splat(bias[t]),
+            };
+        }
+    }
+    for i in 0..I {
+        let mut xv = [s.splat(0.0); NV];
+        for (v, e) in xv.iter_mut().enumerate() {
+            *e = s.load(&a.x[i], b0 + v * l);
+        }
+        for t in 0..J {
+            let wv = s.splat(tile[i][t]);
+            for v in 0..NV {
+                acc[t][v] = s.fma(xv[v], wv, acc[t][v]);
+            }
+        }
+    }
+    for t in 0..J {
+        if let Some(row) = y.get_mut(j0 + t) {
+            for v in 0..NV {
+                s.store(s.act(a.act, acc[t][v]), row, b0 + v * l);
+            }
         }
     }
 }

@@ -1,11 +1,14 @@
 //! [`V8`]: eight `f32` lanes with element-wise operations written as plain loops over a
-//! fixed array, which LLVM turns into one 256-bit operation under AVX2, two 128-bit ones
-//! under SSE2 or NEON, and scalar code elsewhere. Only separate multiplies and adds: no
-//! fused multiply-add, so every instruction set gives the same bits.
+//! fixed array, which LLVM turns into one 256-bit operation under AVX2 or AVX-512, two
+//! 128-bit ones under SSE2 or NEON, and scalar code elsewhere. Only separate multiplies and
+//! adds (no fused multiply-add): every instruction set gives the same bits here (the dense
+//! layers are where the paths differ). The transcendental functions are the fast
+//! approximations of `math::approx` (bounded error, not libm's bits).
 
 use core::ops::{Add, Mul};
 
 use crate::math;
+use crate::math::approx;
 use crate::math::lane::Lane;
 
 /// `[f(0), …, f(7)]` as a plain loop (`core::array::from_fn`'s machinery is not always
@@ -110,7 +113,9 @@ impl core::ops::Neg for V8 {
 
 impl Lane for V8 {
     type Mask = [bool; 8];
-    type Index = [u32; 8];
+    /// Indices as floats (small integers, exact): masks and selects on floats vectorise,
+    /// mixing them with integer lanes does not.
+    type Index = V8;
 
     #[inline(always)]
     fn splat(x: f32) -> V8 {
@@ -136,15 +141,18 @@ impl Lane for V8 {
     fn select(m: [bool; 8], a: V8, b: V8) -> V8 {
         V8(each(|l| if m[l] { a.0[l] } else { b.0[l] }))
     }
+    /// `max` then `min` (IEEE maxNum/minNum: a NaN operand gives the other one, so NaN →
+    /// `lo` as in [`math::clamp`]), which vectorises where the comparisons of
+    /// [`math::clamp`] stay scalar branches; the sign of a zero result may differ.
     #[inline(always)]
     fn clamp_to(self, lo: V8, hi: V8) -> V8 {
-        V8(each(|l| math::clamp(self.0[l], lo.0[l], hi.0[l])))
+        V8(each(|l| self.0[l].max(lo.0[l]).min(hi.0[l])))
     }
     #[inline(always)]
     fn exp_nonpositive(self) -> V8 {
         let mut r = self.0;
         for v in &mut r {
-            *v = math::exp_nonpositive(*v);
+            *v = approx::exp_nonpositive(*v);
         }
         V8(r)
     }
@@ -152,7 +160,7 @@ impl Lane for V8 {
     fn ln(self) -> V8 {
         let mut r = self.0;
         for v in &mut r {
-            *v = math::ln(*v);
+            *v = approx::ln(*v);
         }
         V8(r)
     }
@@ -160,7 +168,7 @@ impl Lane for V8 {
     fn softplus(self) -> V8 {
         let mut r = self.0;
         for v in &mut r {
-            *v = math::softplus(*v);
+            *v = approx::softplus(*v);
         }
         V8(r)
     }
@@ -173,25 +181,101 @@ impl Lane for V8 {
         V8(r)
     }
     #[inline(always)]
-    fn index(k: usize) -> [u32; 8] {
-        [k as u32; 8]
+    fn index(k: usize) -> V8 {
+        V8::splat(k as f32)
     }
     #[inline(always)]
-    fn select_index(m: [bool; 8], k: usize, i: [u32; 8]) -> [u32; 8] {
-        each(|l| if m[l] { k as u32 } else { i[l] })
+    fn select_index(m: [bool; 8], k: usize, i: V8) -> V8 {
+        <V8 as Lane>::select(m, V8::splat(k as f32), i)
+    }
+    /// A scan over the `K` entries with selects (no per-lane loads): the compares of one
+    /// index are shared by the gathers of several arrays once inlined.
+    #[inline(always)]
+    fn gather<const K: usize>(a: &[V8; K], i: V8, plus: usize, fallback: f32) -> V8 {
+        let mut r = V8::splat(fallback);
+        let mut j = plus;
+        while j < K {
+            let hit = each(|l| i.0[l] == (j - plus) as f32);
+            r = <V8 as Lane>::select(hit, a[j], r);
+            j += 1;
+        }
+        r
     }
     #[inline(always)]
-    fn gather<const K: usize>(a: &[V8; K], i: [u32; 8], plus: usize, fallback: f32) -> V8 {
-        V8(each(|l| match a.get(i[l] as usize + plus) {
-            Some(v) => v.0[l],
-            None => fallback,
-        }))
-    }
-    #[inline(always)]
-    fn interior<const K: usize>(i: [u32; 8], plus: usize) -> [bool; 8] {
+    fn interior<const K: usize>(i: V8, plus: usize) -> [bool; 8] {
         each(|l| {
-            let j = i[l] as usize + plus;
-            j > 0 && j < K
+            let j = i.0[l] + plus as f32;
+            j > 0.0 && j < K as f32
         })
+    }
+}
+
+/// [`nn::encode_scalar`](crate::nn::encode_scalar)`::<BANDS>` of every lane of `v`, written
+/// to rows `at .. at + 1 + 2·BANDS` of `out`: `v`, then `sin(2ᵏπv), cos(2ᵏπv)` from one
+/// [`approx::sin_cos_pi`] and the double-angle recurrences, over all `C` lanes at once.
+#[inline(always)]
+pub(crate) fn encode_rows<const BANDS: usize, const N: usize, const C: usize>(
+    v: &[f32; C],
+    out: &mut [[f32; C]; N],
+    at: usize,
+) {
+    let mut s = [0.0f32; C];
+    let mut c = [0.0f32; C];
+    for l in 0..C {
+        (s[l], c[l]) = approx::sin_cos_pi(v[l]);
+    }
+    if let Some(row) = out.get_mut(at) {
+        *row = *v;
+    }
+    for k in 0..BANDS {
+        if let Some(row) = out.get_mut(at + 1 + 2 * k) {
+            *row = s;
+        }
+        if let Some(row) = out.get_mut(at + 2 + 2 * k) {
+            *row = c;
+        }
+        for l in 0..C {
+            let (a, b) = (s[l], c[l]);
+            s[l] = 2.0 * a * b;
+            c[l] = b * b - a * a;
+        }
+    }
+}
+
+/// [`gaussian::box_muller`](crate::distrib::gaussian::box_muller) of every lane
+/// (`u ∈ [0, 1)²`): `r = √(−2 ln(1 − u0))`, `θ = 2π u1`, with the fast approximations.
+#[inline(always)]
+pub(crate) fn box_muller_rows<const C: usize>(
+    u0: &[f32; C],
+    u1: &[f32; C],
+    nx: &mut [f32; C],
+    ny: &mut [f32; C],
+) {
+    for l in 0..C {
+        let r = math::safe_sqrt(-2.0 * approx::ln_1p(-u0[l]));
+        let (s, c) = approx::sin_cos_pi(2.0 * u1[l]);
+        nx[l] = r * c;
+        ny[l] = r * s;
+    }
+}
+
+/// `exp(log_pdf)` as a density (the batched path's
+/// [`density_from_log`](crate::samplers::coupling::density_from_log)): 0 for −∞, NaN or an
+/// overflow.
+#[inline(always)]
+pub(crate) fn density_from_log(log_pdf: f32) -> f32 {
+    let p = approx::exp(log_pdf);
+    if p > 0.0 && p < f32::INFINITY {
+        p
+    } else {
+        0.0
+    }
+}
+
+/// [`density_from_log`] of every lane, in place.
+#[inline(always)]
+pub(crate) fn densities_from_log<const C: usize>(log_pdf: &mut [f32; C]) {
+    for v in log_pdf.iter_mut() {
+        *v = density_from_log(*v);
     }
 }

@@ -216,14 +216,22 @@ fn conditions<const N: usize, const B: usize>(
     (c, valid)
 }
 
-/// The encoded conditions ([`crate::nn::encode_condition`]) of a chunk's lanes and which
-/// lanes are usable; refused lanes are zeros.
+/// The encoded conditions ([`crate::nn::encode_condition`], the sinusoids by the batched
+/// path's fast `sin`/`cos` over all lanes at once) of a chunk's lanes and which lanes are
+/// usable; refused lanes hold the encoding of `φ = 0, wi = (0, 0)`.
 #[inline(always)]
 pub(crate) fn encoded_conditions<const B: usize>(
     phi: &Features<'_>,
     wi: &Vec3s<'_>,
 ) -> (Soa<{ crate::nn::CONDITION_DIM }, B>, [bool; B]) {
-    conditions(phi, wi, crate::nn::encode_condition)
+    use crate::nn::{encoding_len, CONDITION_BANDS, CONDITION_DIM, FEATURE_DIM};
+    let (raw, valid) = raw_conditions::<B>(phi, wi);
+    let mut c = [[0.0f32; B]; CONDITION_DIM];
+    c[..FEATURE_DIM].copy_from_slice(&raw[..FEATURE_DIM]);
+    let at = FEATURE_DIM + encoding_len(CONDITION_BANDS);
+    lanes::encode_rows::<CONDITION_BANDS, CONDITION_DIM, B>(&raw[FEATURE_DIM], &mut c, FEATURE_DIM);
+    lanes::encode_rows::<CONDITION_BANDS, CONDITION_DIM, B>(&raw[FEATURE_DIM + 1], &mut c, at);
+    (c, valid)
 }
 
 /// The raw conditions ([`crate::nn::raw_condition`]) of a chunk's lanes and which lanes are

@@ -2,11 +2,13 @@
 //!
 //! The kernels are plain Rust over small fixed arrays ([`super::lanes::V8`]) that LLVM turns
 //! into SIMD instructions. [`dispatch`] runs a kernel inside a function compiled for the
-//! best instruction set the CPU reports (AVX2 + FMA on x86-64, through `pulp`'s safe
-//! run-time detection), or as compiled for the build's target (the portable path: SSE2 on
-//! x86-64, NEON on aarch64, simd128 where the build enables it, scalar elsewhere). The
-//! kernels never use fused multiply-adds, so every path gives the same numbers bit for bit
-//! (tested). This is the only module that names `pulp`.
+//! best instruction set the CPU reports (on x86-64, through `pulp`'s safe run-time
+//! detection: AVX-512 (x86-64-v4), else AVX2 + FMA (x86-64-v3)), or as compiled for the
+//! build's target (the portable path: SSE2 on x86-64, NEON on aarch64, simd128 where the
+//! build enables it, scalar elsewhere). The dense layers ([`super::dense`]) use fused
+//! multiply-adds on the x86-64 paths and separate ones on the portable path, so the paths
+//! agree within a tolerance, not bit for bit (`wavefront` documents it); each path is
+//! deterministic. This module and [`super::dense`] are the only ones that name `pulp`.
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
@@ -18,16 +20,27 @@ pub enum Isa {
     Portable,
     /// x86-64-v3: AVX2, FMA, BMI (chosen at run time).
     X86V3,
+    /// x86-64-v4: AVX-512 F/BW/CD/DQ/VL on top of x86-64-v3 (chosen at run time).
+    X86V4,
 }
 
 impl Isa {
-    /// Its short name (`portable`, `x86-64-v3`).
+    /// Its short name (`portable`, `x86-64-v3`, `x86-64-v4`).
     #[must_use]
     pub const fn name(self) -> &'static str {
         match self {
             Isa::Portable => "portable",
             Isa::X86V3 => "x86-64-v3",
+            Isa::X86V4 => "x86-64-v4",
         }
+    }
+
+    /// Every instruction set, from the portable path up.
+    pub const ALL: [Isa; 3] = [Isa::Portable, Isa::X86V3, Isa::X86V4];
+
+    /// Its place in [`Isa::ALL`] (a later one includes the earlier ones).
+    const fn rank(self) -> u8 {
+        self as u8
     }
 }
 
@@ -41,8 +54,13 @@ static PREFERRED: AtomicU8 = AtomicU8::new(AUTO);
 #[must_use]
 pub fn detected() -> Isa {
     #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
-    if pulp::x86::V3::is_available() {
-        return Isa::X86V3;
+    {
+        if pulp::x86::V4::is_available() {
+            return Isa::X86V4;
+        }
+        if pulp::x86::V3::is_available() {
+            return Isa::X86V3;
+        }
     }
     Isa::Portable
 }
@@ -66,8 +84,9 @@ pub fn prefer(isa: Option<Isa>) -> Isa {
 #[must_use]
 pub fn current() -> Isa {
     let best = detected();
-    match PREFERRED.load(Ordering::Relaxed) {
-        x if x == Isa::Portable as u8 => Isa::Portable,
+    let p = PREFERRED.load(Ordering::Relaxed);
+    match Isa::ALL.iter().find(|i| i.rank() == p) {
+        Some(&i) if i.rank() < best.rank() => i,
         _ => best,
     }
 }
@@ -99,10 +118,18 @@ impl<K: Kernel> pulp::NullaryFnOnce for Job<K> {
 #[inline(always)]
 pub(crate) fn dispatch<K: Kernel>(k: K) -> K::Output {
     #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
-    if current() == Isa::X86V3 {
-        if let Some(v3) = pulp::x86::V3::try_new() {
-            return v3.vectorize(Job(k));
+    match current() {
+        Isa::X86V4 => {
+            if let Some(v4) = pulp::x86::V4::try_new() {
+                return v4.vectorize(Job(k));
+            }
         }
+        Isa::X86V3 => {
+            if let Some(v3) = pulp::x86::V3::try_new() {
+                return v3.vectorize(Job(k));
+            }
+        }
+        Isa::Portable => {}
     }
     k.run()
 }

@@ -1,8 +1,9 @@
 //! [`Lane`]: the arithmetic that the per-point math shared by the scalar and the batched
-//! paths is written in. `f32` is one point (the scalar API, GPU shaders); the batched path
-//! implements it for eight points at once (`batch::lanes::V8`), element by element with
-//! the scalar operations, so one definition of the math gives the same bits on both paths
-//! and vectorises across points.
+//! paths is written in. `f32` is one point (the scalar API, GPU shaders: libm's functions);
+//! the batched path implements it for eight points at once (`batch::lanes::V8`), element by
+//! element with the scalar arithmetic and the fast approximations of `math::approx` for
+//! the transcendental functions, so one definition of the math serves both paths (agreeing
+//! within those functions' error bounds) and vectorises across points.
 
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -36,11 +37,11 @@ pub(crate) trait Lane:
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
     /// [`clamp`] per element with lane bounds.
     fn clamp_to(self, lo: Self, hi: Self) -> Self;
-    /// [`exp_nonpositive`] per element.
+    /// [`exp_nonpositive`] per element (within 2 ulp for lanes).
     fn exp_nonpositive(self) -> Self;
-    /// [`ln`] per element.
+    /// [`ln`] per element (within 2 ulp for lanes).
     fn ln(self) -> Self;
-    /// [`softplus`] per element.
+    /// [`softplus`] per element (within 4 ulp for lanes).
     fn softplus(self) -> Self;
     /// [`safe_sqrt`] per element.
     fn safe_sqrt(self) -> Self;

@@ -11,6 +11,9 @@
 //! vectorises and a batched path gives exactly the scalar path's numbers. Elsewhere they call
 //! libm: the same numbers in less code.
 
+// The batched path's fast approximations (not on GPUs, which have no batched path).
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) mod approx;
 mod branch_free;
 pub(crate) mod lane;
 

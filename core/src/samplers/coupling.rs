@@ -15,6 +15,12 @@ pub const OTHER_DIM: usize = encoding_len(OTHER_BANDS);
 pub const COUPLING_INPUTS: usize = CONDITION_DIM + OTHER_DIM;
 /// Width of every hidden layer of the flows' networks.
 pub const HIDDEN: usize = 32;
+/// Offset of a spline coupling network's `dense(39, 32)`, relative to the network.
+pub(crate) const COUPLING_L0: usize = 0;
+/// Offset of a spline coupling network's `dense(32, 32)`, relative to the network.
+pub(crate) const COUPLING_L1: usize = COUPLING_L0 + nn::dense_len(COUPLING_INPUTS, HIDDEN);
+/// Offset of a spline coupling network's output layer, relative to the network.
+pub(crate) const COUPLING_L2: usize = COUPLING_L1 + nn::dense_len(HIDDEN, HIDDEN);
 
 /// `enc4(v)`: the 9-value sinusoidal encoding of the coordinate a coupling is conditioned on.
 #[inline(always)]
@@ -75,4 +81,47 @@ pub(crate) fn density_from_log(log_pdf: f32) -> f32 {
     } else {
         0.0
     }
+}
+
+/// A coupling network (`dense(39, 32)` LeakyReLU, `dense(32, 32)` LeakyReLU,
+/// `dense(32, RAW)` at `offset`) over the first `m` lanes of a chunk, given each lane's
+/// condition share and other coordinate `v`: the raw spline parameters `raw[·][lane]`. Both
+/// flows' batched kernels run their couplings through it. The encoding of `v` runs over the
+/// lanes with the batched path's fast `sin`/`cos`.
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+pub(crate) fn coupling_raw_chunk<W: Weights, const RAW: usize, const CHUNK: usize>(
+    w: &W,
+    offset: u32,
+    share: &[[f32; HIDDEN]; CHUNK],
+    v: &[f32; CHUNK],
+    m: usize,
+    raw: &mut crate::batch::Soa<RAW, CHUNK>,
+) {
+    use crate::batch::{dense, lanes};
+    use crate::nn::Activation;
+    let mut h = [[0.0f32; CHUNK]; HIDDEN];
+    for (l, s) in share.iter().enumerate().take(m) {
+        for (j, x) in s.iter().enumerate() {
+            h[j][l] = *x;
+        }
+    }
+    let mut e = [[0.0f32; CHUNK]; OTHER_DIM];
+    lanes::encode_rows::<OTHER_BANDS, OTHER_DIM, CHUNK>(v, &mut e, 0);
+    let l0 = offset + COUPLING_L0 as u32;
+    let leaky = Activation::LeakyRelu;
+    dense::accumulate_act::<W, OTHER_DIM, HIDDEN, CHUNK>(
+        w,
+        l0,
+        CONDITION_DIM as u32,
+        &e,
+        &mut h,
+        m,
+        leaky,
+    );
+    let mut h2 = [[0.0f32; CHUNK]; HIDDEN];
+    let l1 = offset + COUPLING_L1 as u32;
+    dense::dense::<W, HIDDEN, HIDDEN, CHUNK>(w, l1, &h, leaky, &mut h2, m);
+    let l2 = offset + COUPLING_L2 as u32;
+    dense::dense::<W, HIDDEN, RAW, CHUNK>(w, l2, &h2, Activation::Identity, raw, m);
 }

@@ -1,7 +1,8 @@
-//! The wavefront integrator against the scalar one: the same image, variance, checkpoints and
-//! mask bit for bit, on the committed fixture samplers and neural material, with and without
-//! MIS, jitter and global illumination, with tiles that do not divide the image, and with
-//! two surfaces in one scene; and independent of the number of threads.
+//! The wavefront integrator against the scalar one: the same mask and the same image,
+//! variance and checkpoints within the batched runtime's tolerances, on the committed fixture
+//! samplers and neural material, with and without MIS, jitter and global illumination, with
+//! tiles that do not divide the image, and with two surfaces in one scene; and bit for bit
+//! independent of the number of threads.
 
 use std::path::{Path, PathBuf};
 
@@ -39,23 +40,73 @@ fn sampler_blobs() -> Vec<(String, Vec<u8>)> {
         .collect()
 }
 
-fn bits(r: &Render) -> Vec<u32> {
+fn values(r: &Render) -> Vec<f32> {
     let mut v = Vec::new();
     for img in [&r.image, &r.variance]
         .into_iter()
         .chain(r.checkpoints.iter().map(|(_, i)| i))
     {
-        v.extend(img.data.iter().flat_map(|c| c.map(f32::to_bits)));
+        v.extend(img.data.iter().flat_map(|c| *c));
     }
-    v.extend(r.mask.iter().map(|&b| u32::from(b)));
     v
 }
 
+/// The two renders bit for bit (the same integrator and instruction set).
+fn assert_identical(a: &Render, b: &Render, what: &str) {
+    assert_eq!(a.mask, b.mask, "{what}: hit masks differ");
+    let (x, y) = (values(a), values(b));
+    let differ = x
+        .iter()
+        .zip(&y)
+        .filter(|(p, q)| p.to_bits() != q.to_bits())
+        .count();
+    assert_eq!(differ, 0, "{what}: {differ} of {} values differ", x.len());
+}
+
+/// Values (image, variance, checkpoints) that may differ from the other integrator's by more
+/// than [`VALUE_RTOL`], as a fraction: a path whose direction moved by the batched path's
+/// rounding can hit another surface after a bounce (measured: at most 1 % with global
+/// illumination, none in direct lighting).
+const FAR_FRACTION: f64 = 0.02;
+/// Relative tolerance per value (measured in direct lighting: at most 4.9e-4).
+const VALUE_RTOL: f64 = 1e-3;
+/// Relative tolerance on the mean of the image (measured: at most 6e-6).
+const MEAN_RTOL: f64 = 1e-4;
+
+/// The wavefront render against the scalar one: the same pixels hit, every value within
+/// [`VALUE_RTOL`] but for [`FAR_FRACTION`] of them, the mean image within [`MEAN_RTOL`].
+/// The batched runtime agrees with the scalar one within its tolerances (fused multiply-adds
+/// in the networks), not bit for bit.
 fn assert_same(a: &Render, b: &Render, what: &str) {
     assert_eq!(a.checkpoints.len(), b.checkpoints.len(), "{what}");
-    let (x, y) = (bits(a), bits(b));
-    let differ = x.iter().zip(&y).filter(|(p, q)| p != q).count();
-    assert_eq!(differ, 0, "{what}: {differ} of {} values differ", x.len());
+    assert_eq!(a.mask, b.mask, "{what}: hit masks differ");
+    let (x, y) = (values(a), values(b));
+    let far = x
+        .iter()
+        .zip(&y)
+        .filter(|(p, q)| {
+            let (p, q) = (f64::from(**p), f64::from(**q));
+            (p - q).abs() > VALUE_RTOL * p.abs().max(q.abs())
+        })
+        .count();
+    assert!(
+        far as f64 <= FAR_FRACTION * x.len() as f64,
+        "{what}: {far} of {} values differ by more than {VALUE_RTOL:e}",
+        x.len()
+    );
+    let mean = |r: &Render| {
+        r.image
+            .data
+            .iter()
+            .flat_map(|c| *c)
+            .map(f64::from)
+            .sum::<f64>()
+    };
+    let (ma, mb) = (mean(a), mean(b));
+    assert!(
+        (ma - mb).abs() <= MEAN_RTOL * ma.abs().max(mb.abs()),
+        "{what}: mean images differ: {ma} vs {mb}"
+    );
 }
 
 /// The option sets compared: the paper's mode, MIS with jitter, and three-bounce global
@@ -140,5 +191,5 @@ fn wavefront_is_independent_of_the_thread_count() {
             .unwrap()
             .install(|| render_wavefront(&scene, &surfaces, &o))
     };
-    assert_same(&run(1), &run(3), "1 vs 3 threads");
+    assert_identical(&run(1), &run(3), "1 vs 3 threads");
 }

@@ -8,13 +8,14 @@ use super::{
     AFFINE_NET_L1, AFFINE_NET_L2, AFFINE_NET_LEN, AFFINE_OUTPUTS,
 };
 use crate::batch::chunked::ChunkedSampler;
+use crate::batch::lanes;
+use crate::batch::lanes::density_from_log;
 use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::gaussian;
 use crate::math;
+use crate::math::approx;
 use crate::nn::{Activation, CONDITION_DIM};
-use crate::samplers::coupling::{
-    density_from_log, encode_other, COUPLING_INPUTS, HIDDEN, OTHER_DIM,
-};
+use crate::samplers::coupling::{COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
@@ -43,28 +44,27 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         let w = &self.params;
         let off = (l * AFFINE_NET_LEN) as u32;
         let mut h: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
-        let mut e: Soa<OTHER_DIM> = [[0.0; CHUNK]; OTHER_DIM];
+        let mut vv = [0.0f32; CHUNK];
         for k in 0..m {
             if let Some(s) = &lanes[idx[k]] {
                 for j in 0..HIDDEN {
                     h[j][k] = s.share[l][j];
                 }
             }
-            let enc = encode_other(v[idx[k]]);
-            for (j, x) in enc.iter().enumerate() {
-                e[j][k] = *x;
-            }
+            vv[k] = v[idx[k]];
         }
+        let mut e: Soa<OTHER_DIM> = [[0.0; CHUNK]; OTHER_DIM];
+        lanes::encode_rows::<OTHER_BANDS, OTHER_DIM, CHUNK>(&vv, &mut e, 0);
         let l0 = off + AFFINE_NET_L0 as u32;
-        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(
+        dense::accumulate_act::<W, OTHER_DIM, HIDDEN, CHUNK>(
             w,
             l0,
             CONDITION_DIM as u32,
             &e,
             &mut h,
             m,
+            Activation::Relu,
         );
-        dense::activate(Activation::Relu, &mut h, m);
         let mut g: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
         dense::dense(
             w,
@@ -127,7 +127,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         let m = lanes.len();
         for i in 0..m {
             let (s0, t0) = st0[i];
-            zl[i] = Vec2::new(p[i].x * math::exp(s0) + t0, p[i].y);
+            zl[i] = Vec2::new(p[i].x * approx::exp(s0) + t0, p[i].y);
             ld[i] = s0;
         }
         let mut st = [(0.0f32, 0.0f32); CHUNK];
@@ -153,9 +153,9 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
             for i in 0..m {
                 let (s, t) = st[i];
                 if l % 2 == 0 {
-                    zl[i].x = zl[i].x * math::exp(s) + t;
+                    zl[i].x = zl[i].x * approx::exp(s) + t;
                 } else {
-                    zl[i].y = zl[i].y * math::exp(s) + t;
+                    zl[i].y = zl[i].y * approx::exp(s) + t;
                 }
                 ld[i] += s;
             }
@@ -167,11 +167,19 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         let m = lanes.len();
         let all = batch::identity_index::<CHUNK>();
         let mut ok = [false; CHUNK];
-        let mut xy = [Vec2::ZERO; CHUNK];
+        let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         for i in 0..m {
             if let (Some(_), Some(uu)) = (&lanes[i], math::sanitize_u2(u.at(i))) {
-                xy[i] = gaussian::box_muller(uu);
+                (u0[i], u1[i]) = (uu.x, uu.y);
                 ok[i] = true;
+            }
+        }
+        let (mut nx, mut ny) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
+        lanes::box_muller_rows(&u0, &u1, &mut nx, &mut ny);
+        let mut xy = [Vec2::ZERO; CHUNK];
+        for i in 0..m {
+            if ok[i] {
+                xy[i] = Vec2::new(nx[i], ny[i]);
             }
         }
         // Sampling direction (`point_and_layer0`): layers 3‥1, then layer 0 at the final y.
@@ -187,9 +195,9 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
                 let (s, t) = st[i];
                 seen[l][i] = (v[i], s, t);
                 if l % 2 == 0 {
-                    xy[i].x = (xy[i].x - t) * math::exp(-s);
+                    xy[i].x = (xy[i].x - t) * approx::exp(-s);
                 } else {
-                    xy[i].y = (xy[i].y - t) * math::exp(-s);
+                    xy[i].y = (xy[i].y - t) * approx::exp(-s);
                 }
             }
         }
@@ -200,7 +208,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         self.scale_shift_for(0, lanes, &all, m, &v, &mut st0);
         for i in 0..m {
             let (s0, t0) = st0[i];
-            xy[i].x = (xy[i].x - t0) * math::exp(-s0);
+            xy[i].x = (xy[i].x - t0) * approx::exp(-s0);
             ok[i] = ok[i] && inside_disk(xy[i]);
         }
         let mut zl = [Vec2::ZERO; CHUNK];

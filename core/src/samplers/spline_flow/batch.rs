@@ -1,24 +1,21 @@
 //! [`FlowSampler`] over wavefronts ([`BatchSampler`]). Lanes run in chunks of [`CHUNK`]: the
 //! networks as matrix products over the chunk's lanes ([`dense`]), the splines, Box–Muller and
-//! the densities per lane through the scalar path's own functions, so both paths give the
-//! same bits.
+//! the densities per lane through the scalar path's own functions (the paths agree within
+//! the `wavefront` tolerances).
 
 use glam::Vec2;
 
 use super::{
     FlowLane, FlowSampler, BASE_OUTPUTS, FLOW_BASE_L0, FLOW_BASE_L1, FLOW_COUPLING0,
-    FLOW_COUPLING1, SPLINE_BINS, SPLINE_NET_L0, SPLINE_NET_L1, SPLINE_NET_L2, SPLINE_RAW_LEN,
-    TAIL_BOUND,
+    FLOW_COUPLING1, SPLINE_BINS, SPLINE_RAW_LEN, TAIL_BOUND,
 };
 use crate::batch::chunked::ChunkedSampler;
-use crate::batch::lanes::V8;
+use crate::batch::lanes::{self, V8};
 use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
-use crate::samplers::coupling::{
-    density_from_log, encode_other, COUPLING_INPUTS, HIDDEN, OTHER_DIM,
-};
+use crate::samplers::coupling::{coupling_raw_chunk, COUPLING_INPUTS, HIDDEN};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
@@ -31,49 +28,58 @@ const GROUPS: usize = CHUNK / 8;
 /// Activations of a chunk: `[feature][lane]`.
 type Soa<const N: usize> = batch::Soa<N, CHUNK>;
 
-impl<W: Weights + Copy> FlowSampler<W> {
-    /// The raw spline parameters of coupling network `net` (at `FLOW_COUPLING0/1`) for the
-    /// first `m` lanes, given each lane's condition share and other coordinate `v`:
-    /// `spline_knots`'s network, lane by lane in `raw[·][lane]`.
+/// The base Gaussians of a chunk's lanes, as rows (refused lanes: `μ = 0`, `σ = 1`).
+struct Base {
+    mx: [f32; CHUNK],
+    my: [f32; CHUNK],
+    sx: [f32; CHUNK],
+    sy: [f32; CHUNK],
+    ln_sigma: [f32; CHUNK],
+}
+
+impl Base {
     #[inline(always)]
-    fn coupling_raw(
-        &self,
-        net: usize,
-        share: &[[f32; HIDDEN]; CHUNK],
-        v: &[f32; CHUNK],
-        m: usize,
-        raw: &mut Soa<SPLINE_RAW_LEN>,
-    ) {
-        let w = &self.params;
-        let off = net as u32;
-        let mut h: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
-        let mut e: Soa<OTHER_DIM> = [[0.0; CHUNK]; OTHER_DIM];
-        for l in 0..m {
-            for j in 0..HIDDEN {
-                h[j][l] = share[l][j];
-            }
-            let enc = encode_other(v[l]);
-            for k in 0..OTHER_DIM {
-                e[k][l] = enc[k];
+    fn of(lanes: &[Option<FlowLane>]) -> Base {
+        let mut b = Base {
+            mx: [0.0; CHUNK],
+            my: [0.0; CHUNK],
+            sx: [1.0; CHUNK],
+            sy: [1.0; CHUNK],
+            ln_sigma: [0.0; CHUNK],
+        };
+        for (l, s) in lanes.iter().enumerate().take(CHUNK) {
+            if let Some(s) = s {
+                (b.mx[l], b.my[l]) = (s.mu.x, s.mu.y);
+                (b.sx[l], b.sy[l]) = (s.sigma.x, s.sigma.y);
+                b.ln_sigma[l] = s.ln_sigma;
             }
         }
-        let l0 = off + SPLINE_NET_L0 as u32;
-        dense::accumulate::<W, OTHER_DIM, HIDDEN, CHUNK>(
-            w,
-            l0,
-            CONDITION_DIM as u32,
-            &e,
-            &mut h,
-            m,
-        );
-        dense::activate(Activation::LeakyRelu, &mut h, m);
-        let mut h2: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
-        let l1 = off + SPLINE_NET_L1 as u32;
-        dense::dense::<W, HIDDEN, HIDDEN, CHUNK>(w, l1, &h, Activation::LeakyRelu, &mut h2, m);
-        let l2 = off + SPLINE_NET_L2 as u32;
-        dense::dense::<W, HIDDEN, SPLINE_RAW_LEN, CHUNK>(w, l2, &h2, Activation::Identity, raw, m);
+        b
     }
 
+    /// `FlowLane::log_density` of the latent points `(x, y)` with log-dets `ld0 + ld1`, for
+    /// every lane (NaN → −∞).
+    #[inline(always)]
+    fn log_densities(
+        &self,
+        x: &[f32; CHUNK],
+        y: &[f32; CHUNK],
+        ld0: &[f32; CHUNK],
+        ld1: &[f32; CHUNK],
+    ) -> [f32; CHUNK] {
+        let mut out = [0.0f32; CHUNK];
+        for l in 0..CHUNK {
+            let dx = (x[l] - self.mx[l]) / self.sx[l];
+            let dy = (y[l] - self.my[l]) / self.sy[l];
+            let v =
+                -0.5 * (dx * dx + dy * dy) - math::LN_TWO_PI - self.ln_sigma[l] + (ld0[l] + ld1[l]);
+            out[l] = if v.is_nan() { f32::NEG_INFINITY } else { v };
+        }
+        out
+    }
+}
+
+impl<W: Weights + Copy> FlowSampler<W> {
     /// The splines of coupling network `net` for the lanes `idx[..m]` of a chunk, each at its
     /// own other coordinate `v[lane]`: group `g` holds the splines of `idx[8g .. 8g + 8]`.
     #[inline(always)]
@@ -96,7 +102,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
             vv[k] = v[idx[k]];
         }
         let mut raw: Soa<SPLINE_RAW_LEN> = [[0.0; CHUNK]; SPLINE_RAW_LEN];
-        self.coupling_raw(net, &share, &vv, m, &mut raw);
+        coupling_raw_chunk(&self.params, net as u32, &share, &vv, m, &mut raw);
         for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
             let mut r = [V8::splat(0.0); SPLINE_RAW_LEN];
             for (rj, row) in r.iter_mut().zip(raw.iter()) {
@@ -155,16 +161,29 @@ impl<W: Weights + Copy> FlowSampler<W> {
         let m = lanes.len();
         let groups = m.div_ceil(8);
         let all = batch::identity_index::<CHUNK>();
-        // Base points (refused lanes keep z = 0 and are dropped at the end).
-        let mut zx = [0.0f32; CHUNK];
-        let mut zy = [0.0f32; CHUNK];
+        // Base points z = μ + σ ⊙ n (refused lanes keep z = 0 and are dropped at the end).
+        let base = Base::of(lanes);
+        let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         let mut ok = [false; CHUNK];
         for l in 0..m {
-            if let (Some(s), Some(uu)) = (&lanes[l], math::sanitize_u2(u.at(l))) {
-                let z = s.base_point(uu);
-                (zx[l], zy[l]) = (z.x, z.y);
+            if let (Some(_), Some(uu)) = (&lanes[l], math::sanitize_u2(u.at(l))) {
+                (u0[l], u1[l]) = (uu.x, uu.y);
                 ok[l] = true;
             }
+        }
+        let (mut zx, mut zy) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
+        lanes::box_muller_rows(&u0, &u1, &mut zx, &mut zy);
+        for l in 0..CHUNK {
+            zx[l] = if ok[l] {
+                base.mx[l] + base.sx[l] * zx[l]
+            } else {
+                0.0
+            };
+            zy[l] = if ok[l] {
+                base.my[l] + base.sy[l] * zy[l]
+            } else {
+                0.0
+            };
         }
         // Sampling direction: x = RQ⁻¹(z.x; coupling0(z.y)), y = RQ⁻¹(z.y; coupling1(x)).
         let mut k0 = [Knots::<SPLINE_BINS, V8>::zeroed(); GROUPS];
@@ -222,13 +241,13 @@ impl<W: Weights + Copy> FlowSampler<W> {
                 }
             }
         }
+        let mut p = base.log_densities(&xl, &yl, &ld0, &ld1);
+        lanes::densities_from_log(&mut p);
         for l in 0..m {
-            let s = match (&lanes[l], ok[l]) {
-                (Some(st), true) => {
-                    let log_p = st.log_density(Vec2::new(xl[l], yl[l]), ld0[l] + ld1[l]);
-                    Sample::from_disk(Vec2::new(px[l], py[l]), density_from_log(log_p))
-                }
-                _ => None,
+            let s = if ok[l] {
+                Sample::from_disk(Vec2::new(px[l], py[l]), p[l])
+            } else {
+                None
             };
             out.set(l, s);
         }
@@ -286,13 +305,17 @@ impl<W: Weights + Copy> FlowSampler<W> {
         let mut zl = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
         self.latent_chunk(lanes, &px, &py, &mut zl, &mut ld);
+        let (mut xl, mut yl) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         for l in 0..m {
-            pdf[l] = match (&lanes[l], ok[l]) {
-                (Some(st), true) => warp::disk_to_solid_angle(
-                    density_from_log(st.log_density(zl[l], ld[l])),
-                    cos[l],
-                ),
-                _ => 0.0,
+            (xl[l], yl[l]) = (zl[l].x, zl[l].y);
+        }
+        let mut p = Base::of(lanes).log_densities(&xl, &yl, &ld, &[0.0; CHUNK]);
+        lanes::densities_from_log(&mut p);
+        for l in 0..m {
+            pdf[l] = if ok[l] {
+                warp::disk_to_solid_angle(p[l], cos[l])
+            } else {
+                0.0
             };
         }
     }
