@@ -28,16 +28,20 @@ pub enum SamplerKind {
     /// Reparameterization sampler (Wu et al. 2025): an MLP warp of a Gaussian with its exact
     /// Jacobian weight, and a pdf network for MIS ([`crate::samplers::reparam`]).
     Reparam,
+    /// Disk flow: the paper's spline couplings on a uniform base with every mass inside the
+    /// disk (`core/ARCHITECTURES.md` §9).
+    DiskFlow,
 }
 
 impl SamplerKind {
     /// Every sampler kind, in a stable order ([`SamplerKind::NeuralMaterial`], which is not a
     /// sampler, is not listed).
-    pub const ALL: [SamplerKind; 8] = [
+    pub const ALL: [SamplerKind; 9] = [
         SamplerKind::Cosine,
         SamplerKind::ImprovedBaseline,
         SamplerKind::AnalyticMixture,
         SamplerKind::Flow,
+        SamplerKind::DiskFlow,
         SamplerKind::AffineFlow,
         SamplerKind::DirectHistogram,
         SamplerKind::HistogramMixture,
@@ -52,6 +56,7 @@ impl SamplerKind {
             SamplerKind::ImprovedBaseline => "baseline",
             SamplerKind::AnalyticMixture => "analytic",
             SamplerKind::Flow => "flow",
+            SamplerKind::DiskFlow => "disk-flow",
             SamplerKind::AffineFlow => "affine-flow",
             SamplerKind::DirectHistogram => "direct-histogram",
             SamplerKind::HistogramMixture => "histogram-mixture",

@@ -97,9 +97,10 @@ pub use nn::FEATURE_DIM;
 pub use samplers::{
     AffineFlowPrepared, AffineFlowSampler, AnalyticMixturePrepared, AnalyticMixtureSampler,
     AnyPrepared, AnySampler, BlobSampler, CosinePrepared, CosineSampler, Defensive,
-    DefensivePrepared, DirectHistogramPrepared, DirectHistogramSampler, FlowPrepared, FlowSampler,
-    HistogramMixturePrepared, HistogramMixtureSampler, ImprovedBaselinePrepared,
-    ImprovedBaselineSampler, Prepared, ReparamPrepared, ReparamSampler, Sample, Sampler,
+    DefensivePrepared, DirectHistogramPrepared, DirectHistogramSampler, DiskFlowPrepared,
+    DiskFlowSampler, FlowPrepared, FlowSampler, HistogramMixturePrepared, HistogramMixtureSampler,
+    ImprovedBaselinePrepared, ImprovedBaselineSampler, Prepared, ReparamPrepared, ReparamSampler,
+    Sample, Sampler,
 };
 pub use warp::Frame;
 pub use weights::{Tensor, Weights};

@@ -1,10 +1,11 @@
-//! The flow samplers (`neusample::samplers::{spline_flow, affine_flow}`): agreement with an independent f64 transcription
-//! of `core/ARCHITECTURES.md` §3–4, sample/pdf/invert consistency, normalisation, χ²
-//! goodness of fit, and totality on hostile input. Weights are random (seeded), scaled so
+//! The flow samplers (`neusample::samplers::{spline_flow, affine_flow, disk_flow}`):
+//! agreement with an independent f64 transcription of `core/ARCHITECTURES.md` §3–4 and §8,
+//! sample/pdf/invert consistency, normalisation, χ² goodness of fit, and totality on hostile
+//! input. Weights are random (seeded), scaled so
 //! that the densities are far from uniform.
 
-use neusample::samplers::{affine_flow, spline_flow as flow};
-use neusample::{AffineFlowSampler, FlowSampler, FEATURE_DIM};
+use neusample::samplers::{affine_flow, disk_flow, spline_flow as flow};
+use neusample::{AffineFlowSampler, DiskFlowSampler, FlowSampler, FEATURE_DIM};
 use neusample::{DType, Prepared, Sampler, Tensor, Vec2, Vec3};
 use neusample_host_tests::{bonferroni, chi2_test, disk_integral, full_tests, rng, TestRng};
 use rand::RngExt;
@@ -76,6 +77,27 @@ fn affine_params(seed: u64) -> Vec<f32> {
         scale_layer(&mut p, off, flow::HIDDEN, affine_flow::AFFINE_OUTPUTS, 0.1);
         p[off + flow::HIDDEN * affine_flow::AFFINE_OUTPUTS] += 0.35;
         soften_other_coordinate(&mut p, l * affine_flow::AFFINE_NET_LEN);
+    }
+    p
+}
+
+/// A disk flow with N(0, 0.3²) weights, output layers scaled so that the raw spline outputs
+/// are of order 1 (the same treatment as [`spline_params`]).
+fn disk_params(seed: u64) -> Vec<f32> {
+    let mut r = rng(seed);
+    let mut p = random_params(&mut r, disk_flow::DISK_FLOW_PARAM_COUNT, 0.3);
+    for net in [
+        disk_flow::DISK_FLOW_COUPLING0,
+        disk_flow::DISK_FLOW_COUPLING1,
+    ] {
+        scale_layer(
+            &mut p,
+            net + disk_flow::DISK_NET_L2,
+            flow::HIDDEN,
+            disk_flow::DISK_SPLINE_RAW_LEN,
+            0.25,
+        );
+        soften_other_coordinate(&mut p, net);
     }
     p
 }
@@ -152,6 +174,27 @@ fn leaky(v: Vec<f64>) -> Vec<f64> {
 
 /// nflows' `unconstrained_rational_quadratic_spline` forward, K = 20, B = 1, in f64.
 fn ref_rq_forward(raw: &[f64], x: f64) -> (f64, f64) {
+    let mut d = [1.0; 21];
+    for k in 1..20 {
+        d[k] = ref_derivative(raw[40 + k - 1]);
+    }
+    ref_rq_with(raw, &d, x)
+}
+
+/// nflows' `rational_quadratic_spline` (no tails, every derivative learned), K = 20 on
+/// `[−1, 1]`, in f64: raw `[widths 20, heights 20, derivatives 21]`.
+fn ref_rq_forward_free(raw: &[f64], x: f64) -> (f64, f64) {
+    let d: Vec<f64> = (0..=20).map(|k| ref_derivative(raw[40 + k])).collect();
+    ref_rq_with(raw, &d, x)
+}
+
+/// `1e-3 + softplus(r)`.
+fn ref_derivative(r: f64) -> f64 {
+    1e-3 + if r > 30.0 { r } else { r.exp().ln_1p() }
+}
+
+/// The spline's forward map with knot derivatives `d` (21 values).
+fn ref_rq_with(raw: &[f64], d: &[f64], x: f64) -> (f64, f64) {
     const K: usize = 20;
     if !(-1.0..=1.0).contains(&x) {
         return (x, 0.0);
@@ -171,11 +214,6 @@ fn ref_rq_forward(raw: &[f64], x: f64) -> (f64, f64) {
     };
     let cw = knots(&raw[..K]);
     let ch = knots(&raw[K..2 * K]);
-    let mut d = [1.0; K + 1];
-    for k in 1..K {
-        let r = raw[2 * K + k - 1];
-        d[k] = 1e-3 + if r > 30.0 { r } else { r.exp().ln_1p() };
-    }
     let k = (1..K).filter(|&k| x >= cw[k]).count();
     let (w, h) = (cw[k + 1] - cw[k], ch[k + 1] - ch[k]);
     let s = h / w;
@@ -213,6 +251,28 @@ fn ref_spline_log_pdf(params: &[f32], c: &Condition, p: [f64; 2]) -> f64 {
     let (yl, ld1) = ref_rq_forward(&coupling(1, p[0]), p[1]);
     let (xl, ld0) = ref_rq_forward(&coupling(0, yl), p[0]);
     log_normal([xl, yl], [o[0], o[1]], [sig(o[2]), sig(o[3])]) + ld0 + ld1
+}
+
+/// ln p(p) of the disk flow, straight from ARCHITECTURES.md §8 (−∞ outside the disk).
+fn ref_disk_log_pdf(params: &[f32], c: &Condition, p: [f64; 2]) -> f64 {
+    if p[0] * p[0] + p[1] * p[1] >= 1.0 {
+        return f64::NEG_INFINITY;
+    }
+    let n = RefNet { p: params };
+    let cond = ref_condition(c);
+    let coupling = |net: usize, other: f64| {
+        let off = net * 4349;
+        let mut x = cond.clone();
+        x.extend(enc(other, 4));
+        let h = leaky(n.dense(off, &x, 32));
+        let h = leaky(n.dense(off + 1280, &h, 32));
+        n.dense(off + 1280 + 1056, &h, 61)
+    };
+    let chord = |v: f64| (1.0 - v * v).sqrt();
+    let (sy, ld1) = ref_rq_forward_free(&coupling(1, p[0]), p[1] / chord(p[0]));
+    let by = chord(p[0]) * sy;
+    let (_, ld0) = ref_rq_forward_free(&coupling(0, by), p[0] / chord(by));
+    ld0 + ld1 - std::f64::consts::PI.ln()
 }
 
 /// ln p(p) of the affine flow, straight from ARCHITECTURES.md §4.
@@ -714,4 +774,159 @@ impl<P: Prepared> Timed for P {
     fn pdf_at(&self, p: Vec2) -> f32 {
         self.pdf_disk(p)
     }
+}
+
+// ---------------------------------------------------------------------------------------
+// The disk flow
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn disk_flow_parameters_and_zero_weights() {
+    assert_eq!(DiskFlowSampler::<&[f32]>::PARAM_COUNT, 8698);
+    assert_eq!(disk_flow::DISK_NET_LEN, 4349);
+    let p = vec![0.0f32; 8698];
+    assert!(DiskFlowSampler::new(&p[..]).is_some());
+    assert!(DiskFlowSampler::new(&p[..8697]).is_none());
+    assert!(DiskFlowSampler::new(&p[..]).is_some());
+    // All-zero weights: uniform bins, every knot derivative 1e-3 + ln 2 (ends included), a
+    // fixed map on each chord; compare with the reference at a few points, the rim included.
+    let s = DiskFlowSampler::new(&p[..]).unwrap();
+    let c = random_condition(&mut rng(2));
+    let prep = s.prepare(&c.phi, c.wi).unwrap();
+    for q in [
+        Vec2::new(0.1, -0.2),
+        Vec2::new(0.0, 0.0),
+        Vec2::new(0.7, 0.7),
+        Vec2::new(-0.999, 0.01),
+    ] {
+        let want = ref_disk_log_pdf(&p, &c, [f64::from(q.x), f64::from(q.y)]);
+        let got = f64::from(prep.log_pdf_disk(q));
+        assert!((got - want).abs() < 1e-5, "{q:?}: {got} vs {want}");
+    }
+}
+
+#[test]
+fn disk_flow_matches_reference() {
+    let mut r = rng(11);
+    let (mut worst, mut worst_pole) = (0.0f64, 0.0f64);
+    for model in 0..4 {
+        let pd = disk_params(1100 + model);
+        let fd = DiskFlowSampler::new(&pd[..]).unwrap();
+        for _ in 0..4 {
+            let c = random_condition(&mut r);
+            let sd = fd.prepare(&c.phi, c.wi).unwrap();
+            for k in 0..300 {
+                // Every third point in the outer ring, where the chords are short.
+                let q = if k % 3 == 0 {
+                    let (a, rad) = (
+                        std::f32::consts::TAU * r.random::<f32>(),
+                        1.0 - 1e-3 * r.random::<f32>(),
+                    );
+                    Vec2::new(rad * a.cos(), rad * a.sin())
+                } else {
+                    Vec2::new(2.0 * r.random::<f32>() - 1.0, 2.0 * r.random::<f32>() - 1.0)
+                };
+                let want = ref_disk_log_pdf(&pd, &c, [f64::from(q.x), f64::from(q.y)]);
+                if want.is_finite() {
+                    let d = (f64::from(sd.log_pdf_disk(q)) - want).abs();
+                    // Within 1e-2 of a pole, 1 ± y/C(x) cancels in f32 before the second
+                    // spline sees it (a margin of 1e-5 carries about 3e-3 relative error).
+                    if 1.0 - q.y.abs() < 1e-2 {
+                        worst_pole = worst_pole.max(d);
+                    } else {
+                        worst = worst.max(d);
+                    }
+                } else {
+                    assert_eq!(sd.pdf_disk(q), 0.0);
+                }
+            }
+        }
+    }
+    eprintln!(
+        "disk flow log pdf vs f64 reference: max |Δ| = {worst:.2e}, within 1e-2 of a pole {worst_pole:.2e}"
+    );
+    assert!(worst < 1e-3, "{worst}");
+    assert!(worst_pole < 1e-2, "{worst_pole}");
+}
+
+#[test]
+fn disk_flow_sample_pdf_invert_and_mass() {
+    let mut r = rng(21);
+    let (mut pdf_d, mut inv_d, mut dir_d) = (0.0f64, 0.0f32, 0.0f32);
+    let samples = if full_tests() { 2_000_000 } else { 400_000 };
+    for model in 0..3 {
+        let pd = disk_params(1200 + model);
+        let fd = DiskFlowSampler::new(&pd[..]).unwrap();
+        for _ in 0..3 {
+            let c = random_condition(&mut r);
+            let sd = fd.prepare(&c.phi, c.wi).unwrap();
+            pdf_d = pdf_d.max(sample_pdf_agreement(&sd, &mut r, 2000));
+            inv_d = inv_d.max(invert_error(&sd, &mut r, 2000));
+            // The two directions are inverse maps of the disk onto itself.
+            for _ in 0..1000 {
+                let u = neusample_host_tests::uniform2(&mut r);
+                let b = neusample::warp::sample_uniform_disk_concentric(u);
+                let q = sd.from_base(b);
+                assert!(q.length_squared() <= 1.0 + 1e-6, "{q:?} left the disk");
+                if let Some((b2, _)) = sd.to_base(q) {
+                    dir_d = dir_d.max((b2 - b).length());
+                }
+            }
+        }
+        // Every mass lies inside the disk: ∫ pdf = 1 and (almost) no sample is refused.
+        let c = random_condition(&mut r);
+        let sd = fd.prepare(&c.phi, c.wi).unwrap();
+        let integral = disk_integral(&sd, 1024);
+        let inside = inside_fraction(&sd, &mut r, samples);
+        eprintln!("disk flow {model}: ∫ pdf = {integral:.5}, inside fraction = {inside:.6}");
+        assert!((integral - 1.0).abs() < 3e-3, "{integral}");
+        assert!(inside > 0.9999, "{inside}");
+    }
+    eprintln!(
+        "disk flow: sample.pdf vs pdf(wo) {pdf_d:.2e}, invert(sample(u)) − u {inv_d:.2e}, \
+         to_base(from_base(b)) − b {dir_d:.2e}"
+    );
+    assert_eq!(pdf_d, 0.0, "sample.pdf must equal pdf(sample.wo) exactly");
+    assert!(inv_d <= 1e-3 && dir_d <= 1e-3, "{inv_d} {dir_d}");
+}
+
+#[test]
+fn disk_flow_chi2_goodness_of_fit() {
+    let (conditions, samples) = if full_tests() {
+        (8, 1_000_000)
+    } else {
+        (3, 200_000)
+    };
+    let tests = 2 * conditions;
+    let alpha = bonferroni(0.01, tests);
+    let mut r = rng(41);
+    for model in 0..2 {
+        let pd = disk_params(1300 + model);
+        let fd = DiskFlowSampler::new(&pd[..]).unwrap();
+        for _ in 0..conditions {
+            let c = random_condition(&mut r);
+            let sd = fd.prepare(&c.phi, c.wi).unwrap();
+            let o = chi2_test(&sd, &mut r, 32, 24, samples, 5.0);
+            eprintln!(
+                "χ² disk flow model {model}: p = {:.4}, dof {}, ∫ = {:.4}, inside {:.4}",
+                o.p_value, o.dof, o.pdf_integral, o.inside_fraction
+            );
+            assert!(o.p_value > alpha, "p = {} < {alpha}", o.p_value);
+        }
+    }
+}
+
+#[test]
+fn disk_flow_hostile_inputs() {
+    let mut r = rng(51);
+    let pd = disk_params(1400);
+    hostile_inputs(&DiskFlowSampler::new(&pd[..]).unwrap(), &mut r);
+    for scale in [1e3f32, 1e18, 1e30] {
+        let big: Vec<f32> = pd.iter().map(|v| v * scale).collect();
+        hostile_inputs(&DiskFlowSampler::new(&big[..]).unwrap(), &mut r);
+    }
+    fn copy<T: Clone>(_: T) {}
+    let s = DiskFlowSampler::new(&pd[..]).unwrap();
+    let c = random_condition(&mut r);
+    copy(s.prepare(&c.phi, c.wi).unwrap());
 }

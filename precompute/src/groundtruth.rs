@@ -104,6 +104,11 @@ pub struct TargetOptions {
     pub supersample: usize,
     /// `f = 0` where `|ω⊥|² >` this (the release uses 0.98).
     pub grazing_cutoff: f32,
+    /// Tabulate up to the horizon: cells straddling the circle keep the mean of `Y(f)` over
+    /// their points inside the disk (with `2s × 2s` points), so that the target has mass
+    /// wherever the material reflects. For training targets; the fit metrics keep the
+    /// default (cells wholly inside the disk). See [`TargetOptions::horizon`].
+    pub to_horizon: bool,
 }
 
 impl Default for TargetOptions {
@@ -111,6 +116,22 @@ impl Default for TargetOptions {
         TargetOptions {
             supersample: 2,
             grazing_cutoff: GRAZING_CUTOFF,
+            to_horizon: false,
+        }
+    }
+}
+
+impl TargetOptions {
+    /// Training targets up to the horizon: no grazing cut-off, straddling cells kept
+    /// ([`TargetOptions::to_horizon`]). A sampler trained on the default targets never sees
+    /// the outer ring of the disk (the cut-off at `|ω⊥|² = 0.98` and the cells straddling the
+    /// circle), where the materials still reflect and its weights then explode.
+    #[must_use]
+    pub fn horizon() -> Self {
+        TargetOptions {
+            grazing_cutoff: 1.0,
+            to_horizon: true,
+            ..TargetOptions::default()
         }
     }
 }
@@ -127,6 +148,10 @@ pub struct TargetPdf {
     conditional: Vec<f32>,
     /// `∫ Y(f) dω⊥` before normalisation (the luminance albedo `∫ Y(f) cos θo dωo`).
     integral: f64,
+    /// [`TargetPdf::pdf`]'s factor on `density`: 1, or with cells straddling the circle
+    /// (sampled by rejection, so only their part inside the disk counts) the table's total
+    /// over the total inside the disk.
+    pdf_scale: f32,
     degenerate: bool,
 }
 
@@ -163,6 +188,25 @@ pub fn cell_luminance_sum(
         }
     }
     acc
+}
+
+/// How many of the `s × s` stratified points of cell `(row, col)` (as in
+/// [`cell_luminance_sum`]) lie strictly inside the unit disk.
+#[must_use]
+pub fn cell_points_inside(res: usize, (row, col): (usize, usize), s: usize) -> usize {
+    let h = 2.0 / res as f32;
+    let hs = h / s as f32;
+    let mut n = 0;
+    for i in 0..s {
+        let y = -1.0 + row as f32 * h + (i as f32 + 0.5) * hs;
+        for j in 0..s {
+            let x = -1.0 + col as f32 * h + (j as f32 + 0.5) * hs;
+            if x * x + y * y < 1.0 {
+                n += 1;
+            }
+        }
+    }
+    n
 }
 
 /// Whether cell `(r, c)` of an `res × res` grid lies entirely inside the closed unit disk.
@@ -203,24 +247,93 @@ impl TargetPdf {
         let s = opts.supersample.max(1);
         let inv_ss = 1.0 / (s * s) as f32;
         let mut values = vec![0f32; res * res];
+        let mut inside = vec![0f32; res * res];
         for r in 0..res {
             for col in 0..res {
-                if !cell_inside_disk(res, r, col) {
-                    continue;
+                let i = r * res + col;
+                if cell_inside_disk(res, r, col) {
+                    let acc = cell_luminance_sum(m, &c.phi, c.wi, res, (r, col), s, |r2| {
+                        !(r2 > opts.grazing_cutoff)
+                    });
+                    values[i] = acc * inv_ss;
+                    inside[i] = 1.0;
+                } else if opts.to_horizon {
+                    let s2 = 2 * s;
+                    let n_in = cell_points_inside(res, (r, col), s2);
+                    if n_in > 0 {
+                        let acc = cell_luminance_sum(m, &c.phi, c.wi, res, (r, col), s2, |r2| {
+                            r2 < 1.0 && !(r2 > opts.grazing_cutoff)
+                        });
+                        values[i] = acc / n_in as f32;
+                        inside[i] = n_in as f32 / (s2 * s2) as f32;
+                    }
                 }
-                let acc = cell_luminance_sum(m, &c.phi, c.wi, res, (r, col), s, |r2| {
-                    !(r2 > opts.grazing_cutoff)
-                });
-                values[r * res + col] = acc * inv_ss;
             }
         }
-        Self::from_values(res, values)
+        Self::from_cells(res, values, &inside)
+    }
+
+    /// A table from cell values (unnormalised means of `Y(f)` over each cell's part inside the
+    /// disk) and the fraction `inside[i] ∈ [0, 1]` of each cell that lies inside the disk:
+    /// cells with fraction 0 get density 0. The sampled density inside the disk is
+    /// proportional to the values (samples in the outer part of a straddling cell are
+    /// refused), so the normaliser is `Σ value·fraction·h²`, and [`TargetPdf::pdf`] rescales
+    /// the table's own densities by it.
+    #[must_use]
+    pub fn from_cells(res: usize, mut values: Vec<f32>, inside: &[f32]) -> TargetPdf {
+        let res = res.max(1);
+        values.resize(res * res, 0.0);
+        let frac = |i: usize| inside.get(i).copied().unwrap_or(0.0).clamp(0.0, 1.0);
+        for (i, v) in values.iter_mut().enumerate() {
+            if !(v.is_finite() && *v > 0.0 && frac(i) > 0.0) {
+                *v = 0.0;
+            }
+        }
+        let mut degenerate = false;
+        let total_in: f64 = values
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| f64::from(v) * f64::from(frac(i)))
+            .sum();
+        if !(total_in > 0.0 && total_in.is_finite()) {
+            degenerate = true;
+            for (i, v) in values.iter_mut().enumerate() {
+                *v = if frac(i) > 0.0 { 1.0 } else { 0.0 };
+            }
+        }
+        let mut t = Self::from_values_kept(res, values, |r, c| frac(r * res + c) > 0.0);
+        let area = (2.0 / res as f64).powi(2);
+        let table_total: f64 = t.density.iter().map(|&d| f64::from(d) * area).sum();
+        let in_total: f64 = t
+            .density
+            .iter()
+            .enumerate()
+            .map(|(i, &d)| f64::from(d) * f64::from(frac(i)) * area)
+            .sum();
+        if in_total > 0.0 {
+            t.pdf_scale = (table_total / in_total) as f32;
+            t.integral *= in_total / table_total;
+        }
+        if degenerate {
+            t.degenerate = true;
+            t.integral = 0.0;
+        }
+        t
     }
 
     /// A table from non-negative cell values (unnormalised; rows = y). Values of cells not
     /// entirely inside the disk, negative or non-finite values are set to 0.
     #[must_use]
-    pub fn from_values(res: usize, mut values: Vec<f32>) -> TargetPdf {
+    pub fn from_values(res: usize, values: Vec<f32>) -> TargetPdf {
+        Self::from_values_kept(res, values, |r, c| cell_inside_disk(res, r, c))
+    }
+
+    /// [`TargetPdf::from_values`] keeping the cells where `kept(row, col)`.
+    fn from_values_kept(
+        res: usize,
+        mut values: Vec<f32>,
+        kept: impl Fn(usize, usize) -> bool,
+    ) -> TargetPdf {
         let res = res.max(1);
         values.resize(res * res, 0.0);
         let area = (2.0 / res as f64).powi(2);
@@ -228,7 +341,7 @@ impl TargetPdf {
         for r in 0..res {
             for c in 0..res {
                 let v = &mut values[r * res + c];
-                if !(v.is_finite() && *v > 0.0 && cell_inside_disk(res, r, c)) {
+                if !(v.is_finite() && *v > 0.0 && kept(r, c)) {
                     *v = 0.0;
                 }
                 total += f64::from(*v);
@@ -238,11 +351,7 @@ impl TargetPdf {
         if degenerate {
             for r in 0..res {
                 for c in 0..res {
-                    values[r * res + c] = if cell_inside_disk(res, r, c) {
-                        1.0
-                    } else {
-                        0.0
-                    };
+                    values[r * res + c] = if kept(r, c) { 1.0 } else { 0.0 };
                 }
             }
             total = values.iter().map(|&v| f64::from(v)).sum();
@@ -268,6 +377,7 @@ impl TargetPdf {
             marginal,
             conditional,
             integral,
+            pdf_scale: 1.0,
             degenerate,
         }
     }
@@ -338,10 +448,11 @@ impl TargetPdf {
         if p.length_squared() >= 1.0 || !p.is_finite() {
             return 0.0;
         }
-        match self.table() {
+        let d = match self.table() {
             Some(t) => t.pdf(p),
             None => self.cell_of(p).map_or(0.0, |i| self.density[i]),
-        }
+        };
+        d * self.pdf_scale
     }
 
     /// Exact sample for `u ∈ [0, 1)²` through `Table2D::sample` (`u.x` picks the row, `u.y`
@@ -522,11 +633,23 @@ pub fn batch(
     res: usize,
     seed: u64,
 ) -> Vec<(Condition, TargetPdf)> {
+    batch_with(m, n_conditions, res, seed, &TargetOptions::default())
+}
+
+/// [`batch`] with explicit tabulation options.
+#[must_use]
+pub fn batch_with(
+    m: &dyn Material,
+    n_conditions: usize,
+    res: usize,
+    seed: u64,
+    opts: &TargetOptions,
+) -> Vec<(Condition, TargetPdf)> {
     (0..n_conditions)
         .into_par_iter()
         .map(|i| {
             let c = random_condition(m, &mut indexed_rng(seed, i));
-            let t = TargetPdf::new(m, &c, res);
+            let t = TargetPdf::with_options(m, &c, res, opts);
             (c, t)
         })
         .collect()

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
 use neusample::SamplerKind;
-use neusample::{AffineFlowSampler, FlowSampler};
+use neusample::{AffineFlowSampler, DiskFlowSampler, FlowSampler};
 use neusample::{AnalyticMixtureSampler, ImprovedBaselineSampler};
 use neusample::{DirectHistogramSampler, HistogramMixtureSampler};
 use neusample::{Prepared, ReparamSampler, Sampler, Vec2, Vec3};
@@ -55,6 +55,10 @@ fn core_pdf(t: &Trained, phi: &[f32; 8], wi: Vec3, p: Vec2) -> f32 {
             .expect("flow parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
+        SamplerKind::DiskFlow => DiskFlowSampler::new(w)
+            .expect("disk flow parameter count")
+            .prepare(phi, wi)
+            .map_or(0.0, |s| s.pdf_disk(p)),
         SamplerKind::AffineFlow => AffineFlowSampler::new(w)
             .expect("affine parameter count")
             .prepare(phi, wi)
@@ -93,6 +97,7 @@ fn expected_len(m: SamplerKind) -> usize {
         SamplerKind::ImprovedBaseline => ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::AnalyticMixture => AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::Flow => FlowSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::DiskFlow => DiskFlowSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::AffineFlow => AffineFlowSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
@@ -210,6 +215,11 @@ fn analytic_learns_and_matches_runtime() {
 #[test]
 fn flow_learns_and_matches_runtime() {
     check(SamplerKind::Flow);
+}
+
+#[test]
+fn disk_flow_learns_and_matches_runtime() {
+    check(SamplerKind::DiskFlow);
 }
 
 #[test]

@@ -96,6 +96,8 @@ typedef enum NsKind {
   // Reparameterization sampler (Wu et al. 2025): its samples carry the warp's exact
   // density, its pdf is a network's approximation (`ns_sampler_exact_pdf` is false).
   NS_KIND_REPARAM = 8,
+  // Disk flow: spline couplings on chords, uniform base, every mass inside the disk.
+  NS_KIND_DISK_FLOW = 9,
 } NsKind;
 
 // A validated blob that owns a copy of its bytes. Opaque.

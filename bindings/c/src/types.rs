@@ -90,6 +90,8 @@ pub enum NsKind {
     /// Reparameterization sampler (Wu et al. 2025): its samples carry the warp's exact
     /// density, its pdf is a network's approximation (`ns_sampler_exact_pdf` is false).
     NS_KIND_REPARAM = 8,
+    /// Disk flow: spline couplings on chords, uniform base, every mass inside the disk.
+    NS_KIND_DISK_FLOW = 9,
 }
 
 impl From<SamplerKind> for NsKind {
@@ -104,6 +106,7 @@ impl From<SamplerKind> for NsKind {
             SamplerKind::HistogramMixture => NsKind::NS_KIND_HISTOGRAM_MIXTURE,
             SamplerKind::NeuralMaterial => NsKind::NS_KIND_NEURAL_MATERIAL,
             SamplerKind::Reparam => NsKind::NS_KIND_REPARAM,
+            SamplerKind::DiskFlow => NsKind::NS_KIND_DISK_FLOW,
         }
     }
 }

@@ -6,8 +6,8 @@ use crate::neural_material::NeuralMaterial;
 use crate::samplers::histogram_mixture;
 use crate::samplers::{
     AffineFlowSampler, AnalyticMixtureSampler, AnySampler, CosineSampler, Defensive,
-    DirectHistogramSampler, FlowSampler, HistogramMixtureSampler, ImprovedBaselineSampler,
-    ReparamSampler,
+    DirectHistogramSampler, DiskFlowSampler, FlowSampler, HistogramMixtureSampler,
+    ImprovedBaselineSampler, ReparamSampler,
 };
 use crate::weights::{Tensor, Weights};
 
@@ -300,6 +300,13 @@ impl<'a> Blob<'a> {
         Ok(self.defend(s))
     }
 
+    /// The disk flow sampler, or [`Error::WrongKind`].
+    pub fn disk_flow(&self) -> Result<Defensive<DiskFlowSampler<Tensor<'a>>>> {
+        self.expect(SamplerKind::DiskFlow)?;
+        let s = DiskFlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
+        Ok(self.defend(s))
+    }
+
     /// The affine-coupling flow sampler, or [`Error::WrongKind`].
     pub fn affine_flow(&self) -> Result<Defensive<AffineFlowSampler<Tensor<'a>>>> {
         self.expect(SamplerKind::AffineFlow)?;
@@ -381,6 +388,7 @@ impl<'a> Blob<'a> {
                 AnySampler::AnalyticMixture(*self.analytic_mixture()?.inner())
             }
             SamplerKind::Flow => AnySampler::Flow(*self.flow()?.inner()),
+            SamplerKind::DiskFlow => AnySampler::DiskFlow(*self.disk_flow()?.inner()),
             SamplerKind::AffineFlow => AnySampler::AffineFlow(*self.affine_flow()?.inner()),
             SamplerKind::DirectHistogram => {
                 AnySampler::DirectHistogram(*self.direct_histogram()?.inner())

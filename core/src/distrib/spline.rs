@@ -81,9 +81,15 @@ pub struct Knots<const K: usize, L = f32> {
     pub x: [L; K],
     /// Left y-knot of every bin (`y[0] = −bound`), strictly increasing.
     pub y: [L; K],
-    /// Unnormalised derivative at knot `k` for `1 ≤ k < K`, clamped to `±RAW_LIMIT`
-    /// (`raw_d[0]` is unused: the boundary derivatives are 1).
+    /// Unnormalised derivative at knot `k` for `0 ≤ k < K`, clamped to `±RAW_LIMIT`
+    /// (`raw_d[0]` is used only with [`Knots::free_ends`]; otherwise the boundary derivatives
+    /// are 1).
     pub raw_d: [L; K],
+    /// Unnormalised derivative at the last knot `K` (used only with [`Knots::free_ends`]).
+    pub raw_d_last: L,
+    /// Whether the boundary derivatives are learned (`MIN_DERIVATIVE + softplus` of
+    /// `raw_d[0]` and `raw_d_last`, [`Knots::from_raw_free`]) instead of 1.
+    pub free_ends: bool,
     /// Tail bound `B`: the spline maps `[−B, B]` onto itself, identity outside.
     pub bound: f32,
 }
@@ -138,6 +144,9 @@ impl<const K: usize> Knots<K> {
     /// Number of raw network outputs per spline: `K` widths, `K` heights, `K − 1` interior
     /// derivatives.
     pub const RAW_LEN: usize = 3 * K - 1;
+    /// Number of raw network outputs per spline with learned boundary derivatives
+    /// ([`Knots::from_raw_free`]): `K` widths, `K` heights, `K + 1` derivatives.
+    pub const FREE_RAW_LEN: usize = 3 * K + 1;
 
     /// Constrains raw network outputs into knots — the only place this happens (with
     /// [`Knots::derivative`] for the derivatives).
@@ -153,12 +162,28 @@ impl<const K: usize> Knots<K> {
         Self::from_raw_lanes(raw, bound)
     }
 
-    /// The derivative at knot `k ∈ 0..=K`: 1 at the boundary knots `0` and `K` (and for
-    /// `k > K`), `MIN_DERIVATIVE + softplus(raw_d[k])` at interior knots.
+    /// Knots on `[−1, 1]` whose boundary derivatives are learned too (nflows' constrained
+    /// spline without tails): `raw` is `[widths (K), heights (K), derivatives (K + 1)]`,
+    /// `N` = [`Knots::FREE_RAW_LEN`]; every derivative is `MIN_DERIVATIVE + softplus(raw)`.
+    /// Meant for a domain that is exactly `[−1, 1]` (callers keep inputs inside it; outside,
+    /// the spline is still the identity with log-det 0).
+    #[inline]
+    #[must_use]
+    pub fn from_raw_free<const N: usize>(raw: &[f32; N]) -> Self {
+        Self::from_raw_free_lanes(raw)
+    }
+
+    /// The derivative at knot `k ∈ 0..=K`: `MIN_DERIVATIVE + softplus(raw)` at interior knots
+    /// (and at the boundary knots with [`Knots::free_ends`]), 1 at the boundary knots `0` and
+    /// `K` otherwise (and for `k > K`).
     #[inline(always)]
     #[must_use]
     pub fn derivative(&self, k: usize) -> f32 {
-        self.derivative_lanes(k, 0)
+        if k == 0 {
+            self.derivative_lanes(0, 0)
+        } else {
+            self.derivative_lanes(k - 1, 1)
+        }
     }
 
     /// The spline `y = RQ(x)` (paper Eq. 4) and `ln |dy/dx|`.
@@ -200,6 +225,8 @@ impl<const K: usize, L: Lane> Knots<K, L> {
             x: z,
             y: z,
             raw_d: z,
+            raw_d_last: L::splat(0.0),
+            free_ends: false,
             bound: 1.0,
         }
     }
@@ -221,17 +248,65 @@ impl<const K: usize, L: Lane> Knots<K, L> {
             raw_d[k] = sanitize_raw(raw[2 * K + k - 1]);
             k += 1;
         }
-        Knots { x, y, raw_d, bound }
+        Knots {
+            x,
+            y,
+            raw_d,
+            raw_d_last: L::splat(0.0),
+            free_ends: false,
+            bound,
+        }
+    }
+
+    /// [`Knots::from_raw_free`] for every lane.
+    #[inline(always)]
+    pub(crate) fn from_raw_free_lanes<const N: usize>(raw: &[L; N]) -> Self {
+        const {
+            assert!(
+                K >= 1 && N == 3 * K + 1,
+                "raw spline parameters with free ends must be 3K + 1 values"
+            );
+        }
+        let (x, y) = cumulative_knots::<L, K, N>(raw, 1.0);
+        let mut raw_d = [L::splat(0.0); K];
+        let mut k = 0;
+        while k < K {
+            raw_d[k] = sanitize_raw(raw[2 * K + k]);
+            k += 1;
+        }
+        Knots {
+            x,
+            y,
+            raw_d,
+            raw_d_last: sanitize_raw(raw[3 * K]),
+            free_ends: true,
+            bound: 1.0,
+        }
     }
 
     /// The derivative at knot `k + plus` of every lane (its bin `k`): 1 at the boundary
     /// knots, `MIN_DERIVATIVE + softplus(raw_d)` inside. `math::softplus` is `ln_1p(exp)`
     /// for arguments ≤ 20; below −87 it differs from `ln_1p(exp_in_range)` by far less than
     /// an ulp of `MIN_DERIVATIVE`, so the sum is the same.
+    ///
+    /// With free ends, knot 0 reads `raw_d[0]` like an interior knot and knot `K` (only
+    /// reached as `k = K − 1`, `plus = 1`) reads `raw_d_last`.
     #[inline(always)]
     fn derivative_lanes(&self, k: L::Index, plus: usize) -> L {
-        let d = L::splat(MIN_DERIVATIVE) + L::gather(&self.raw_d, k, plus, 0.0).softplus();
-        L::select(L::interior::<K>(k, plus), d, L::splat(1.0))
+        let min = L::splat(MIN_DERIVATIVE);
+        let d = min + L::gather(&self.raw_d, k, plus, 0.0).softplus();
+        if !self.free_ends {
+            return L::select(L::interior::<K>(k, plus), d, L::splat(1.0));
+        }
+        if plus == 0 {
+            d
+        } else {
+            L::select(
+                L::interior::<K>(k, plus),
+                d,
+                min + self.raw_d_last.softplus(),
+            )
+        }
     }
 
     /// The bin whose left knot in `knots` is the last one `≤ v` (0 when `v` is below every
@@ -289,6 +364,16 @@ impl<const K: usize, L: Lane> Knots<K, L> {
     /// [`Knots::forward`] for every lane.
     #[inline(always)]
     pub(crate) fn forward_lanes(&self, x: L) -> (L, L) {
+        let (y, ld, _, _) = self.forward_margins_lanes(x);
+        (y, ld)
+    }
+
+    /// [`Knots::forward_lanes`] with the distances of `y` to both ends, `y + B` and `B − y`,
+    /// computed from the nearer knot so that they keep their relative precision where `y` is
+    /// within rounding of an end (where `1 ± y` itself would cancel). Inside `[−B, B]` only;
+    /// outside they are those of the identity.
+    #[inline(always)]
+    pub(crate) fn forward_margins_lanes(&self, x: L) -> (L, L, L, L) {
         let (x, inside) = self.in_bounds(x);
         let (one, two, half) = (L::splat(1.0), L::splat(2.0), L::splat(0.5));
         let k = Self::bin(&self.x, x);
@@ -302,13 +387,22 @@ impl<const K: usize, L: Lane> Knots<K, L> {
         //   y − y_k     = h (s ξ² + d_k ξ(1−ξ)) / den,
         //   y_{k+1} − y = h (s (1−ξ)² + d_{k+1} ξ(1−ξ)) / den.
         let om = one - xi;
-        let from_left = y0 + h * (s * xi * xi + d0 * t) / den;
-        let from_right = y1 - h * (s * om * om + d1 * t) / den;
-        let y = L::select(xi.le(half), from_left, from_right).clamp_to(y0, y1);
+        let (dl, dr) = (
+            h * (s * xi * xi + d0 * t) / den,
+            h * (s * om * om + d1 * t) / den,
+        );
+        let left = xi.le(half);
+        let y = L::select(left, y0 + dl, y1 - dr).clamp_to(y0, y1);
         let ld = Self::log_derivative(xi, s, d0, d1);
+        // y0 + B is exactly 0 in the first bin, B − y1 exactly 0 in the last.
+        let b = L::splat(self.bound);
+        let lo = L::select(left, (y0 + b) + dl, (y1 + b) - dr);
+        let hi = L::select(left, (b - y0) - dl, (b - y1) + dr);
         (
             L::select(inside, y, x),
             L::select(inside, ld, L::splat(0.0)),
+            L::select(inside, lo, x + b),
+            L::select(inside, hi, b - x),
         )
     }
 

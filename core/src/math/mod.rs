@@ -27,6 +27,8 @@ pub const INV_PI: f32 = core::f32::consts::FRAC_1_PI;
 pub const TWO_PI: f32 = 2.0 * core::f32::consts::PI;
 /// 1/(2π).
 pub const INV_TWO_PI: f32 = 0.5 * core::f32::consts::FRAC_1_PI;
+/// ln(π).
+pub const LN_PI: f32 = 1.144_729_9;
 /// ln(2π).
 pub const LN_TWO_PI: f32 = 1.837_877_1;
 /// The largest f32 below 1 (pbrt's `OneMinusEpsilon`): uniform variates are clamped to it.

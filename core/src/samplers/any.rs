@@ -9,8 +9,9 @@ use crate::nn::FEATURE_DIM;
 use crate::weights::Tensor;
 
 use super::{
-    AffineFlowSampler, AnalyticMixtureSampler, CosineSampler, DirectHistogramSampler, FlowSampler,
-    HistogramMixtureSampler, ImprovedBaselineSampler, Prepared, ReparamSampler, Sample, Sampler,
+    AffineFlowSampler, AnalyticMixtureSampler, CosineSampler, DirectHistogramSampler,
+    DiskFlowSampler, FlowSampler, HistogramMixtureSampler, ImprovedBaselineSampler, Prepared,
+    ReparamSampler, Sample, Sampler,
 };
 
 impl SamplerKind {
@@ -22,6 +23,7 @@ impl SamplerKind {
             SamplerKind::ImprovedBaseline => ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::AnalyticMixture => AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::Flow => FlowSampler::<&[f32]>::PARAM_COUNT,
+            SamplerKind::DiskFlow => DiskFlowSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::AffineFlow => AffineFlowSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
@@ -43,6 +45,8 @@ pub enum AnySampler<'a> {
     AnalyticMixture(AnalyticMixtureSampler<Tensor<'a>>),
     /// [`SamplerKind::Flow`].
     Flow(FlowSampler<Tensor<'a>>),
+    /// [`SamplerKind::DiskFlow`].
+    DiskFlow(DiskFlowSampler<Tensor<'a>>),
     /// [`SamplerKind::AffineFlow`].
     AffineFlow(AffineFlowSampler<Tensor<'a>>),
     /// [`SamplerKind::DirectHistogram`].
@@ -64,6 +68,8 @@ pub enum AnyPrepared<'s, 'a: 's> {
     AnalyticMixture(<AnalyticMixtureSampler<Tensor<'a>> as Sampler>::Prepared<'s>),
     /// See [`AnySampler::Flow`].
     Flow(<FlowSampler<Tensor<'a>> as Sampler>::Prepared<'s>),
+    /// See [`AnySampler::DiskFlow`].
+    DiskFlow(<DiskFlowSampler<Tensor<'a>> as Sampler>::Prepared<'s>),
     /// See [`AnySampler::AffineFlow`].
     AffineFlow(<AffineFlowSampler<Tensor<'a>> as Sampler>::Prepared<'s>),
     /// See [`AnySampler::DirectHistogram`].
@@ -83,6 +89,7 @@ impl<'a> AnySampler<'a> {
             AnySampler::ImprovedBaseline(_) => SamplerKind::ImprovedBaseline,
             AnySampler::AnalyticMixture(_) => SamplerKind::AnalyticMixture,
             AnySampler::Flow(_) => SamplerKind::Flow,
+            AnySampler::DiskFlow(_) => SamplerKind::DiskFlow,
             AnySampler::AffineFlow(_) => SamplerKind::AffineFlow,
             AnySampler::DirectHistogram(_) => SamplerKind::DirectHistogram,
             AnySampler::HistogramMixture(_) => SamplerKind::HistogramMixture,
@@ -104,6 +111,7 @@ impl<'a> Sampler for AnySampler<'a> {
             AnySampler::ImprovedBaseline(s) => AnyPrepared::ImprovedBaseline(s.prepare(phi, wi)?),
             AnySampler::AnalyticMixture(s) => AnyPrepared::AnalyticMixture(s.prepare(phi, wi)?),
             AnySampler::Flow(s) => AnyPrepared::Flow(s.prepare(phi, wi)?),
+            AnySampler::DiskFlow(s) => AnyPrepared::DiskFlow(s.prepare(phi, wi)?),
             AnySampler::AffineFlow(s) => AnyPrepared::AffineFlow(s.prepare(phi, wi)?),
             AnySampler::DirectHistogram(s) => AnyPrepared::DirectHistogram(s.prepare(phi, wi)?),
             AnySampler::HistogramMixture(s) => AnyPrepared::HistogramMixture(s.prepare(phi, wi)?),
@@ -119,6 +127,7 @@ macro_rules! dispatch {
             AnyPrepared::ImprovedBaseline($p) => $e,
             AnyPrepared::AnalyticMixture($p) => $e,
             AnyPrepared::Flow($p) => $e,
+            AnyPrepared::DiskFlow($p) => $e,
             AnyPrepared::AffineFlow($p) => $e,
             AnyPrepared::DirectHistogram($p) => $e,
             AnyPrepared::HistogramMixture($p) => $e,
@@ -161,8 +170,8 @@ mod batch {
     };
     use crate::error::{Error, Result};
     use crate::samplers::{
-        AffineLane, AnalyticMixturePrepared, CosinePrepared, DirectHistogramPrepared, FlowLane,
-        ImprovedBaselinePrepared, MixtureLane, ReparamLane,
+        AffineLane, AnalyticMixturePrepared, CosinePrepared, DirectHistogramPrepared, DiskFlowLane,
+        FlowLane, ImprovedBaselinePrepared, MixtureLane, ReparamLane,
     };
 
     /// The lane of an [`AnySampler`]: the concrete sampler's lane. It is as large as the
@@ -182,6 +191,8 @@ mod batch {
         AnalyticMixture(AnalyticMixturePrepared),
         /// [`SamplerKind::Flow`].
         Flow(FlowLane),
+        /// [`SamplerKind::DiskFlow`].
+        DiskFlow(DiskFlowLane),
         /// [`SamplerKind::AffineFlow`].
         AffineFlow(AffineLane),
         /// [`SamplerKind::DirectHistogram`].
@@ -231,6 +242,7 @@ mod batch {
                 }
                 AnySampler::AnalyticMixture(s) => $m!(s, AnalyticMixture, AnalyticMixturePrepared),
                 AnySampler::Flow(s) => $m!(s, Flow, FlowLane),
+                AnySampler::DiskFlow(s) => $m!(s, DiskFlow, DiskFlowLane),
                 AnySampler::AffineFlow(s) => $m!(s, AffineFlow, AffineLane),
                 AnySampler::DirectHistogram(s) => $m!(s, DirectHistogram, DirectHistogramPrepared),
                 AnySampler::HistogramMixture(s) => $m!(s, HistogramMixture, MixtureLane),

@@ -6,6 +6,7 @@
 //! | [`cosine`] | — | 1/π on the projected disk |
 //! | [`lobes`] | Eq. 1 (improved baseline), Eq. 2 (analytic mixture) | Lambert + Gaussians |
 //! | [`spline_flow`] | Eq. 3–4 | RQ-spline coupling flow |
+//! | [`disk_flow`] | Eq. 3–4 on chords | RQ-spline couplings, uniform base, all mass in the disk |
 //! | [`affine_flow`] | Xie et al. 2019 | affine coupling flow |
 //! | [`direct_histogram`] | Zhu et al. 2021 | MLP → 16 × 16 histogram |
 //! | [`histogram_mixture`] | Eq. 5–6 | MLP → weights, rotations, latent codes of baked tables |
@@ -22,6 +23,7 @@ pub mod cosine;
 mod coupling;
 pub mod defensive;
 pub mod direct_histogram;
+pub mod disk_flow;
 pub mod histogram_mixture;
 pub mod lobes;
 mod mixture_tables;
@@ -36,6 +38,7 @@ pub use any::{AnyPrepared, AnySampler};
 pub use cosine::{CosinePrepared, CosineSampler};
 pub use defensive::{BlobSampler, Defensive, DefensivePrepared};
 pub use direct_histogram::{DirectHistogramPrepared, DirectHistogramSampler};
+pub use disk_flow::{DiskFlowLane, DiskFlowPrepared, DiskFlowSampler};
 pub use histogram_mixture::{HistogramMixturePrepared, HistogramMixtureSampler, MixtureLane};
 pub use lobes::{
     AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,

@@ -33,6 +33,7 @@ use crate::weights::Weights;
 
 use super::coupling::{all_finite, condition_share, density_from_log, first_layer};
 pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
+use super::coupling::{COUPLING_L0, COUPLING_L1, COUPLING_L2};
 use super::traits::{params_constructors, Held};
 use super::{Prepared, Sample, Sampler};
 
@@ -55,11 +56,11 @@ pub const FLOW_BASE_L1: usize = FLOW_BASE_L0 + nn::dense_len(CONDITION_DIM, HIDD
 /// Parameters of the base network (1124).
 pub const FLOW_BASE_LEN: usize = FLOW_BASE_L1 + nn::dense_len(HIDDEN, BASE_OUTPUTS);
 /// Offset of a spline coupling network's `dense(39, 32)` (LeakyReLU), relative to the network.
-pub const SPLINE_NET_L0: usize = 0;
+pub const SPLINE_NET_L0: usize = COUPLING_L0;
 /// Offset of a spline coupling network's `dense(32, 32)` (LeakyReLU), relative to the network.
-pub const SPLINE_NET_L1: usize = SPLINE_NET_L0 + nn::dense_len(COUPLING_INPUTS, HIDDEN);
+pub const SPLINE_NET_L1: usize = COUPLING_L1;
 /// Offset of a spline coupling network's `dense(32, 59)`, relative to the network.
-pub const SPLINE_NET_L2: usize = SPLINE_NET_L1 + nn::dense_len(HIDDEN, HIDDEN);
+pub const SPLINE_NET_L2: usize = COUPLING_L2;
 /// Parameters of one spline coupling network (4283).
 pub const SPLINE_NET_LEN: usize = SPLINE_NET_L2 + nn::dense_len(HIDDEN, SPLINE_RAW_LEN);
 /// Offset of coupling network 0 (transforms x, conditioned on y').

@@ -10,6 +10,7 @@ use neusample_render::{EnvMap, Estimator, SceneParams};
 use crate::eval::metrics::{self, RenderSettings};
 use crate::materials::neural::{is_blob_file, label_field, NeuralParts};
 use crate::materials::{self, Material};
+use crate::train::METHODS;
 use crate::util::io;
 
 /// The built-in materials the demo and the fixtures use: an isotropic highlight under strong
@@ -77,6 +78,9 @@ pub struct DemoConfig {
     pub mis: bool,
     /// Skip the rendering evaluation (fit and cost only).
     pub no_render: bool,
+    /// The trained methods to evaluate besides cosine and the oracle (the improved baseline,
+    /// every speed-up's reference, is always added); empty: every trainable method.
+    pub methods: Vec<SamplerKind>,
     /// Random conditions of the fit measures; default 64, 24 with `quick`.
     pub eval_conditions: Option<usize>,
     /// Interleaved single-thread timing passes per method; default 11, 5 with `quick`.
@@ -104,9 +108,26 @@ impl DemoConfig {
             uniform_light: true,
             mis: false,
             no_render: false,
+            methods: Vec::new(),
             eval_conditions: None,
             timing_passes: None,
         }
+    }
+}
+
+impl DemoConfig {
+    /// The trained methods evaluated, in [`METHODS`] order: `methods` (every method when
+    /// empty) with the improved baseline.
+    #[must_use]
+    pub fn method_list(&self) -> Vec<SamplerKind> {
+        METHODS
+            .into_iter()
+            .filter(|m| {
+                self.methods.is_empty()
+                    || *m == SamplerKind::ImprovedBaseline
+                    || self.methods.contains(m)
+            })
+            .collect()
     }
 }
 

@@ -26,7 +26,7 @@ pub const FIXTURE_SLOW_LEARNER_STEPS: usize = 3;
 
 /// The training settings of the committed fixtures: the default run with smaller histogram
 /// tables (T = 8, N = 32) and [`FIXTURE_SLOW_LEARNER_STEPS`]× the steps for the flow and the
-/// histogram mixture, seed 1.
+/// histogram mixture, seed 1 (the disk flow's fixtures are trained with its default steps).
 fn fixture_config() -> TrainConfig {
     let mut c = TrainConfig::default();
     c.histogram_mixture.t_levels = 8;
@@ -62,15 +62,19 @@ pub enum FixtureSet {
     /// Only the `conditions.txt` files of the neural versions' sampler folders (for the
     /// runtime's statistical tests), without training.
     Conditions,
+    /// The samplers of the committed neural versions, without refitting the neural
+    /// materials.
+    NeuralSamplers,
 }
 
 impl FixtureSet {
     /// Every set with its command-line name.
-    pub const NAMES: [(&'static str, FixtureSet); 4] = [
+    pub const NAMES: [(&'static str, FixtureSet); 5] = [
         ("procedural", FixtureSet::Procedural),
         ("neural", FixtureSet::Neural),
         ("all", FixtureSet::All),
         ("conditions", FixtureSet::Conditions),
+        ("neural-samplers", FixtureSet::NeuralSamplers),
     ];
 }
 
@@ -82,7 +86,8 @@ impl std::str::FromStr for FixtureSet {
             .find(|(n, _)| *n == s)
             .map(|&(_, set)| set)
             .ok_or_else(|| {
-                anyhow::anyhow!("unknown fixture set `{s}` (procedural, neural, all, conditions)")
+                let names: Vec<&str> = FixtureSet::NAMES.iter().map(|(n, _)| *n).collect();
+                anyhow::anyhow!("unknown fixture set `{s}` ({})", names.join(", "))
             })
     }
 }
@@ -91,18 +96,25 @@ impl std::str::FromStr for FixtureSet {
 /// ([`defend::defend_baked`]); neither the demo's evaluation seeds nor the χ² suites' draw them.
 pub const DEFEND_SEED: u64 = 0xDEF;
 
-/// `neusample fixtures`: trains every method on the built-ins `names` with fixed seeds and
-/// writes `<out>/<material>/<method>.nsb` (f32, histogram tables T = 8, N = 32) plus
-/// `<out>/cosine.nsb`; for the neural set, first fits the neural version of each
-/// material (`train-material` defaults, seed 1, f32) into `<materials>/<name>_neural.nsb`
-/// and then trains the samplers on it into `<out>/<name>_neural/`.
+/// `neusample fixtures`: trains the methods `methods` (every trainable method when empty) on
+/// the built-ins `names` with fixed seeds and writes `<out>/<material>/<method>.nsb` (f32,
+/// histogram tables T = 8, N = 32) plus `<out>/cosine.nsb`; for the neural set, first fits the
+/// neural version of each material (`train-material` defaults, seed 1, f32) into
+/// `<materials>/<name>_neural.nsb` and then trains the samplers on it into
+/// `<out>/<name>_neural/`.
 pub fn regenerate_fixtures(
     out: &Path,
     materials_out: &Path,
     set: FixtureSet,
     names: &[&str],
+    methods: &[SamplerKind],
     quick: bool,
 ) -> Result<()> {
+    let methods: Vec<SamplerKind> = if methods.is_empty() {
+        METHODS.to_vec()
+    } else {
+        methods.to_vec()
+    };
     io::atomic_write(
         &out.join("cosine.nsb"),
         &BlobWriter::new(SamplerKind::Cosine, DType::F32, "cosine").to_bytes(),
@@ -114,32 +126,23 @@ pub fn regenerate_fixtures(
         }
         return Ok(());
     }
+    if set == FixtureSet::NeuralSamplers {
+        for name in names {
+            let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
+            let m = NeuralMaterialModel::load(&path)
+                .with_context(|| format!("the committed neural version of {name}"))?;
+            fixture_samplers(out, &m, &methods, quick)?;
+        }
+        eprintln!("fixtures written to {}", out.display());
+        return Ok(());
+    }
     if set != FixtureSet::Neural {
         for name in names {
-            fixture_samplers(out, materials::builtin(name)?.as_ref(), quick)?;
+            fixture_samplers(out, materials::builtin(name)?.as_ref(), &methods, quick)?;
         }
     }
     if set != FixtureSet::Procedural {
-        neural_fixtures(out, materials_out, names, quick)?;
-    }
-    eprintln!("fixtures written to {}", out.display());
-    Ok(())
-}
-
-/// `neusample fixtures --set neural --methods …`: only `methods`, trained on the committed
-/// neural versions of the built-ins `names` (`<materials>/<name>_neural.nsb`, not retrained)
-/// into `<out>/<name>_neural/`, with the fixtures' settings; the other blobs stay as they are.
-pub fn regenerate_methods(
-    out: &Path,
-    materials_out: &Path,
-    names: &[&str],
-    methods: &[SamplerKind],
-    quick: bool,
-) -> Result<()> {
-    for name in names {
-        let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
-        let m = NeuralMaterialModel::load(&path)?;
-        fixture_methods(out, &m, methods, quick)?;
+        neural_fixtures(out, materials_out, names, &methods, quick)?;
     }
     eprintln!("fixtures written to {}", out.display());
     Ok(())
@@ -152,8 +155,14 @@ pub(crate) fn neural_fixtures(
     out: &Path,
     materials_out: &Path,
     names: &[&str],
+    methods: &[SamplerKind],
     quick: bool,
 ) -> Result<()> {
+    let methods: Vec<SamplerKind> = if methods.is_empty() {
+        METHODS.to_vec()
+    } else {
+        methods.to_vec()
+    };
     for name in names {
         let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
         let mut job = TrainMaterialJob::new(*name, path.clone());
@@ -163,7 +172,7 @@ pub(crate) fn neural_fixtures(
         job.training.progress = true;
         train_material(&job).with_context(|| format!("neural fixture of {name}"))?;
         let m = NeuralMaterialModel::load(&path)?;
-        fixture_samplers(out, &m, quick)?;
+        fixture_samplers(out, &m, &methods, quick)?;
     }
     Ok(())
 }
@@ -186,27 +195,23 @@ fn write_conditions(out: &Path, m: &dyn Material) -> Result<()> {
     )
 }
 
-/// Every method trained on `m` into `<out>/<m.name()>/`, plus the conditions file (the
-/// reparameterization sampler only on a neural material: it trains on the integrand).
-fn fixture_samplers(out: &Path, m: &dyn Material, quick: bool) -> Result<()> {
-    let methods: Vec<SamplerKind> = METHODS
-        .into_iter()
-        .filter(|&k| !needs_integrand(k) || m.neural().is_some())
-        .collect();
-    fixture_methods(out, m, &methods, quick)
-}
-
-/// `methods` trained on `m` into `<out>/<m.name()>/`, plus the conditions file.
-pub(crate) fn fixture_methods(
+/// The methods `methods` trained on `m` into `<out>/<m.name()>/`, plus the conditions file
+/// (the reparameterization sampler only on a neural material: it trains on the integrand).
+fn fixture_samplers(
     out: &Path,
     m: &dyn Material,
     methods: &[SamplerKind],
     quick: bool,
 ) -> Result<()> {
     let name = io::slug(m.name());
+    let methods: Vec<SamplerKind> = methods
+        .iter()
+        .copied()
+        .filter(|&k| !needs_integrand(k) || m.neural().is_some())
+        .collect();
     let pb = stages_bar(methods.len() as u64, &format!("fixtures {name}"));
     write_conditions(out, m)?;
-    for &method in methods {
+    for &method in &methods {
         let method_name = method.name();
         pb.set_message(format!("{name}/{method_name}"));
         let mut cfg = if quick {

@@ -37,7 +37,7 @@ pub use config::{
     neural_fixture, resolve_demo_material, DemoConfig, DemoMaterial, BASELINE, COSINE,
     DEFAULT_MATERIALS, NEURAL_SUFFIX, ORACLE,
 };
-pub use fixtures::{fixtures_dir, regenerate_fixtures, regenerate_methods, FixtureSet};
+pub use fixtures::{fixtures_dir, regenerate_fixtures, FixtureSet};
 pub use markdown::{markdown, SMOKE_LINE};
 pub use pipeline::run;
 pub use report::{

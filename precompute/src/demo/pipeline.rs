@@ -31,7 +31,7 @@ use crate::eval::{self, Fit, OracleSampler};
 use crate::groundtruth::{self, TargetPdf};
 use crate::materials::Material;
 use crate::train::neural_material::NeuralTrainConfig;
-use crate::train::{self, needs_integrand, TrainConfig, METHODS};
+use crate::train::{self, needs_integrand, TrainConfig};
 use crate::util::io::{self, slug};
 use crate::util::progress::stages_bar;
 
@@ -56,7 +56,8 @@ pub fn run(a: &DemoConfig) -> Result<()> {
     let out = a.out.canonicalize()?;
     eprintln!("neusample demo: writing to {}", out.display());
 
-    let techniques = METHODS.len() + 2; // + cosine + oracle
+    let method_list = a.method_list();
+    let techniques = method_list.len() + 2; // + cosine + oracle
     let per_material = techniques
         + if a.no_render {
             0
@@ -124,7 +125,7 @@ pub fn run(a: &DemoConfig) -> Result<()> {
         methods.last_mut().expect("pushed").kl_vs_source = kl_src;
         pb.inc(1);
 
-        for method in METHODS {
+        for &method in &method_list {
             let method_name = method.name();
             if needs_integrand(method) && m.neural().is_none() {
                 // Trained on the integrand itself: only neural materials have one.

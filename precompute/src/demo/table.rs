@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use neusample::SamplerKind;
 
 use super::config::{neural_fixture, DemoConfig, BASELINE, COSINE, ORACLE};
 use super::fixtures::{fixture_path, fixtures_dir, neural_fixtures};
@@ -21,7 +22,6 @@ use super::markdown::{fmt_x, fmt_x_interval};
 use super::pipeline;
 use super::report::{MaterialReport, Report};
 use crate::materials;
-use crate::train::METHODS;
 use crate::util::io::{self, slug};
 use crate::util::stats::Estimate;
 
@@ -79,6 +79,8 @@ pub struct TableConfig {
     pub markdown_only: bool,
     /// The demo's CI-sized smoke test for each lighting (its numbers are not results).
     pub smoke: bool,
+    /// The trained methods evaluated (`DemoConfig::methods`; empty: all).
+    pub methods: Vec<SamplerKind>,
 }
 
 impl TableConfig {
@@ -93,6 +95,7 @@ impl TableConfig {
             spp: 32,
             markdown_only: false,
             smoke: false,
+            methods: Vec::new(),
         }
     }
 
@@ -120,6 +123,7 @@ impl TableConfig {
             d.timing_passes = Some(TABLE_TIMING_PASSES);
         }
         d.uniform_light = lighting == Lighting::Uniform;
+        d.methods = self.methods.clone();
         d.materials = self
             .names()
             .iter()
@@ -141,14 +145,14 @@ pub fn run(cfg: &TableConfig) -> Result<()> {
         let missing: Vec<&str> = names
             .iter()
             .map(String::as_str)
-            .filter(|n| !fixtures_complete(n))
+            .filter(|n| !fixtures_complete(n, &cfg.demo(Lighting::Uniform).method_list()))
             .collect();
         if !missing.is_empty() {
             eprintln!(
                 "neusample table: training the neural fixtures not committed: {}",
                 missing.join(", ")
             );
-            neural_fixtures(&fixtures_dir(), &neural_dir(), &missing, false)?;
+            neural_fixtures(&fixtures_dir(), &neural_dir(), &missing, &[], false)?;
         }
         for lighting in Lighting::ALL {
             let t = Instant::now();
@@ -187,12 +191,12 @@ fn neural_dir() -> PathBuf {
         .map_or_else(PathBuf::new, Path::to_path_buf)
 }
 
-/// Whether the neural version of `name` and every sampler trained on it are committed.
-fn fixtures_complete(name: &str) -> bool {
+/// Whether the neural version of `name` and its samplers of `methods` are committed.
+fn fixtures_complete(name: &str, methods: &[SamplerKind]) -> bool {
     let dir = fixtures_dir();
     let neural = format!("{}{}", slug(name), super::config::NEURAL_SUFFIX);
     neural_fixture(name).exists()
-        && METHODS
+        && methods
             .iter()
             .all(|m| fixture_path(&dir, &neural, m.name()).exists())
 }

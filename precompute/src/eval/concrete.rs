@@ -27,6 +27,7 @@ pub fn with_concrete<W: WithSampler>(s: BlobSampler<'_>, work: W) -> W::Output {
         AnySampler::ImprovedBaseline(x) => work.run(d(x, alpha)),
         AnySampler::AnalyticMixture(x) => work.run(d(x, alpha)),
         AnySampler::Flow(x) => work.run(d(x, alpha)),
+        AnySampler::DiskFlow(x) => work.run(d(x, alpha)),
         AnySampler::AffineFlow(x) => work.run(d(x, alpha)),
         AnySampler::DirectHistogram(x) => work.run(d(x, alpha)),
         AnySampler::HistogramMixture(x) => work.run(d(x, alpha)),

@@ -22,6 +22,10 @@ pub struct Common {
     pub pool_conditions: usize,
     /// A quarter of the pool is redrawn every this many steps (0: never).
     pub pool_refresh_every: usize,
+    /// Tabulate the training targets up to the horizon
+    /// ([`crate::groundtruth::TargetOptions::horizon`]) instead of the fit metrics' table
+    /// (cells wholly inside the disk, the release's 0.98 cut-off).
+    pub horizon_targets: bool,
     /// AdamW weight decay.
     pub weight_decay: f32,
     /// Gradient-norm clipping threshold.
@@ -37,6 +41,7 @@ impl Default for Common {
             gt_res: 128,
             pool_conditions: 512,
             pool_refresh_every: 400,
+            horizon_targets: true,
             weight_decay: 0.0,
             grad_clip: 10.0,
         }
@@ -88,6 +93,13 @@ pub struct MaxLikelihood {
     pub batch_conditions: usize,
     /// Ground-truth samples per condition.
     pub samples_per_condition: usize,
+    /// Weight λ of the χ² term of the fine-tuning phase (`super::objective::nll_and_chi2`);
+    /// 0: no fine-tuning.
+    pub chi2_weight: f32,
+    /// Length of the fine-tuning phase after maximum likelihood, as a fraction of
+    /// `schedule.steps` (its batches hold `samples_per_condition` samples of p* and as many
+    /// uniform points; its peak learning rate is a fifth of `schedule.lr`).
+    pub chi2_fraction: f64,
 }
 
 impl Default for MaxLikelihood {
@@ -101,6 +113,8 @@ impl Default for MaxLikelihood {
             },
             batch_conditions: 64,
             samples_per_condition: 64,
+            chi2_weight: 0.0,
+            chi2_fraction: 0.0,
         }
     }
 }
@@ -113,6 +127,7 @@ impl MaxLikelihood {
             schedule: Schedule::quick(),
             batch_conditions: 16,
             samples_per_condition: 32,
+            ..MaxLikelihood::default()
         }
     }
 
@@ -158,6 +173,9 @@ pub struct HistogramMixture {
     /// Initialise the condition network with every basis aligned to the mirror direction;
     /// only the starting point differs.
     pub aligned_init: bool,
+    /// Weight of the χ² term (`super::objective::log_second_moment` of the self-normalised
+    /// model) added to the loss; 0: none.
+    pub chi2_weight: f32,
 }
 
 impl Default for HistogramMixture {
@@ -177,6 +195,7 @@ impl Default for HistogramMixture {
             output_scale: 5.0,
             nll_weight: 1.0,
             aligned_init: true,
+            chi2_weight: 0.0,
         }
     }
 }
@@ -283,6 +302,8 @@ pub struct TrainConfig {
     pub analytic: MaxLikelihood,
     /// RQ-spline flow.
     pub flow: MaxLikelihood,
+    /// Disk flow.
+    pub disk_flow: MaxLikelihood,
     /// Affine-coupling flow.
     pub affine_flow: MaxLikelihood,
     /// Direct histogram.
@@ -301,6 +322,7 @@ impl Default for TrainConfig {
             baseline: MaxLikelihood::default(),
             analytic: MaxLikelihood::default(),
             flow: MaxLikelihood::with_schedule(2000, 5e-3),
+            disk_flow: MaxLikelihood::with_schedule(2000, 5e-3),
             affine_flow: MaxLikelihood::with_schedule(2000, 4e-3),
             direct_histogram: MaxLikelihood::default(),
             histogram_mixture: HistogramMixture::default(),
@@ -318,6 +340,7 @@ impl TrainConfig {
             baseline: MaxLikelihood::quick(),
             analytic: MaxLikelihood::quick(),
             flow: MaxLikelihood::quick(),
+            disk_flow: MaxLikelihood::quick(),
             affine_flow: MaxLikelihood::quick(),
             direct_histogram: MaxLikelihood::quick(),
             histogram_mixture: HistogramMixture::quick(),
@@ -338,6 +361,7 @@ impl TrainConfig {
             SamplerKind::ImprovedBaseline => Some(&mut self.baseline.schedule),
             SamplerKind::AnalyticMixture => Some(&mut self.analytic.schedule),
             SamplerKind::Flow => Some(&mut self.flow.schedule),
+            SamplerKind::DiskFlow => Some(&mut self.disk_flow.schedule),
             SamplerKind::AffineFlow => Some(&mut self.affine_flow.schedule),
             SamplerKind::DirectHistogram => Some(&mut self.direct_histogram.schedule),
             SamplerKind::HistogramMixture => Some(&mut self.histogram_mixture.schedule),

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use super::config::{Common, Schedule};
 use super::source::{GtCondition, TargetSource};
-use crate::groundtruth::TargetPdf;
+use crate::groundtruth::{TargetOptions, TargetPdf};
 use crate::nn::{optimise, tensor2, train_device, OptimSettings};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -29,24 +29,26 @@ pub struct Pool<'a> {
     res: usize,
     seed: u64,
     refresh_every: usize,
+    opts: TargetOptions,
     round: u64,
     cursor: usize,
 }
 
 impl<'a> Pool<'a> {
-    /// Draws the initial `size` conditions.
+    /// Draws the initial `size` conditions, their targets tabulated with `opts`.
     pub fn new(
         source: &'a dyn TargetSource,
         size: usize,
         res: usize,
         seed: u64,
         refresh_every: usize,
+        opts: TargetOptions,
     ) -> anyhow::Result<Self> {
         anyhow::ensure!(
             size > 0,
             "the ground-truth pool needs at least one condition"
         );
-        let items = source.draw(size, res, mix_seed(seed, 0))?;
+        let items = source.draw_with(size, res, mix_seed(seed, 0), &opts)?;
         anyhow::ensure!(
             items.len() == size,
             "the ground-truth source returned {} conditions instead of {size}",
@@ -58,6 +60,7 @@ impl<'a> Pool<'a> {
             res,
             seed,
             refresh_every,
+            opts,
             round: 0,
             cursor: 0,
         })
@@ -70,9 +73,9 @@ impl<'a> Pool<'a> {
         }
         self.round += 1;
         let n = self.items.len().div_ceil(4);
-        let fresh = self
-            .source
-            .draw(n, self.res, mix_seed(self.seed, self.round))?;
+        let fresh =
+            self.source
+                .draw_with(n, self.res, mix_seed(self.seed, self.round), &self.opts)?;
         for g in fresh {
             let i = self.cursor;
             self.items[i] = g;

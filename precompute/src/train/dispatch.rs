@@ -15,6 +15,7 @@ use super::data::{Batch, HostBatch, Pool};
 use super::histogram_mixture::{self, BakedTables};
 use super::source::{GtCondition, MaterialSource, TargetSource};
 use super::{direct_histogram, flow, lobes, reparam};
+use crate::groundtruth::TargetOptions;
 use crate::materials::Material;
 use crate::nn::{infer_device, to_host};
 
@@ -69,7 +70,18 @@ pub fn train_with(
         } else {
             c.gt_res
         };
-        let mut pool = Pool::new(source, c.pool_conditions, res, c.seed, c.pool_refresh_every)?;
+        let mut pool = Pool::new(
+            source,
+            c.pool_conditions,
+            res,
+            c.seed,
+            c.pool_refresh_every,
+            if c.horizon_targets {
+                TargetOptions::horizon()
+            } else {
+                TargetOptions::default()
+            },
+        )?;
         let plain = |(p, h)| (p, None, h);
         let (params, tables, loss_history) = match method {
             SamplerKind::ImprovedBaseline => {
@@ -79,6 +91,7 @@ pub fn train_with(
                 lobes::train(&mut pool, c, &cfg.analytic, true).map(plain)?
             }
             SamplerKind::Flow => flow::train_spline(&mut pool, c, &cfg.flow).map(plain)?,
+            SamplerKind::DiskFlow => flow::train_disk(&mut pool, c, &cfg.disk_flow).map(plain)?,
             SamplerKind::AffineFlow => {
                 flow::train_affine(&mut pool, c, &cfg.affine_flow).map(plain)?
             }
@@ -129,6 +142,7 @@ pub fn model_pdf_disk(trained: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: 
         SamplerKind::ImprovedBaseline => lobes::pdf_f64(w, false, phi, wi, p),
         SamplerKind::AnalyticMixture => lobes::pdf_f64(w, true, phi, wi, p),
         SamplerKind::Flow => flow::spline_pdf_f64(w, phi, wi, p),
+        SamplerKind::DiskFlow => flow::disk_pdf_f64(w, phi, wi, p),
         SamplerKind::AffineFlow => flow::affine_pdf_f64(w, phi, wi, p),
         SamplerKind::DirectHistogram => direct_histogram::pdf_f64(w, phi, wi, p),
         SamplerKind::HistogramMixture => match &trained.tables {
@@ -167,6 +181,7 @@ pub fn graph_log_pdf(
         SamplerKind::ImprovedBaseline => lobes::graph_log_pdf(params, false, &batch),
         SamplerKind::AnalyticMixture => lobes::graph_log_pdf(params, true, &batch),
         SamplerKind::Flow => flow::SplineFlow::from_flat(params, &device).log_pdf(&batch),
+        SamplerKind::DiskFlow => flow::DiskFlow::from_flat(params, &device).log_pdf(&batch),
         SamplerKind::AffineFlow => flow::AffineFlow::from_flat(params, &device).log_pdf(&batch),
         SamplerKind::DirectHistogram => direct_histogram::graph_log_pdf(params, &batch),
         SamplerKind::HistogramMixture

@@ -19,24 +19,31 @@ use neusample::nn::CONDITION_DIM;
 use neusample::samplers::affine_flow::{
     AFFINE_LAYERS, AFFINE_NET_LEN, AFFINE_OUTPUTS, AFFINE_SCALE_BOUND,
 };
+use neusample::samplers::disk_flow::{
+    DISK_FLOW_BINS, DISK_FLOW_COUPLING0, DISK_FLOW_COUPLING1, DISK_NET_LEN, DISK_SPLINE_RAW_LEN,
+};
 use neusample::samplers::spline_flow::{
     BASE_OUTPUTS, COUPLING_INPUTS, FLOW_BASE_LEN, FLOW_COUPLING0, FLOW_COUPLING1, HIDDEN,
     OTHER_BANDS, SPLINE_BINS, SPLINE_NET_LEN, SPLINE_RAW_LEN, TAIL_BOUND,
 };
 use neusample::FEATURE_DIM;
 
-use super::config::{Common, MaxLikelihood};
+use super::config::{Common, MaxLikelihood, Schedule};
 use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
-use super::spline::{rq_forward, rq_forward_f64};
+use super::objective;
+use super::spline::{rq_forward, rq_forward_f64, rq_forward_free, rq_forward_free_f64};
 use crate::nn::{self, encode, encode_f64, mlp_f64, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
 const LN_TWO_PI: f32 = 1.837_877_1;
+const LN_PI: f32 = 1.144_729_9;
 
 /// Layer sizes of the flow's base network.
 pub const BASE_SIZES: [usize; 3] = [CONDITION_DIM, HIDDEN, BASE_OUTPUTS];
 /// Layer sizes of a spline coupling network.
 pub const SPLINE_NET_SIZES: [usize; 4] = [COUPLING_INPUTS, HIDDEN, HIDDEN, SPLINE_RAW_LEN];
+/// Layer sizes of a disk-flow coupling network.
+pub const DISK_NET_SIZES: [usize; 4] = [COUPLING_INPUTS, HIDDEN, HIDDEN, DISK_SPLINE_RAW_LEN];
 /// Layer sizes of an affine coupling network.
 pub const AFFINE_NET_SIZES: [usize; 4] = [COUPLING_INPUTS, HIDDEN, HIDDEN, AFFINE_OUTPUTS];
 
@@ -44,6 +51,8 @@ const _: () = {
     assert!(nn::mlp_len(&BASE_SIZES) == FLOW_BASE_LEN);
     assert!(nn::mlp_len(&SPLINE_NET_SIZES) == SPLINE_NET_LEN);
     assert!(nn::mlp_len(&AFFINE_NET_SIZES) == AFFINE_NET_LEN);
+    assert!(nn::mlp_len(&DISK_NET_SIZES) == DISK_NET_LEN);
+    assert!(DISK_FLOW_COUPLING0 == 0 && DISK_FLOW_COUPLING1 == DISK_NET_LEN);
     assert!(FLOW_COUPLING1 == FLOW_COUPLING0 + SPLINE_NET_LEN);
 };
 
@@ -117,6 +126,49 @@ impl SplineFlow {
     }
 }
 
+/// The disk flow (`core/ARCHITECTURES.md` §9): uniform base on the disk, two spline couplings
+/// on chords.
+#[derive(Module, Debug)]
+pub struct DiskFlow {
+    /// Coupling network 0 (transforms x given the base point's y).
+    pub c0: Mlp,
+    /// Coupling network 1 (transforms y given x).
+    pub c1: Mlp,
+}
+
+/// `√((1 − v)(1 + v))` (as the runtime computes it, precise at the rim), kept away from 0 so
+/// that its gradient stays finite there.
+fn chord(v: Tensor<2>) -> Tensor<2> {
+    ((v.clone().neg() + 1.0) * (v + 1.0))
+        .clamp_min(1e-12)
+        .sqrt()
+}
+
+impl DiskFlow {
+    /// The flow from exported parameters.
+    pub fn from_flat(params: &[f32], device: &burn::tensor::Device) -> Self {
+        DiskFlow {
+            c0: Mlp::from_flat(&DISK_NET_SIZES, &params[DISK_FLOW_COUPLING0..], device),
+            c1: Mlp::from_flat(&DISK_NET_SIZES, &params[DISK_FLOW_COUPLING1..], device),
+        }
+    }
+
+    /// Per-point log density `[b, s]` (density direction, `DiskFlowPrepared::to_base`).
+    pub fn log_pdf(&self, batch: &Batch) -> Tensor<2> {
+        let (b, s) = (batch.b, batch.s);
+        let (x, y) = (batch.x.clone(), batch.y.clone());
+        let cy = chord(x.clone());
+        let eta = (y / cy.clone()).clamp(-1.0, 1.0);
+        let raw1 = coupling(&self.c1, &batch.cond, x.clone(), Activation::LeakyRelu);
+        let (sy, ld1) = rq_forward_free(eta.reshape([b * s, 1]), raw1, DISK_FLOW_BINS);
+        let yb = cy * sy.reshape([b, s]);
+        let xi = (x / chord(yb.clone())).clamp(-1.0, 1.0);
+        let raw0 = coupling(&self.c0, &batch.cond, yb, Activation::LeakyRelu);
+        let (_, ld0) = rq_forward_free(xi.reshape([b * s, 1]), raw0, DISK_FLOW_BINS);
+        (ld0 + ld1).reshape([b, s]) - LN_PI
+    }
+}
+
 /// The affine-coupling flow.
 #[derive(Module, Debug)]
 pub struct AffineFlow {
@@ -164,6 +216,54 @@ impl AffineFlow {
     }
 }
 
+/// Maximum likelihood of samples of p* over `cfg.schedule`, then, when `cfg.chi2_weight > 0`,
+/// the fine-tuning phase of [`objective::nll_and_chi2`] (`cfg.chi2_fraction` of the steps,
+/// a fifth of the learning rate, regression batches of `samples_per_condition` samples of
+/// p* and as many uniform points, its own batch seeds). The loss history holds both phases.
+fn fit_ml_then_chi2<M: Module>(
+    model: M,
+    name: &str,
+    pool: &mut Pool<'_>,
+    common: &Common,
+    cfg: &MaxLikelihood,
+    log_pdf: impl Fn(&M, &Batch) -> Tensor<2>,
+) -> anyhow::Result<(M, Vec<f32>)> {
+    let (model, mut history) = fit(
+        model,
+        name,
+        common,
+        &cfg.schedule,
+        pool,
+        PointKind::FromTarget,
+        (cfg.batch_conditions, cfg.samples_per_condition),
+        |m: &M, batch: &Batch| log_pdf(m, batch).mean().neg(),
+    )?;
+    let steps = (cfg.schedule.steps as f64 * cfg.chi2_fraction).round() as usize;
+    if !(cfg.chi2_weight > 0.0) || steps == 0 {
+        return Ok((model, history));
+    }
+    let tune = Schedule {
+        steps,
+        lr: cfg.schedule.lr * 0.2,
+    };
+    let tune_common = Common {
+        seed: mix_seed(common.seed, 0xc412),
+        ..common.clone()
+    };
+    let (model, more) = fit(
+        model,
+        &format!("{name} (χ²)"),
+        &tune_common,
+        &tune,
+        pool,
+        PointKind::Regression,
+        (cfg.batch_conditions, 2 * cfg.samples_per_condition),
+        |m: &M, batch: &Batch| objective::nll_and_chi2(log_pdf(m, batch), batch, cfg.chi2_weight),
+    )?;
+    history.extend(more);
+    Ok((model, history))
+}
+
 /// Trains the RQ-spline flow; returns `(params, loss history)`.
 pub fn train_spline(
     pool: &mut Pool<'_>,
@@ -178,18 +278,46 @@ pub fn train_spline(
         c0: Mlp::new(&SPLINE_NET_SIZES, 0.1, &mut rng, &device),
         c1: Mlp::new(&SPLINE_NET_SIZES, 0.1, &mut rng, &device),
     };
-    let (model, history) = fit(
-        model,
-        "flow",
-        common,
-        &cfg.schedule,
-        pool,
-        PointKind::FromTarget,
-        (cfg.batch_conditions, cfg.samples_per_condition),
-        |m: &SplineFlow, batch: &Batch| m.log_pdf(batch).mean().neg(),
-    )?;
+    let (model, history) =
+        fit_ml_then_chi2(model, "flow", pool, common, cfg, |m: &SplineFlow, b| {
+            m.log_pdf(b)
+        })?;
     let mut params = Vec::with_capacity(FLOW_COUPLING1 + SPLINE_NET_LEN);
     model.base.export(&mut params);
+    model.c0.export(&mut params);
+    model.c1.export(&mut params);
+    Ok((params, history))
+}
+
+/// A disk-flow coupling network whose knot derivatives start at 1 (`min_d + softplus(raw)` with
+/// the raw bias `ln(e^(1 − min_d) − 1)`), so that the zero-initialised flow is near the
+/// identity and the density near uniform.
+fn disk_coupling_net(rng: &mut rand_pcg::Pcg64, device: &burn::tensor::Device) -> Mlp {
+    let min_d = f64::from(neusample::distrib::spline::MIN_DERIVATIVE);
+    let one = ((1.0 - min_d).exp() - 1.0).ln() as f32;
+    let bias: Vec<(usize, f32)> = (2 * DISK_FLOW_BINS..DISK_SPLINE_RAW_LEN)
+        .map(|o| (o, one))
+        .collect();
+    Mlp::new_with_output_bias(&DISK_NET_SIZES, 0.1, &bias, rng, device)
+}
+
+/// Trains the disk flow; returns `(params, loss history)`.
+pub fn train_disk(
+    pool: &mut Pool<'_>,
+    common: &Common,
+    cfg: &MaxLikelihood,
+) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+    let device = train_device();
+    let mut rng = rng_for(mix_seed(common.seed, 0xd15c), 0, 0);
+    let model = DiskFlow {
+        c0: disk_coupling_net(&mut rng, &device),
+        c1: disk_coupling_net(&mut rng, &device),
+    };
+    let (model, history) =
+        fit_ml_then_chi2(model, "disk-flow", pool, common, cfg, |m: &DiskFlow, b| {
+            m.log_pdf(b)
+        })?;
+    let mut params = Vec::with_capacity(2 * DISK_NET_LEN);
     model.c0.export(&mut params);
     model.c1.export(&mut params);
     Ok((params, history))
@@ -225,15 +353,17 @@ pub fn train_affine(
     Ok((params, history))
 }
 
-fn coupling_f64(params: &[f32], offset: usize, c: &[f64], other: f64, act: Activation) -> Vec<f64> {
+fn coupling_f64(
+    params: &[f32],
+    offset: usize,
+    sizes: &[usize],
+    c: &[f64],
+    other: f64,
+    act: Activation,
+) -> Vec<f64> {
     let mut input = c.to_vec();
     encode_f64(other, OTHER_BANDS, &mut input);
     let mut at = offset;
-    let sizes = if act == Activation::LeakyRelu {
-        &SPLINE_NET_SIZES
-    } else {
-        &AFFINE_NET_SIZES
-    };
     mlp_f64(params, &mut at, sizes, act, &input)
 }
 
@@ -247,9 +377,23 @@ pub fn spline_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec
     let c = encoded_condition_f64(phi, wi);
     let (x, y) = (f64::from(p.x), f64::from(p.y));
     let bound = f64::from(TAIL_BOUND);
-    let raw1 = coupling_f64(params, FLOW_COUPLING1, &c, x, Activation::LeakyRelu);
+    let raw1 = coupling_f64(
+        params,
+        FLOW_COUPLING1,
+        &SPLINE_NET_SIZES,
+        &c,
+        x,
+        Activation::LeakyRelu,
+    );
     let (yl, ld1) = rq_forward_f64(y, &raw1, SPLINE_BINS, bound);
-    let raw0 = coupling_f64(params, FLOW_COUPLING0, &c, yl, Activation::LeakyRelu);
+    let raw0 = coupling_f64(
+        params,
+        FLOW_COUPLING0,
+        &SPLINE_NET_SIZES,
+        &c,
+        yl,
+        Activation::LeakyRelu,
+    );
     let (xl, ld0) = rq_forward_f64(x, &raw0, SPLINE_BINS, bound);
     let mut at = 0;
     let o = mlp_f64(params, &mut at, &BASE_SIZES, Activation::Relu, &c);
@@ -259,6 +403,45 @@ pub fn spline_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec
     let dy = (yl - o[1]) / lsy.exp();
     let lp = -0.5 * (dx * dx + dy * dy) - (std::f64::consts::TAU).ln() - lsx - lsy + ld0 + ld1;
     lp.exp()
+}
+
+/// Density (projected-disk area measure) of a trained disk flow at `p`, in f64 from the
+/// exported parameters (see [`spline_pdf_f64`]).
+#[must_use]
+pub fn disk_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+    if !(p.length_squared() < 1.0) {
+        return 0.0;
+    }
+    let c = encoded_condition_f64(phi, wi);
+    let (x, y) = (f64::from(p.x), f64::from(p.y));
+    let chord = |v: f64| (1.0 - v * v).max(0.0).sqrt();
+    let ratio = |a: f64, c: f64| {
+        if c > 0.0 {
+            (a / c).clamp(-1.0, 1.0)
+        } else {
+            0.0
+        }
+    };
+    let raw1 = coupling_f64(
+        params,
+        DISK_FLOW_COUPLING1,
+        &DISK_NET_SIZES,
+        &c,
+        x,
+        Activation::LeakyRelu,
+    );
+    let (sy, ld1) = rq_forward_free_f64(ratio(y, chord(x)), &raw1, DISK_FLOW_BINS);
+    let yb = chord(x) * sy;
+    let raw0 = coupling_f64(
+        params,
+        DISK_FLOW_COUPLING0,
+        &DISK_NET_SIZES,
+        &c,
+        yb,
+        Activation::LeakyRelu,
+    );
+    let (_, ld0) = rq_forward_free_f64(ratio(x, chord(yb)), &raw0, DISK_FLOW_BINS);
+    (ld0 + ld1 - std::f64::consts::PI.ln()).exp()
 }
 
 /// Density (projected-disk area measure) of a trained affine flow at `p` (see
@@ -274,7 +457,14 @@ pub fn affine_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec
     let bound = f64::from(AFFINE_SCALE_BOUND);
     for l in 0..AFFINE_LAYERS {
         let other = if l % 2 == 0 { y } else { x };
-        let o = coupling_f64(params, l * AFFINE_NET_LEN, &c, other, Activation::Relu);
+        let o = coupling_f64(
+            params,
+            l * AFFINE_NET_LEN,
+            &AFFINE_NET_SIZES,
+            &c,
+            other,
+            Activation::Relu,
+        );
         let s = bound * (o[0] / bound).tanh();
         if l % 2 == 0 {
             x = x * s.exp() + o[1];

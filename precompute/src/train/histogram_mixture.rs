@@ -46,6 +46,7 @@ use neusample::{DType, FEATURE_DIM};
 
 use super::config::{Common, HistogramMixture as Config};
 use super::data::{fit, raw_condition_f64, Batch, HostBatch, PointKind, Pool};
+use super::objective;
 use crate::nn::{
     encode, infer_device, mlp_f64, softmax_f64, tensor2, to_host, train_device, Activation, Mlp,
 };
@@ -279,10 +280,18 @@ fn aligned_condition_init(rng: &mut rand_pcg::Pcg64, device: &burn::tensor::Devi
 /// Optional addition to Eq. 7 ([`super::HistogramMixture::nll_weight`]).
 fn self_normalised_nll(p: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
     let [b, s] = p.dims();
+    let drawn = p
+        .clone()
+        .reshape([b, s / 2, 2])
+        .narrow(2, 1, 1)
+        .reshape([b, s / 2]);
+    (drawn + 1e-12).log().mean().neg() + log_normaliser(p, target).mean()
+}
+
+/// `ln Ẑ` per condition `[b, 1]` of a regression batch (see [`self_normalised_nll`]).
+fn log_normaliser(p: Tensor<2>, target: Tensor<2>) -> Tensor<2> {
     let q = target * 0.5 + 0.5 * std::f32::consts::FRAC_1_PI;
-    let z = (p.clone() / q).mean_dim(1) + 1e-12;
-    let drawn = p.reshape([b, s / 2, 2]).narrow(2, 1, 1).reshape([b, s / 2]);
-    (drawn + 1e-12).log().mean().neg() + z.log().mean()
+    ((p / q).mean_dim(1) + 1e-12).log()
 }
 
 /// Trains the histogram mixture and bakes its tables; returns `(params, tables, history)`.
@@ -316,6 +325,7 @@ pub fn train(
     let levels = (cfg.t_levels - 1) as f32;
     let lambda = cfg.quant_weight;
     let nll_weight = cfg.nll_weight;
+    let chi2_weight = cfg.chi2_weight;
     let (model, history) = fit(
         model,
         "histogram-mixture",
@@ -331,8 +341,15 @@ pub fn train(
             let l2 = (p.clone() - target.clone()).powi_scalar(2).mean() / scale;
             let tq = (t.clone().detach() * levels).round() / levels;
             let loss = l2 + (t - tq).powi_scalar(2).mean() * lambda;
-            if nll_weight > 0.0 {
-                loss + self_normalised_nll(p, target) * nll_weight
+            let loss = if nll_weight > 0.0 {
+                loss + self_normalised_nll(p.clone(), target.clone()) * nll_weight
+            } else {
+                loss
+            };
+            if chi2_weight > 0.0 {
+                // The render's measure of the self-normalised model p/Ẑ.
+                let log_p = (p.clone() + 1e-12).log() - log_normaliser(p, target);
+                loss + objective::log_second_moment(log_p, batch).mean() * chi2_weight
             } else {
                 loss
             }

@@ -6,10 +6,11 @@ use neusample::SamplerKind;
 
 /// Every trainable method, in the paper's order (every sampler kind but cosine), then the
 /// reparameterization sampler (which needs an integrand: [`needs_integrand`]).
-pub const METHODS: [SamplerKind; 7] = [
+pub const METHODS: [SamplerKind; 8] = [
     SamplerKind::ImprovedBaseline,
     SamplerKind::AnalyticMixture,
     SamplerKind::Flow,
+    SamplerKind::DiskFlow,
     SamplerKind::AffineFlow,
     SamplerKind::DirectHistogram,
     SamplerKind::HistogramMixture,

@@ -5,6 +5,9 @@
 //!   maximum likelihood of samples of the ground truth p* (paper §3 "Fitting"): every batch
 //!   is `batch_conditions` random conditions × `samples_per_condition` samples of p*, and
 //!   the loss is `−mean ln p(ω⊥)` (equivalently `KL(p* ‖ p)` up to a constant).
+//! * Flows, optionally (`MaxLikelihood::chi2_weight`): a fine-tuning phase with the render's
+//!   measure, `−mean ln p + λ·ln ∫ p*²/p` ([`objective`]).
+//! * Training targets are tabulated up to the horizon by default ([`Common::horizon_targets`]).
 //! * Histogram mixture: the L2 loss of Eq. 7 plus the latent-code quantisation term, plus
 //!   (our addition, on by default) a self-normalised NLL term, then baking of the basis
 //!   network into tables ([`histogram_mixture`]).
@@ -35,6 +38,7 @@ mod data;
 mod dispatch;
 mod integrand;
 mod method;
+pub mod objective;
 mod source;
 
 pub mod direct_histogram;

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use super::integrand::{NeuralIntegrand, SyntheticIntegrand};
 use super::reparam::Integrand;
-use crate::groundtruth::{self, TargetPdf};
+use crate::groundtruth::{self, TargetOptions, TargetPdf};
 use crate::materials::Material;
 use crate::util::rng::rng_for;
 
@@ -26,9 +26,20 @@ pub struct GtCondition {
 
 /// A source of training conditions, deterministic in its seed.
 pub trait TargetSource: Sync {
-    /// `n` random conditions with their targets tabulated at `res × res`, a pure function
-    /// of `(n, res, seed)`.
-    fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>>;
+    /// `n` random conditions with their targets tabulated at `res × res` with `opts`, a pure
+    /// function of `(n, res, seed, opts)`.
+    fn draw_with(
+        &self,
+        n: usize,
+        res: usize,
+        seed: u64,
+        opts: &TargetOptions,
+    ) -> anyhow::Result<Vec<GtCondition>>;
+
+    /// [`TargetSource::draw_with`] with the default options (the fit metrics' targets).
+    fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>> {
+        self.draw_with(n, res, seed, &TargetOptions::default())
+    }
 
     /// The unnormalised target with a differentiable training graph, which the
     /// reparameterization sampler trains on; `None` where the source has none (a material
@@ -56,8 +67,14 @@ impl<'a> MaterialSource<'a> {
 }
 
 impl TargetSource for MaterialSource<'_> {
-    fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>> {
-        Ok(groundtruth::batch(self.material, n, res, seed)
+    fn draw_with(
+        &self,
+        n: usize,
+        res: usize,
+        seed: u64,
+        opts: &TargetOptions,
+    ) -> anyhow::Result<Vec<GtCondition>> {
+        Ok(groundtruth::batch_with(self.material, n, res, seed, opts)
             .into_iter()
             .map(|(c, target)| GtCondition {
                 phi: c.phi,
@@ -140,7 +157,13 @@ impl TargetSource for SyntheticSource {
         Some(&SyntheticIntegrand)
     }
 
-    fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>> {
+    fn draw_with(
+        &self,
+        n: usize,
+        res: usize,
+        seed: u64,
+        opts: &TargetOptions,
+    ) -> anyhow::Result<Vec<GtCondition>> {
         Ok((0..n)
             .into_par_iter()
             .map(|i| {
@@ -148,25 +171,34 @@ impl TargetSource for SyntheticSource {
                 let (phi, wi) = Self::condition(&mut rng);
                 let h = 2.0 / res as f32;
                 let mut values = vec![0.0f32; res * res];
+                let mut inside = vec![0.0f32; res * res];
                 for r in 0..res {
                     for c in 0..res {
-                        let mut acc = 0.0;
+                        let (mut acc, mut n_in) = (0.0, 0);
                         for i in 0..2 {
                             for j in 0..2 {
                                 let p = Vec2::new(
                                     -1.0 + h * (c as f32 + 0.25 + 0.5 * j as f32),
                                     -1.0 + h * (r as f32 + 0.25 + 0.5 * i as f32),
                                 );
-                                acc += 0.25 * Self::density(&phi, wi, p);
+                                if p.length_squared() < 1.0 || !opts.to_horizon {
+                                    acc += Self::density(&phi, wi, p);
+                                    n_in += 1;
+                                }
                             }
                         }
-                        values[r * res + c] = acc;
+                        let i = r * res + c;
+                        if groundtruth::cell_inside_disk(res, r, c) {
+                            (values[i], inside[i]) = (acc / 4.0, 1.0);
+                        } else if opts.to_horizon && n_in > 0 {
+                            (values[i], inside[i]) = (acc / n_in as f32, n_in as f32 / 4.0);
+                        }
                     }
                 }
                 GtCondition {
                     phi,
                     wi,
-                    target: TargetPdf::from_values(res, values),
+                    target: TargetPdf::from_cells(res, values, &inside),
                 }
             })
             .collect())

@@ -3,8 +3,8 @@
 //! (`neusample::distrib::spline`): `K` bins on `[−B, B]`, minimum bin width/height/derivative 1e−3,
 //! `widths = min_w + (1 − K·min_w)·softmax(raw_w)`, knots the cumulative sum scaled to
 //! `[−B, B]` with both ends exact, interior derivatives `min_d + softplus(raw_d)`, boundary
-//! derivatives 1, identity outside `[−B, B]`. Only the forward (density-direction) map is
-//! needed for training.
+//! derivatives 1, identity outside `[−B, B]` (or, for the disk flow, every derivative learned on
+//! `[−1, 1]`). Only the forward (density-direction) map is needed for training.
 
 use burn::tensor::activation;
 use burn::tensor::{Int, Tensor};
@@ -34,11 +34,32 @@ fn knots(raw: Tensor<2>, min_size: f32, bound: f32) -> Tensor<2> {
 pub fn rq_forward(v: Tensor<2>, raw: Tensor<2>, bins: usize, bound: f32) -> (Tensor<2>, Tensor<2>) {
     let n = v.dims()[0];
     let device = v.device();
-    let xk = knots(raw.clone().narrow(1, 0, bins), MIN_BIN_WIDTH, bound);
-    let yk = knots(raw.clone().narrow(1, bins, bins), MIN_BIN_HEIGHT, bound);
-    let d_inner = activation::softplus(raw.narrow(1, 2 * bins, bins - 1), 1.0) + MIN_DERIVATIVE;
+    let d_inner =
+        activation::softplus(raw.clone().narrow(1, 2 * bins, bins - 1), 1.0) + MIN_DERIVATIVE;
     let ones = Tensor::<2>::ones([n, 1], &device);
     let d = Tensor::cat(vec![ones.clone(), d_inner, ones], 1);
+    rq_forward_with(v, raw, d, bins, bound)
+}
+
+/// [`rq_forward`] of a spline on `[−1, 1]` whose boundary derivatives are learned too
+/// (`neusample::distrib::spline::Knots::from_raw_free`): raw parameters `[n, 3K + 1]`
+/// (`[widths K, heights K, derivatives K + 1]`), every derivative `min_d + softplus(raw)`.
+pub fn rq_forward_free(v: Tensor<2>, raw: Tensor<2>, bins: usize) -> (Tensor<2>, Tensor<2>) {
+    let d = activation::softplus(raw.clone().narrow(1, 2 * bins, bins + 1), 1.0) + MIN_DERIVATIVE;
+    rq_forward_with(v, raw, d, bins, 1.0)
+}
+
+/// The forward map given the knot derivatives `d` `[n, K + 1]`.
+fn rq_forward_with(
+    v: Tensor<2>,
+    raw: Tensor<2>,
+    d: Tensor<2>,
+    bins: usize,
+    bound: f32,
+) -> (Tensor<2>, Tensor<2>) {
+    let n = v.dims()[0];
+    let xk = knots(raw.clone().narrow(1, 0, bins), MIN_BIN_WIDTH, bound);
+    let yk = knots(raw.narrow(1, bins, bins), MIN_BIN_HEIGHT, bound);
 
     let outside = v
         .clone()
@@ -97,15 +118,29 @@ fn knots_f64(raw: &[f64], min_size: f64, bound: f64) -> Vec<f64> {
 /// f64 forward map of the spline: `(y, ln |dy/dv|)` (see [`rq_forward`]).
 #[must_use]
 pub fn rq_forward_f64(v: f64, raw: &[f64], bins: usize, bound: f64) -> (f64, f64) {
+    let mut d = vec![1.0f64; bins + 1];
+    for j in 1..bins {
+        d[j] = f64::from(MIN_DERIVATIVE) + softplus_f64(raw[2 * bins + j - 1]);
+    }
+    rq_forward_with_f64(v, raw, &d, bins, bound)
+}
+
+/// f64 [`rq_forward_free`].
+#[must_use]
+pub fn rq_forward_free_f64(v: f64, raw: &[f64], bins: usize) -> (f64, f64) {
+    let d: Vec<f64> = (0..=bins)
+        .map(|j| f64::from(MIN_DERIVATIVE) + softplus_f64(raw[2 * bins + j]))
+        .collect();
+    rq_forward_with_f64(v, raw, &d, bins, 1.0)
+}
+
+/// The f64 forward map given the knot derivatives `d` (`K + 1` values).
+fn rq_forward_with_f64(v: f64, raw: &[f64], d: &[f64], bins: usize, bound: f64) -> (f64, f64) {
     if !(v >= -bound && v <= bound) {
         return (v, 0.0);
     }
     let xk = knots_f64(&raw[..bins], f64::from(MIN_BIN_WIDTH), bound);
     let yk = knots_f64(&raw[bins..2 * bins], f64::from(MIN_BIN_HEIGHT), bound);
-    let mut d = vec![1.0f64; bins + 1];
-    for j in 1..bins {
-        d[j] = f64::from(MIN_DERIVATIVE) + softplus_f64(raw[2 * bins + j - 1]);
-    }
     let mut k = 0;
     for (j, &x) in xk.iter().enumerate().skip(1) {
         if v >= x {

@@ -5,7 +5,9 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::Args;
+use neusample::SamplerKind;
 use neusample_precompute::demo::{self, DemoConfig, FixtureSet, TableConfig, DEFAULT_MATERIALS};
+use neusample_precompute::train::{parse_method, METHODS};
 
 /// Options of `neusample demo`.
 #[derive(Args, Clone, Debug)]
@@ -72,6 +74,16 @@ pub struct DemoArgs {
     /// Skip the rendering evaluation (fit and cost only).
     #[arg(long)]
     pub no_render: bool,
+    /// Trained methods to evaluate, e.g. `flow,disk-flow` (cosine, the improved baseline and
+    /// the oracle are always evaluated); default: all.
+    #[arg(long, value_delimiter = ',', value_parser = method_parser())]
+    pub methods: Vec<SamplerKind>,
+}
+
+/// A trainable method's name (`neusample train --method`'s names).
+fn method_parser() -> impl TypedValueParser<Value = SamplerKind> {
+    PossibleValuesParser::new(METHODS.map(|m| m.name()))
+        .map(|s| parse_method(&s).expect("a listed method"))
 }
 
 impl From<DemoArgs> for DemoConfig {
@@ -93,6 +105,7 @@ impl From<DemoArgs> for DemoConfig {
             uniform_light: !a.sky,
             mis: a.mis,
             no_render: a.no_render,
+            methods: a.methods,
             eval_conditions: None,
             timing_passes: None,
         }
@@ -118,10 +131,9 @@ pub struct FixturesArgs {
     /// Quick training (for tests of the command itself).
     #[arg(long)]
     pub quick: bool,
-    /// With `--set neural`: only these methods (comma-separated), trained on the committed
-    /// neural materials without retraining them; the other blobs are kept.
-    #[arg(long, value_delimiter = ',')]
-    pub methods: Vec<String>,
+    /// Trained methods to (re)train (as `demo --methods`); default: all.
+    #[arg(long, value_delimiter = ',', value_parser = method_parser())]
+    pub methods: Vec<SamplerKind>,
 }
 
 /// The names of [`FixtureSet::NAMES`], listed in `--help`.
@@ -133,19 +145,7 @@ fn fixture_set_parser() -> impl TypedValueParser<Value = FixtureSet> {
 /// `neusample fixtures`.
 pub fn fixtures(a: &FixturesArgs) -> Result<()> {
     let names: Vec<&str> = a.materials.iter().map(String::as_str).collect();
-    if !a.methods.is_empty() {
-        anyhow::ensure!(
-            a.set == demo::FixtureSet::Neural,
-            "--methods retrains samplers on the committed neural materials: use it with --set neural"
-        );
-        let methods = a
-            .methods
-            .iter()
-            .map(|m| neusample_precompute::train::parse_method(m))
-            .collect::<Result<Vec<_>>>()?;
-        return demo::regenerate_methods(&a.out, &a.materials_out, &names, &methods, a.quick);
-    }
-    demo::regenerate_fixtures(&a.out, &a.materials_out, a.set, &names, a.quick)
+    demo::regenerate_fixtures(&a.out, &a.materials_out, a.set, &names, &a.methods, a.quick)
 }
 
 /// Options of `neusample table`.
@@ -173,6 +173,9 @@ pub struct TableArgs {
     /// The demo's CI-sized smoke test per lighting (numbers are not results).
     #[arg(long)]
     pub smoke: bool,
+    /// Trained methods to evaluate (as `demo --methods`); default: all.
+    #[arg(long, value_delimiter = ',', value_parser = method_parser())]
+    pub methods: Vec<SamplerKind>,
 }
 
 impl From<TableArgs> for TableConfig {
@@ -184,6 +187,7 @@ impl From<TableArgs> for TableConfig {
         c.spp = a.spp;
         c.markdown_only = a.markdown_only;
         c.smoke = a.smoke;
+        c.methods = a.methods;
         c
     }
 }

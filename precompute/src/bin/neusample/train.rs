@@ -59,6 +59,17 @@ pub struct TrainArgs {
     /// Histogram mixture: nearest latent level instead of linear interpolation.
     #[arg(long)]
     nearest_t: bool,
+    /// Train on the fit metrics' targets (cells wholly inside the disk, the release's 0.98
+    /// cut-off) instead of targets up to the horizon.
+    #[arg(long)]
+    no_horizon: bool,
+    /// Weight λ of the χ² term: the flows' fine-tuning phase (0: maximum likelihood only), the
+    /// histogram mixture's added loss term.
+    #[arg(long)]
+    chi2: Option<f32>,
+    /// Flows: length of the χ² fine-tuning phase as a fraction of the steps.
+    #[arg(long)]
+    chi2_fraction: Option<f64>,
 }
 
 /// `--method`: one method, `all`, or a comma-separated list (a sweep, like `all`).
@@ -136,6 +147,26 @@ impl TryFrom<&TrainArgs> for TrainConfig {
         }
         if a.nearest_t {
             cfg.histogram_mixture.interpolate_t = false;
+        }
+        if a.no_horizon {
+            cfg.common.horizon_targets = false;
+        }
+        if let Some(w) = a.chi2 {
+            if !(w >= 0.0 && w.is_finite()) {
+                bail!("--chi2 must be a non-negative number");
+            }
+            cfg.histogram_mixture.chi2_weight = w;
+        }
+        for flow in [&mut cfg.flow, &mut cfg.disk_flow] {
+            if let Some(w) = a.chi2 {
+                flow.chi2_weight = w;
+            }
+            if let Some(f) = a.chi2_fraction {
+                if !(f >= 0.0 && f.is_finite()) {
+                    bail!("--chi2-fraction must be a non-negative number");
+                }
+                flow.chi2_fraction = f;
+            }
         }
         Ok(cfg)
     }
