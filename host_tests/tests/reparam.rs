@@ -393,10 +393,23 @@ fn check<S: Sampler + BatchSampler>(s: &S, r: &mut neusample_host_tests::TestRng
             (Some(p), Some(x)) => (x.wo, x.pdf, p.mis_pdf(&x)),
             _ => (Vec3::ZERO, 0.0, 0.0),
         };
+        // The batched dense layers fuse multiply-adds where the scalar path rounds each
+        // product: the paths agree within the wavefront tests' tolerances, not bit for bit.
+        let rel = |a: f32, b: f32| (a - b).abs() / a.abs().max(b.abs()).max(f32::MIN_POSITIVE);
         assert_eq!(
-            [ox[i], oy[i], oz[i], pdf[i], mis[i]].map(f32::to_bits),
-            [wo.x, wo.y, wo.z, sp, mp].map(f32::to_bits),
-            "lane {i}"
+            pdf[i] > 0.0,
+            sp > 0.0,
+            "lane {i}: a sample on one path only"
+        );
+        let d = (ox[i] - wo.x)
+            .abs()
+            .max((oy[i] - wo.y).abs())
+            .max((oz[i] - wo.z).abs());
+        assert!(
+            d <= 1e-3 && rel(pdf[i], sp) <= 5e-4 && rel(mis[i], mp) <= 5e-4,
+            "lane {i}: batched {:?} vs scalar {:?}",
+            [ox[i], oy[i], oz[i], pdf[i], mis[i]],
+            [wo.x, wo.y, wo.z, sp, mp]
         );
         assert!(mis[i].is_finite() && mis[i] >= 0.0);
     }

@@ -305,13 +305,22 @@ where
             (Some(p), Some(x)) if out.pdf[i] > 0.0 => {
                 let wo = Vec3::new(got[0], got[1], got[2]);
                 // The scalar density at the batched sample: the sample's own pdf, well
-                // conditioned wherever the density is continuous.
-                let r = rel(got[3], p.pdf(wo));
+                // conditioned wherever the density is continuous. An inexact kind's sampling
+                // density exists only at its own draws: the scalar sample's, where the two
+                // samples coincide.
+                let r = if p.exact_pdf() {
+                    rel(got[3], p.pdf(wo))
+                } else if edge {
+                    0.0
+                } else {
+                    rel(got[3], x.pdf)
+                };
                 let d = (0..3)
                     .map(|k| (f64::from(got[k]) - f64::from(x.wo[k])).abs())
                     .fold(0.0, f64::max);
-                // The MIS densities of both samples (close, as the samples are).
-                let r = r.max(rel(mis[i], p.mis_pdf(&x)));
+                // The MIS density of the batched sample is the scalar `pdf` there, for every
+                // kind (`Prepared::mis_pdf`).
+                let r = r.max(rel(mis[i], p.pdf(wo)));
                 if r > PDF_RTOL || (!edge && d > DIR_ATOL) {
                     dev.discrete
                         .push(format!("sample {got:?} vs {x:?} {}", ctx()));

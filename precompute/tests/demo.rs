@@ -68,9 +68,11 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
                 "baseline",
                 "analytic",
                 "flow",
+                "disk-flow",
                 "affine-flow",
                 "direct-histogram",
                 "histogram-mixture",
+                "reparam",
                 "oracle"
             ]
         );
@@ -142,9 +144,11 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
                 );
             }
 
-            // Relations between the fields.
+            // Relations between the fields. An inexact kind's `pdf` (the reparameterization
+            // sampler's pdf network) is not normalised: only exact densities are bounded.
+            let exact = neusample::SamplerKind::from_name(&x.method).is_none_or(|k| k.exact_pdf());
             assert!(
-                x.mass_in_disk <= 1.0 + MASS_TOLERANCE,
+                !exact || x.mass_in_disk <= 1.0 + MASS_TOLERANCE,
                 "{what}: mass in the disk {}",
                 x.mass_in_disk
             );

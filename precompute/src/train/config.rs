@@ -250,10 +250,9 @@ pub struct Reparam {
     /// The pdf network's loss.
     pub density_loss: DensityLoss,
     /// Weight λ of a χ² term added to the warp's loss (0: the release's objective; 0.1 by
-    /// default, `docs/reparam/` has the ablation): per
-    /// condition `ln(E_z[w²]/E_z[w]²)` with `w = f⊥(T(z))·det J/N(z)`, the log of `1 + χ²(p* ‖
-    /// q)` estimated on the batch's samples: the render's variance, which the KL term (mode
-    /// seeking) lets grow where the warp under-covers the integrand.
+    /// default): per condition `ln(E_z[w²]/E_z[w]²)` with `w = f⊥(T(z))·det J/N(z)`, the
+    /// log of `1 + χ²(p* ‖ q)` estimated on the batch's samples: the render's variance, which
+    /// the KL term (mode seeking) lets grow where the warp under-covers the integrand.
     pub chi2_weight: f32,
 }
 
