@@ -51,15 +51,17 @@ fi
 
 step "C ABI: C and C++ examples (system compilers)"
 # `cargo test --workspace` already built the static library (crate-type staticlib) with the
-# workspace's unified features; `--no-run` only checks it is fresh. `-p neusample-capi` alone
-# would resolve other features and rebuild core and every dependency a second time.
+# workspace's unified features; `--no-run` only checks it is fresh. It leaves the library in
+# `deps/` (only `cargo build` copies it up). `-p neusample-capi` alone would resolve other
+# features and rebuild core and every dependency a second time.
 if [ "${NEUSAMPLE_BINDINGS_CARGO_TESTED:-0}" = 1 ]; then
   cargo test --workspace --no-run
+  lib="$target/debug/deps/libneusample_capi.a"
 else
   cargo build --profile test -p neusample-capi
+  lib="$target/debug/libneusample_capi.a"
 fi
 mkdir -p "$target/capi"
-lib="$target/debug/libneusample_capi.a"
 cc -std=c99 -Wall -Wextra -Werror -pedantic -O2 -Ibindings/c/include \
   bindings/c/examples/check.c "$lib" -lm -lpthread -ldl -o "$target/capi/check_c"
 c++ -std=c++17 -Wall -Wextra -Werror -O2 -Ibindings/c/include \

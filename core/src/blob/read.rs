@@ -212,6 +212,7 @@ impl<'a> Blob<'a> {
     }
 
     /// Every tensor the blob holds, in role order, with its stored bytes.
+    #[cfg(feature = "alloc")]
     pub(crate) fn stored_tensors(&self) -> impl Iterator<Item = (TensorEntry, &'a [u8])> + '_ {
         self.tensors.iter().flatten().copied()
     }

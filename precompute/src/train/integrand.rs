@@ -1,16 +1,32 @@
-//! The integrands the reparameterization sampler trains on ([`Integrand`]): a neural
-//! material's luminance through its decoder, frozen ([`NeuralIntegrand`]), and the synthetic
-//! target of the tests in closed form ([`SyntheticIntegrand`]).
+//! The integrands the reparameterization sampler trains on ([`Integrand`]) and a neural
+//! material's luminance through its decoder, frozen ([`NeuralIntegrand`]); the synthetic
+//! target's is beside it ([`crate::train::SyntheticIntegrand`]).
 
 use burn::tensor::{Device, Tensor};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use neusample::neural_material::{DECODER_HIDDEN, DECODER_INPUTS, DECODER_OUTPUTS};
 use neusample::{NeuralMaterial, FEATURE_DIM};
 
-use super::reparam::Integrand;
-use super::source::SyntheticSource;
 use crate::materials::luminance;
 use crate::nn::{log_sum_exp_last, tensor2};
+
+/// The unnormalised target of the reparameterization sampler on the projected disk,
+/// `f⊥(ω⊥ | φ, wi)` (for a material, the luminance of its BRDF: p* up to its normaliser),
+/// with a differentiable training graph.
+pub trait Integrand: Sync {
+    /// `ln f⊥` at the directions `wo` (`[n, 3]`, unit, on the training graph) of the rows:
+    /// row `i` belongs to condition `conds[i / repeat]`. Returns `[n, 1]`.
+    fn log_f(
+        &self,
+        conds: &[([f32; FEATURE_DIM], Vec3)],
+        repeat: usize,
+        wo: Tensor<2>,
+        device: &Device,
+    ) -> Tensor<2>;
+
+    /// `f⊥` at one direction on the host (no gradient), ≥ 0.
+    fn f(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32;
+}
 
 /// Luminance weights of linear RGB (as [`luminance`]).
 const LUMINANCE: [f32; 3] = [0.2126, 0.7152, 0.0722];
@@ -84,47 +100,5 @@ impl Integrand for NeuralIntegrand<'_> {
 
     fn f(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32 {
         luminance(self.material.eval(phi, wi, wo)).max(0.0)
-    }
-}
-
-/// [`SyntheticSource::density`] as an integrand.
-pub struct SyntheticIntegrand;
-
-impl Integrand for SyntheticIntegrand {
-    fn log_f(
-        &self,
-        conds: &[([f32; FEATURE_DIM], Vec3)],
-        repeat: usize,
-        wo: Tensor<2>,
-        device: &Device,
-    ) -> Tensor<2> {
-        let n = conds.len() * repeat;
-        let mut lobes = Vec::with_capacity(n * 9);
-        for (phi, wi) in conds {
-            let l = SyntheticSource::lobes(phi, *wi);
-            for _ in 0..repeat {
-                lobes.extend_from_slice(&l);
-            }
-        }
-        let l = tensor2(lobes, n, 9, device);
-        let c = |j: usize| l.clone().narrow(1, j, 1);
-        let (px, py) = (wo.clone().narrow(1, 0, 1), wo.narrow(1, 1, 1));
-        let tau = std::f32::consts::TAU;
-        let g = |mx: Tensor<2>, my: Tensor<2>, sx: Tensor<2>, sy: Tensor<2>| {
-            let dx = (px.clone() - mx) / sx.clone();
-            let dy = (py.clone() - my) / sy.clone();
-            ((dx.powi_scalar(2) + dy.powi_scalar(2)) * (-0.5)).exp() / (sx * sy * tau)
-        };
-        let f = c(8) / std::f32::consts::PI
-            + g(c(0), c(1), c(2), c(3))
-            + c(7) * g(c(4), c(5), c(6), c(6));
-        f.log()
-    }
-
-    fn f(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32 {
-        if !(wo.z > 0.0) {
-            return 0.0;
-        }
-        SyntheticSource::density(phi, wi, Vec2::new(wo.x, wo.y))
     }
 }

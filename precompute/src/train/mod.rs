@@ -57,6 +57,6 @@ pub use dispatch::{
     graph_log_pdf, mean_kl, model_pdf_disk, network_mean_kl, train, train_with, Trained,
 };
 pub use histogram_mixture::BakedTables;
-pub use integrand::{NeuralIntegrand, SyntheticIntegrand};
+pub use integrand::{Integrand, NeuralIntegrand};
 pub use method::{needs_integrand, parse_method, METHODS};
-pub use source::{GtCondition, MaterialSource, SyntheticSource, TargetSource};
+pub use source::{GtCondition, MaterialSource, SyntheticIntegrand, SyntheticSource, TargetSource};

@@ -30,6 +30,7 @@ use rand::RngExt;
 
 use super::config::{Common, DensityLoss, Reparam};
 use super::data::{encoded_condition_f64, Pool};
+use super::integrand::Integrand;
 use super::source::GtCondition;
 use crate::nn::{
     log_sum_exp_last, mlp_f64, optimise, tensor2, to_host, train_device, Activation, Mlp,
@@ -43,24 +44,6 @@ pub const WARP_SIZES: [usize; 4] = [REPARAM_INPUTS, REPARAM_HIDDEN, REPARAM_HIDD
 pub const DENSITY_SIZES: [usize; 3] = [REPARAM_INPUTS, REPARAM_HIDDEN, 1];
 
 const LN_TWO_PI: f64 = 1.837_877_066_409_345_5;
-
-/// The unnormalised target of the reparameterization sampler on the projected disk,
-/// `f⊥(ω⊥ | φ, wi)` (for a material, the luminance of its BRDF: p* up to its normaliser),
-/// with a differentiable training graph.
-pub trait Integrand: Sync {
-    /// `ln f⊥` at the directions `wo` (`[n, 3]`, unit, on the training graph) of the rows:
-    /// row `i` belongs to condition `conds[i / repeat]`. Returns `[n, 1]`.
-    fn log_f(
-        &self,
-        conds: &[([f32; FEATURE_DIM], Vec3)],
-        repeat: usize,
-        wo: Tensor<2>,
-        device: &Device,
-    ) -> Tensor<2>;
-
-    /// `f⊥` at one direction on the host (no gradient), ≥ 0.
-    fn f(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32;
-}
 
 /// The warp's outputs on the training graph, `[n, 1]` each.
 pub struct WarpGraph {

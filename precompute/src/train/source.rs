@@ -2,16 +2,17 @@
 //! closed-form synthetic target of the tests ([`SyntheticSource`], a conditional mixture
 //! tabulated the same way). Both are deterministic in their seed.
 
+use burn::tensor::{Device, Tensor};
 use glam::{Vec2, Vec3};
 use neusample::FEATURE_DIM;
 use rand::RngExt;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use super::integrand::{NeuralIntegrand, SyntheticIntegrand};
-use super::reparam::Integrand;
+use super::integrand::{Integrand, NeuralIntegrand};
 use crate::groundtruth::{self, TargetOptions, TargetPdf};
 use crate::materials::Material;
+use crate::nn::tensor2;
 use crate::util::rng::rng_for;
 
 /// One training condition (φ, wi) with its target density.
@@ -202,5 +203,47 @@ impl TargetSource for SyntheticSource {
                 }
             })
             .collect())
+    }
+}
+
+/// [`SyntheticSource::density`] as an integrand.
+pub struct SyntheticIntegrand;
+
+impl Integrand for SyntheticIntegrand {
+    fn log_f(
+        &self,
+        conds: &[([f32; FEATURE_DIM], Vec3)],
+        repeat: usize,
+        wo: Tensor<2>,
+        device: &Device,
+    ) -> Tensor<2> {
+        let n = conds.len() * repeat;
+        let mut lobes = Vec::with_capacity(n * 9);
+        for (phi, wi) in conds {
+            let l = SyntheticSource::lobes(phi, *wi);
+            for _ in 0..repeat {
+                lobes.extend_from_slice(&l);
+            }
+        }
+        let l = tensor2(lobes, n, 9, device);
+        let c = |j: usize| l.clone().narrow(1, j, 1);
+        let (px, py) = (wo.clone().narrow(1, 0, 1), wo.narrow(1, 1, 1));
+        let tau = std::f32::consts::TAU;
+        let g = |mx: Tensor<2>, my: Tensor<2>, sx: Tensor<2>, sy: Tensor<2>| {
+            let dx = (px.clone() - mx) / sx.clone();
+            let dy = (py.clone() - my) / sy.clone();
+            ((dx.powi_scalar(2) + dy.powi_scalar(2)) * (-0.5)).exp() / (sx * sy * tau)
+        };
+        let f = c(8) / std::f32::consts::PI
+            + g(c(0), c(1), c(2), c(3))
+            + c(7) * g(c(4), c(5), c(6), c(6));
+        f.log()
+    }
+
+    fn f(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32 {
+        if !(wo.z > 0.0) {
+            return 0.0;
+        }
+        SyntheticSource::density(phi, wi, Vec2::new(wo.x, wo.y))
     }
 }

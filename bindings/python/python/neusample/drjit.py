@@ -52,7 +52,6 @@ INV_PI = float(_F(1.0 / math.pi))
 TWO_PI = float(_F(2.0) * _F(math.pi))
 INV_TWO_PI = float(_F(0.5) * _F(1.0 / math.pi))
 LN_TWO_PI = float(_F(1.8378771))
-LN_PI = float(_F(1.1447299))
 ONE_MINUS_EPSILON = float(_F(1.0) - _F(np.finfo(np.float32).eps) / _F(2.0))
 F32_MAX = float(np.finfo(np.float32).max)
 MIN_COS_THETA = 1e-6
@@ -487,12 +486,9 @@ class AnalyticMixture(Kind):
 
 class Spline:
     """A K-bin rational-quadratic spline on ``[−1, 1]`` from raw network outputs, identity
-    outside (``distrib/spline.rs``: nflows' constraints, evaluation from the nearer knot).
-    With ``free``, every knot derivative is learned, the boundary ones included
-    (``Knots::from_raw_free``: raw ``[widths K, heights K, derivatives K + 1]``); otherwise the
-    boundary derivatives are 1."""
+    outside (``distrib/spline.rs``: nflows' constraints, evaluation from the nearer knot)."""
 
-    def __init__(self, raw, bound=1.0, free=False):
+    def __init__(self, raw, bound=1.0):
         k = SPLINE_BINS
         raw = [clamp(r, -RAW_LIMIT, RAW_LIMIT) for r in raw]
         w = softmax(raw[:k], bound=1e30)
@@ -511,9 +507,7 @@ class Spline:
             ch = ch + (MIN_BIN_HEIGHT + scale_h * h[i - 1])
             ys[i] = (2.0 * b) * ch - b
         self.x, self.y = xs, ys
-        self.free = free
-        # raw_d[j] for knot j: interior knots 1..K−1, and the ends 0 and K when free.
-        self.raw_d = raw[2 * k:3 * k + 1] if free else [None] + raw[2 * k:]
+        self.raw_d = [None] + raw[2 * k:]  # raw_d[j] for interior knot j = 1..K−1
         self.bound = bound
 
     def _bin(self, knots, v):
@@ -524,7 +518,7 @@ class Spline:
         rd1 = self.raw_d[1]
         first = dr.full(dr.mask_t(v), True, dr.width(v))
         last = dr.full(dr.mask_t(v), False, dr.width(v))
-        rd0 = self.raw_d[0] if self.free else rd1
+        rd0 = rd1
         for j in range(1, k):
             m = v >= knots[j]
             nx = self.x[j + 1] if j + 1 < k else b
@@ -534,12 +528,10 @@ class Spline:
             y0 = dr.select(m, self.y[j], y0)
             y1 = dr.select(m, ny, y1)
             rd0 = dr.select(m, self.raw_d[j], rd0)
-            if j + 1 < k or self.free:
+            if j + 1 < k:
                 rd1 = dr.select(m, self.raw_d[j + 1], rd1)
             first = first & ~m
             last = (last | m) if j + 1 == k else (last & ~m)
-        if self.free:
-            return x0, x1, y0, y1, MIN_DERIVATIVE + softplus(rd0), MIN_DERIVATIVE + softplus(rd1)
         d0 = dr.select(first, 1.0, MIN_DERIVATIVE + softplus(rd0))
         d1 = dr.select(last, 1.0, MIN_DERIVATIVE + softplus(rd1))
         return x0, x1, y0, y1, d0, d1
@@ -640,61 +632,6 @@ class Flow(Kind):
         dx = (xl - mu[0]) / sg[0]
         dy = (yl - mu[1]) / sg[1]
         log_p = -0.5 * (dx * dx + dy * dy) - LN_TWO_PI - ln_sigma + (ld0 + ld1)
-        p = dr.exp(dr.select(dr.isnan(log_p), -dr.inf, log_p))
-        p = dr.select((p > 0) & is_finite(p), p, 0.0)
-        return dr.select(inside_disk(px, py), p, 0.0)
-
-
-def chord(v):
-    """Half the chord of the unit disk at ``v``, ``√((1 − v)(1 + v))`` (``disk_flow::chord``)."""
-    return safe_sqrt((1.0 - v) * (1.0 + v))
-
-
-def in_chord(a, c):
-    """``a / c`` clamped to ``[−1, 1]``, 0 where ``c`` is not positive."""
-    return dr.select(c > 0, clamp(a / c, -1.0, 1.0), 0.0)
-
-
-class DiskFlow(Kind):
-    """The disk flow (``ARCHITECTURES.md`` §9): a uniform base on the disk and two spline
-    couplings on chords, every mass inside the disk."""
-
-    name = "disk-flow"
-    RAW = 3 * SPLINE_BINS + 1
-
-    def __init__(self, t: Types, blob, precision):
-        self.t = t
-        params = _params(blob)
-        self.coupling = []
-        c0 = 0
-        for _ in range(2):
-            net = Mlp(t, params, c0, [(39, 32), (32, 32), (32, self.RAW)], precision, split=30)
-            self.coupling.append(net)
-            c0 = net.end
-
-    def prepare(self, phi, wi):
-        wi, ok = check_condition(phi, wi)
-        c = encode_condition(phi, wi)
-        return [net.first_share(c) for net in self.coupling], ok
-
-    def _spline(self, st, i, v):
-        raw = self.coupling[i](encode_scalar(v, 4), act="leaky", share=st[i])
-        return Spline(raw, free=True)
-
-    def sample_point(self, st, u0, u1):
-        bx, by = concentric(u0, u1)
-        cy = chord(by)
-        x = cy * self._spline(st, 0, by).inverse(in_chord(bx, cy))
-        cx = chord(x)
-        y = cx * self._spline(st, 1, x).inverse(in_chord(by, cx))
-        return x, y, dr.full(dr.mask_t(x), True, dr.width(x))
-
-    def pdf_disk(self, st, px, py):
-        cx = chord(px)
-        sy, ld1 = self._spline(st, 1, px).forward(in_chord(py, cx))
-        by = cx * sy
-        _, ld0 = self._spline(st, 0, by).forward(in_chord(px, chord(by)))
-        log_p = ld0 + ld1 - LN_PI
         p = dr.exp(dr.select(dr.isnan(log_p), -dr.inf, log_p))
         p = dr.select((p > 0) & is_finite(p), p, 0.0)
         return dr.select(inside_disk(px, py), p, 0.0)
@@ -916,7 +853,6 @@ KIND_CLASSES = {
     "baseline": ImprovedBaseline,
     "analytic": AnalyticMixture,
     "flow": Flow,
-    "disk-flow": DiskFlow,
     "histogram-mixture": HistogramMixture,
 }
 """Blob kind name → its :class:`Kind` (a new kind is one class and one entry here)."""
