@@ -642,6 +642,15 @@ fn main() {
         reparam_w.len(),
         neusample::ReparamSampler::<&[f32]>::PARAM_COUNT
     );
+    // Drawn last, for the same reason.
+    let mut disk_w = Vec::new();
+    for _ in 0..2 {
+        mlp_params(&mut rng, &[(39, 32), (32, 32), (32, 61)], 1.0, &mut disk_w);
+    }
+    assert_eq!(
+        disk_w.len(),
+        neusample::DiskFlowSampler::<&[f32]>::PARAM_COUNT
+    );
 
     let p = |n: usize| Params {
         n: n as u32,
@@ -685,6 +694,7 @@ fn main() {
     let dw: &[f32] = &direct_w;
     let hw: &[f32] = &hm_w;
     let rw: &[f32] = &reparam_w;
+    let dfw: &[f32] = &disk_w;
     let (tm, tt, tmg, tc): (&[f32], &[f32], &[f32], &[f32]) = (
         &tables.mass,
         &tables.table,
@@ -814,6 +824,15 @@ fn main() {
             params: p(n),
             tol: reparam_tol,
             cpu: cpu!(neusample_gpu_shader::defensive_reparam, rw),
+        },
+        // Last, for the same reason; the flow's tolerances (the same couplings).
+        Case {
+            label: "disk_flow",
+            entry: "disk_flow",
+            buffers: vec![dfw],
+            params: p(n),
+            tol: flow_tol,
+            cpu: cpu!(neusample_gpu_shader::disk_flow, dfw),
         },
     ];
 

@@ -107,6 +107,12 @@ weighted_entry!(
     ReparamSampler
 );
 
+weighted_entry!(
+    /// Disk flow: the flow's two spline couplings on chords of the disk over a uniform base.
+    disk_flow,
+    DiskFlowSampler
+);
+
 /// The defensive weight of [`defensive_flow`] (a blob's α on a host; a constant here).
 pub const DEFENSIVE_ALPHA: f32 = 0.25;
 
