@@ -86,6 +86,37 @@ pub fn blob_bytes_with(
     Ok(w.to_bytes())
 }
 
+/// [`blob_bytes`] checked with [`verify`] (`conditions`, `seed` as there). A histogram
+/// mixture whose compact tables miss [`COMPACT_TOLERANCE`] on `material` (lobes so sharp that
+/// a row's u16 CDF cannot resolve the cells near the comparison's floor) is baked again with
+/// value tables and f32 CDFs, which must then pass the f32 tolerance; the note on stderr
+/// says so. Any other failure is an error.
+pub fn checked_blob_bytes(
+    trained: &Trained,
+    dtype: DType,
+    label: &str,
+    material: &dyn Material,
+    conditions: usize,
+    seed: u64,
+) -> Result<(Vec<u8>, Verification)> {
+    let bytes = blob_bytes(trained, dtype, label)?;
+    match verify(trained, &bytes, material, conditions, seed) {
+        Ok(v) => Ok((bytes, v)),
+        Err(e) if Blob::open(&bytes).is_ok_and(|b| b.is_compact()) => {
+            let values = blob_bytes_with(trained, dtype, TableLayout::Values, label)?;
+            let v = verify(trained, &values, material, conditions, seed)
+                .with_context(|| format!("value tables, after the compact ones failed: {e:#}"))?;
+            eprintln!(
+                "note: {e:#}; the blob keeps its tables as values and f32 CDFs instead ({} bytes, max relative difference {:.1e})",
+                values.len(),
+                v.max_relative
+            );
+            Ok((values, v))
+        }
+        Err(e) => Err(e),
+    }
+}
+
 fn write_compact(w: &mut BlobWriter<'_>, c: &histogram::CompactTables) {
     w.tensor(TensorRole::Mass, &c.mass)
         .tensor(TensorRole::Marginal, &c.marginal)

@@ -229,8 +229,7 @@ fn fixture_samplers(
             "fixture material={name} method={method_name} steps={} seed=1",
             cfg.schedule(method).map_or(0, |s| s.steps)
         );
-        let bytes = bake::blob_bytes(&trained, DType::F32, &label)?;
-        bake::verify(&trained, &bytes, m, 8, 7)
+        let (bytes, _) = bake::checked_blob_bytes(&trained, DType::F32, &label, m, 8, 7)
             .with_context(|| format!("fixture {name}/{method_name}"))?;
         let (bytes, _) = defend::defend_baked(bytes, m, DEFEND_SEED)?;
         io::atomic_write(&fixture_path(out, &name, method_name), &bytes)?;

@@ -150,10 +150,15 @@ pub fn run(a: &DemoConfig) -> Result<()> {
                     "demo material={mname} method={method_name} steps={}",
                     cfg.schedule(method).map_or(0, |s| s.steps)
                 );
-                let bytes = bake::blob_bytes(&trained, DType::F32, &label)
-                    .with_context(|| format!("baking {method_name} on {mname}"))?;
-                let v = bake::verify(&trained, &bytes, m.as_ref(), 8, a.seed + 7)
-                    .with_context(|| format!("verifying {method_name} on {mname}"))?;
+                let (bytes, v) = bake::checked_blob_bytes(
+                    &trained,
+                    DType::F32,
+                    &label,
+                    m.as_ref(),
+                    8,
+                    a.seed + 7,
+                )
+                .with_context(|| format!("baking {method_name} on {mname}"))?;
                 let (bytes, _) = defend::defend_baked(bytes, m.as_ref(), a.seed + 300)?;
                 (
                     bytes,

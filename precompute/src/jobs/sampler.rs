@@ -36,10 +36,10 @@ pub fn train_sampler(
         cfg.common.seed,
         dtype
     );
-    let bytes = bake::blob_bytes(&trained, dtype, &label)?;
-    let v = bake::verify(
+    let (bytes, v) = bake::checked_blob_bytes(
         &trained,
-        &bytes,
+        dtype,
+        &label,
         material,
         VERIFY_CONDITIONS,
         cfg.common.seed ^ 0x5EED,
