@@ -102,7 +102,7 @@ pub fn checked_blob_bytes(
     let bytes = blob_bytes(trained, dtype, label)?;
     match verify(trained, &bytes, material, conditions, seed) {
         Ok(v) => Ok((bytes, v)),
-        Err(e) if Blob::open(&bytes).is_ok_and(|b| b.is_compact()) => {
+        Err(e) if trained.tables.is_some() && DEFAULT_TABLE_LAYOUT == TableLayout::Compact => {
             let values = blob_bytes_with(trained, dtype, TableLayout::Values, label)?;
             let v = verify(trained, &values, material, conditions, seed)
                 .with_context(|| format!("value tables, after the compact ones failed: {e:#}"))?;

@@ -59,6 +59,28 @@ pub(crate) fn first_layer<W: Weights>(
     acc
 }
 
+/// A coupling network (`dense(39, 32)` LeakyReLU, `dense(32, 32)` LeakyReLU,
+/// `dense(32, RAW)` at `offset`) for one point, given its condition share and the other
+/// coordinate `v`: the raw spline parameters. Both flows' scalar paths run their couplings
+/// through it ([`coupling_raw_chunk`] is the batched form).
+#[inline]
+pub(crate) fn coupling_raw<W: Weights, const RAW: usize>(
+    w: &W,
+    offset: u32,
+    share: &[f32; HIDDEN],
+    v: f32,
+) -> [f32; RAW] {
+    let mut h = first_layer(w, offset + COUPLING_L0 as u32, share, v);
+    nn::Activation::LeakyRelu.apply_all(&mut h);
+    let h = nn::dense::<W, HIDDEN, HIDDEN>(
+        w,
+        offset + COUPLING_L1 as u32,
+        &h,
+        nn::Activation::LeakyRelu,
+    );
+    nn::linear::<W, HIDDEN, RAW>(w, offset + COUPLING_L2 as u32, &h)
+}
+
 /// `true` when every element is finite.
 #[inline(always)]
 pub(crate) fn all_finite<const N: usize>(v: &[f32; N]) -> bool {

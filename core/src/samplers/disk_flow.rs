@@ -35,12 +35,12 @@ use glam::{Vec2, Vec3};
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::math::lane::Lane;
-use crate::nn::{self, check_condition, encode_condition, Activation, FEATURE_DIM};
+use crate::nn::{self, check_condition, encode_condition, FEATURE_DIM};
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
 
 use super::coupling::HIDDEN;
-use super::coupling::{all_finite, condition_share, density_from_log, first_layer};
+use super::coupling::{all_finite, condition_share, coupling_raw, density_from_log};
 use super::coupling::{COUPLING_L0, COUPLING_L1, COUPLING_L2};
 use super::traits::{params_constructors, Held};
 use super::{Prepared, Sample, Sampler};
@@ -134,12 +134,7 @@ fn spline_knots<W: Weights>(
     share: &[f32; HIDDEN],
     v: f32,
 ) -> Knots<DISK_FLOW_BINS> {
-    let mut h = first_layer(w, offset + DISK_NET_L0 as u32, share, v);
-    Activation::LeakyRelu.apply_all(&mut h);
-    let h =
-        nn::dense::<W, HIDDEN, HIDDEN>(w, offset + DISK_NET_L1 as u32, &h, Activation::LeakyRelu);
-    let raw = nn::linear::<W, HIDDEN, DISK_SPLINE_RAW_LEN>(w, offset + DISK_NET_L2 as u32, &h);
-    Knots::from_raw_free(&raw)
+    Knots::from_raw_free(&coupling_raw::<W, DISK_SPLINE_RAW_LEN>(w, offset, share, v))
 }
 
 /// The disk flow: a uniform base on the disk and two RQ-spline couplings on chords, every

@@ -31,7 +31,7 @@ use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_D
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
 
-use super::coupling::{all_finite, condition_share, density_from_log, first_layer};
+use super::coupling::{all_finite, condition_share, coupling_raw, density_from_log};
 pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
 use super::coupling::{COUPLING_L0, COUPLING_L1, COUPLING_L2};
 use super::traits::{params_constructors, Held};
@@ -78,12 +78,10 @@ fn spline_knots<W: Weights>(
     share: &[f32; HIDDEN],
     v: f32,
 ) -> Knots<SPLINE_BINS> {
-    let mut h = first_layer(w, offset + SPLINE_NET_L0 as u32, share, v);
-    Activation::LeakyRelu.apply_all(&mut h);
-    let h =
-        nn::dense::<W, HIDDEN, HIDDEN>(w, offset + SPLINE_NET_L1 as u32, &h, Activation::LeakyRelu);
-    let raw = nn::linear::<W, HIDDEN, SPLINE_RAW_LEN>(w, offset + SPLINE_NET_L2 as u32, &h);
-    Knots::from_raw(&raw, TAIL_BOUND)
+    Knots::from_raw(
+        &coupling_raw::<W, SPLINE_RAW_LEN>(w, offset, share, v),
+        TAIL_BOUND,
+    )
 }
 
 /// The conditional rational-quadratic spline flow of the paper (Eq. 3–4): a diagonal
