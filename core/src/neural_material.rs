@@ -301,8 +301,10 @@ mod batch {
     use crate::batch::{check_len, dense, Features, FeaturesMut, RgbMut, Soa, Vec2s, Vec3s};
     use crate::error::Result;
 
-    /// Lanes per chunk (two 64-wide activations of 32 lanes: 16 KiB).
-    const CHUNK: usize = 32;
+    /// Lanes per chunk (two 64-wide activations of 64 lanes: 32 KiB). Each register tile
+    /// of the dense kernel widens its weights once per chunk, so 64 lanes amortise that
+    /// over twice the work of 32 (`neusample bench` prints the kernel's throughput).
+    const CHUNK: usize = 64;
 
     impl<W: Weights> NeuralMaterial<W> {
         /// [`NeuralMaterial::features`] of every `uv[i]`, written to `phi` (structure of

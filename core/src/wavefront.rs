@@ -36,3 +36,24 @@ pub use crate::batch::{
     RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut, FUSED_CHUNK,
 };
 pub use crate::samplers::{AffineLane, AnyLane, FlowLane, MixtureLane, ReparamLane};
+
+/// One dense layer `dense(I, O)` at `offset` of `w` (`core/ARCHITECTURES.md`: weights
+/// input-major `W[i][o]`, then the bias) over a chunk of `B` lanes in structure-of-arrays
+/// form (`x[i][b]` is input `i` of lane `b`; `B` a multiple of 16, checked when compiled), for
+/// the first `m` lanes (rounded up to a register tile; other lanes of `y` are overwritten or
+/// left as they were): `y[o][b] = act(bias_o + Σ_i x[i][b]·W[i][o])`.
+///
+/// The register-tiled kernel every batched network of this crate runs, on the instruction
+/// set of [`current_isa`]; exposed for benchmarks and for callers who batch their own
+/// networks. Results within the rounding of the products of [`nn::dense`](crate::nn::dense)'s.
+#[inline]
+pub fn dense_layer<W: crate::Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
+    w: &W,
+    offset: u32,
+    x: &[[f32; B]; I],
+    act: crate::nn::Activation,
+    y: &mut [[f32; B]; O],
+    m: usize,
+) {
+    crate::batch::dense::dense(w, offset, x, act, y, m);
+}

@@ -39,4 +39,12 @@ fn smoke_table_writes_both_lightings_and_the_combined_tables() {
         std::fs::read_to_string(dir.path().join("table.md")).unwrap(),
         md
     );
+    assert!(!md.contains("an earlier run"));
+    // One lighting asked for: the other's report in the folder is kept, marked as earlier.
+    c.lightings = vec![Lighting::Uniform];
+    demo::table::run(&c).unwrap();
+    let one = std::fs::read_to_string(dir.path().join("table.md")).unwrap();
+    assert!(one.contains("## Table 2, sky with a small bright sun"));
+    assert_eq!(one.matches("an earlier run").count(), 1);
+    assert!(one.contains("sky with a small bright sun: "));
 }

@@ -121,6 +121,34 @@ pub(crate) fn softmax_pair_lanes<L: Lane, const N: usize>(a: &mut [L; N], b: &mu
     }
 }
 
+/// [`softmax`] over lanes (the batched path's: within the error bound of their
+/// `exp_nonpositive`, bit for bit [`softmax`] for `L = f32`).
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+pub(crate) fn softmax_lanes<L: Lane, const N: usize>(x: &mut [L; N]) {
+    let m = clamp_and_max_lanes(x);
+    let floor = m - L::splat(80.0);
+    let zero = L::splat(0.0);
+    let mut i = 0;
+    while i < N {
+        x[i] = L::select(x[i].ge(floor), (x[i] - m).exp_nonpositive(), zero);
+        i += 1;
+    }
+    let mut sum = zero;
+    i = 0;
+    while i < N {
+        sum = sum + x[i];
+        i += 1;
+    }
+    let uniform = L::splat(1.0 / N as f32);
+    let pos = sum.gt(zero);
+    i = 0;
+    while i < N {
+        x[i] = L::select(pos, x[i] / sum, uniform);
+        i += 1;
+    }
+}
+
 /// [`clamp_and_max`] for one point or several lanes.
 #[inline(always)]
 fn clamp_and_max_lanes<L: Lane, const N: usize>(x: &mut [L; N]) -> L {

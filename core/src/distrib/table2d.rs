@@ -119,11 +119,11 @@ pub(crate) fn cell_index(x: f32, n: u32) -> u32 {
     math::clamp_index((x + 1.0) * (0.5 * n as f32), n)
 }
 
-/// The flat index `r·n + c` of the cell holding `p` (indices clamped into the grid; callers
-/// test [`in_square`] first).
+/// The row and column `(r, c)` of the cell holding `p` (indices clamped into the grid;
+/// callers test [`in_square`] first).
 #[inline(always)]
-pub(crate) fn cell_of(p: Vec2, n: u32) -> u32 {
-    cell_index(p.y, n) * n + cell_index(p.x, n)
+pub(crate) fn cell_of(p: Vec2, n: u32) -> (u32, u32) {
+    (cell_index(p.y, n), cell_index(p.x, n))
 }
 
 /// The coordinate `x` moved by whole ulps until [`cell_index`] puts it in cell `cell`: the
@@ -541,14 +541,14 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
         if !in_square(p) {
             return 0.0;
         }
-        self.density_at_cell(cell_of(p, self.n))
+        let (r, c) = cell_of(p, self.n);
+        self.density_at_cell(r, c)
     }
 
-    /// The density of flat cell `r·N + c` (as [`cell_of`] gives it): the (blended) value over
-    /// the stored integral, never NaN or negative.
+    /// The density of the cell in row `r`, column `c` (as [`cell_of`] gives them): the
+    /// (blended) value over the stored integral, never NaN or negative.
     #[inline(always)]
-    pub(crate) fn density_at_cell(&self, cell: u32) -> f32 {
-        let (r, c) = (cell / self.n, cell % self.n);
+    pub(crate) fn density_at_cell(&self, r: u32, c: u32) -> f32 {
         finite_density(self.blend_slices(|s| self.slice_value(s, r, c)) * self.inv_integral)
     }
 

@@ -298,7 +298,6 @@ impl<W: Weights> HistogramMixtureSampler<W> {
     where
         W: Copy,
     {
-        let t_levels = self.t_levels;
         let mut soft = [0.0f32; BASES];
         let mut k = 0;
         while k < BASES {
@@ -306,6 +305,22 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             k += 1;
         }
         gaussian::softmax(&mut soft);
+        self.lane_from_softmax(o, &soft)
+    }
+
+    /// [`Self::lane_from_outputs`] with the softmax of the logits `a_k` given (the batched
+    /// path computes it across lanes).
+    #[inline(always)]
+    pub(crate) fn lane_from_softmax(
+        &self,
+        o: &[f32; MIX_OUTPUTS],
+        soft: &[f32; BASES],
+    ) -> Option<MixtureLane>
+    where
+        W: Copy,
+    {
+        let t_levels = self.t_levels;
+        let mut k;
 
         // rust-gpu: plain local arrays, assembled into the prepared state at the end: a
         // mutable local struct holding the sampler reference stays a pointer-typed variable
@@ -517,20 +532,23 @@ impl<W: Weights + Copy> HistogramMixtureSampler<W> {
         // basis's table read (independent loads from a table too big for L1 overlap), then
         // the sum in basis order.
         let n = self.resolution;
-        let mut cell = [0u32; BASES];
+        let mut row = [0u32; BASES];
+        let mut col = [0u32; BASES];
         let mut inside = [0u32; BASES];
         let mut k = 0;
         while k < BASES {
             let q = warp::rotate_inverse(p, lane.rotation[k]);
             inside[k] = u32::from(in_square(q));
-            cell[k] = cell_of(q, n);
+            let (r, c) = cell_of(q, n);
+            row[k] = r;
+            col[k] = c;
             k += 1;
         }
         let mut density = [0.0f32; BASES];
         k = 0;
         while k < BASES {
             density[k] = if inside[k] != 0 {
-                self.lane_table(lane, k).density_at_cell(cell[k])
+                self.lane_table(lane, k).density_at_cell(row[k], col[k])
             } else {
                 0.0
             };
@@ -679,6 +697,7 @@ mod batch {
 
     use super::*;
     use crate::batch::chunked::ChunkedSampler;
+    use crate::batch::lanes::V8;
     use crate::batch::{self, dense, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s};
 
     /// Lanes per chunk.
@@ -701,9 +720,20 @@ mod batch {
             dense::dense(w, MIX_L1 as u32, &h, relu, &mut g, m);
             dense::dense(w, MIX_L2 as u32, &g, relu, &mut h, m);
             dense::dense(w, MIX_L3 as u32, &h, Activation::Identity, &mut o, m);
+            // The softmax of the logits a_k across lanes, eight at a time.
+            let mut soft: Soa<BASES, CHUNK> = [[0.0; CHUNK]; BASES];
+            let mut g = 0;
+            while g < m {
+                let mut a: [V8; BASES] = core::array::from_fn(|k| V8::load(&o[4 * k][g..]));
+                gaussian::softmax_lanes(&mut a);
+                for (k, v) in a.into_iter().enumerate() {
+                    v.store(&mut soft[k][g..]);
+                }
+                g += 8;
+            }
             for l in 0..m {
                 lanes[l] = if valid[l] {
-                    self.lane_from_outputs(&batch::column(&o, l))
+                    self.lane_from_softmax(&batch::column(&o, l), &batch::column(&soft, l))
                 } else {
                     None
                 };

@@ -81,6 +81,9 @@ pub struct TableConfig {
     pub smoke: bool,
     /// The trained methods evaluated (`DemoConfig::methods`; empty: all).
     pub methods: Vec<SamplerKind>,
+    /// The lightings run (empty: both). `table.md` also shows a lighting not run whose
+    /// report is already in `out`, marked as from an earlier run.
+    pub lightings: Vec<Lighting>,
 }
 
 impl TableConfig {
@@ -96,7 +99,16 @@ impl TableConfig {
             markdown_only: false,
             smoke: false,
             methods: Vec::new(),
+            lightings: Vec::new(),
         }
+    }
+
+    /// The lightings run, in the table's order.
+    fn lightings_run(&self) -> Vec<Lighting> {
+        Lighting::ALL
+            .into_iter()
+            .filter(|l| self.lightings.is_empty() || self.lightings.contains(l))
+            .collect()
     }
 
     fn names(&self) -> Vec<String> {
@@ -154,31 +166,43 @@ pub fn run(cfg: &TableConfig) -> Result<()> {
             );
             neural_fixtures(&fixtures_dir(), &neural_dir(), &missing, &[], false)?;
         }
-        for lighting in Lighting::ALL {
+        for lighting in cfg.lightings_run() {
             let t = Instant::now();
             pipeline::run(&cfg.demo(lighting))
                 .with_context(|| format!("the {} run", lighting.name()))?;
-            seconds.push(t.elapsed().as_secs_f64());
+            seconds.push((lighting, t.elapsed().as_secs_f64()));
         }
     }
+    let run_now = cfg.lightings_run();
     let mut reports = Vec::new();
+    let mut earlier = Vec::new();
     for lighting in Lighting::ALL {
         let path = cfg.out.join(lighting.name()).join("report.json");
+        let wanted = run_now.contains(&lighting);
+        if !wanted && !path.exists() {
+            continue;
+        }
+        if !wanted {
+            earlier.push(lighting);
+        }
         let text = std::fs::read_to_string(&path)
             .with_context(|| format!("cannot read {}", path.display()))?;
         let r: Report = serde_json::from_str(&text)
             .with_context(|| format!("{} is not a demo report", path.display()))?;
         reports.push((lighting, r));
     }
-    let md = table_markdown(&reports, cfg);
+    let md = table_markdown(&reports, &earlier, cfg);
     io::atomic_write(&cfg.out.join("table.md"), md.as_bytes())?;
     if !seconds.is_empty() {
+        let parts: Vec<String> = seconds
+            .iter()
+            .map(|(l, t)| format!("{t:.0} s {}", l.name()))
+            .collect();
         eprintln!(
-            "neusample table: {} materials, {:.0} s ({} s uniform, {:.0} s sky-sun); {}",
+            "neusample table: {} materials, {:.0} s ({}); {}",
             names.len(),
-            seconds.iter().sum::<f64>(),
-            seconds[0].round(),
-            seconds[1],
+            seconds.iter().map(|x| x.1).sum::<f64>(),
+            parts.join(", "),
             cfg.out.join("table.md").display()
         );
     }
@@ -221,9 +245,14 @@ fn speedup(m: &MaterialReport, method: &str) -> Option<Estimate> {
 }
 
 /// The combined Markdown: Table 2 per lighting, a summary of which methods win, the equal-spp
-/// error ratios, Table 1 and links to the convergence plots.
+/// error ratios, Table 1 and links to the convergence plots. The lightings of `earlier` were
+/// not run by this invocation (their reports were already in the folder).
 #[must_use]
-pub fn table_markdown(reports: &[(Lighting, Report)], cfg: &TableConfig) -> String {
+pub fn table_markdown(
+    reports: &[(Lighting, Report)],
+    earlier: &[Lighting],
+    cfg: &TableConfig,
+) -> String {
     let mut s = String::new();
     if cfg.smoke {
         let _ = writeln!(s, "{}\n", super::markdown::SMOKE_LINE);
@@ -250,9 +279,15 @@ pub fn table_markdown(reports: &[(Lighting, Report)], cfg: &TableConfig) -> Stri
     for (lighting, r) in reports {
         let _ = writeln!(
             s,
-            "Run time, {}: {:.0} s on this machine.",
+            "Run time, {}: {:.0} s on this machine{}.",
             lighting.title(),
-            r.seconds
+            r.seconds,
+            if earlier.contains(lighting) {
+                " (an earlier run, kept from the folder: its fixtures and methods may differ \
+                 from the other lighting's)"
+            } else {
+                ""
+            }
         );
     }
     let _ = writeln!(s);

@@ -22,6 +22,14 @@ pub struct BenchArgs {
     /// Fewer lanes and passes (a smoke run; noisier figures).
     #[arg(long)]
     quick: bool,
+    /// Only these sampler methods, comma-separated (e.g. `flow,histogram-mixture`; a profile
+    /// of one method): default every blob of the folder.
+    #[arg(long, value_delimiter = ',')]
+    methods: Vec<String>,
+    /// Instead of the report, run only the batched hot path of `--methods` for this many
+    /// seconds each (for a sampling profiler such as `perf record`).
+    #[arg(long, value_name = "SECONDS")]
+    profile_seconds: Option<f64>,
     /// Machine-readable output (`BenchReport` in `precompute/src/jobs/bench.rs`).
     #[arg(long)]
     json: bool,
@@ -36,6 +44,7 @@ impl From<&BenchArgs> for BenchConfig {
         if let Some(m) = &a.material {
             c.material = m.clone();
         }
+        c.methods.clone_from(&a.methods);
         if a.quick {
             c.lanes_per_pass = 1 << 11;
             c.passes = 3;
@@ -46,6 +55,15 @@ impl From<&BenchArgs> for BenchConfig {
 
 /// Runs the benchmark and prints its report.
 pub fn run(a: &BenchArgs) -> Result<()> {
+    if let Some(secs) = a.profile_seconds {
+        if !(secs > 0.0 && secs.is_finite()) {
+            anyhow::bail!("--profile-seconds must be a positive number of seconds, not {secs}");
+        }
+        for (m, passes) in bench::profile(&a.into(), secs)? {
+            println!("{m}: {passes} passes of batched prepare + sample + pdf at N = 64");
+        }
+        return Ok(());
+    }
     let report = bench::run(&a.into())?;
     if a.json {
         print_json(&report)

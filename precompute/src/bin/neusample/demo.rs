@@ -6,7 +6,9 @@ use anyhow::Result;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::Args;
 use neusample::SamplerKind;
-use neusample_precompute::demo::{self, DemoConfig, FixtureSet, TableConfig, DEFAULT_MATERIALS};
+use neusample_precompute::demo::{
+    self, DemoConfig, FixtureSet, Lighting, TableConfig, DEFAULT_MATERIALS,
+};
 use neusample_precompute::train::{parse_method, METHODS};
 
 /// Options of `neusample demo`.
@@ -176,6 +178,20 @@ pub struct TableArgs {
     /// Trained methods to evaluate (as `demo --methods`); default: all.
     #[arg(long, value_delimiter = ',', value_parser = method_parser())]
     pub methods: Vec<SamplerKind>,
+    /// Lightings to run, comma-separated (`uniform`, `sky-sun`); default: both. A lighting
+    /// not run stays in `table.md` when its report is already in the output folder.
+    #[arg(long, value_delimiter = ',', value_parser = lighting_parser())]
+    pub lightings: Vec<Lighting>,
+}
+
+/// `uniform` or `sky-sun`.
+fn lighting_parser() -> impl clap::builder::TypedValueParser<Value = Lighting> {
+    clap::builder::PossibleValuesParser::new(Lighting::ALL.map(Lighting::name)).map(|s| {
+        Lighting::ALL
+            .into_iter()
+            .find(|l| l.name() == s)
+            .expect("a listed lighting")
+    })
 }
 
 impl From<TableArgs> for TableConfig {
@@ -188,6 +204,7 @@ impl From<TableArgs> for TableConfig {
         c.markdown_only = a.markdown_only;
         c.smoke = a.smoke;
         c.methods = a.methods;
+        c.lightings = a.lightings;
         c
     }
 }

@@ -5,8 +5,11 @@
 //! through the scalar API and through the batched API at N = 1, 8, 64 and 1024 lanes, for
 //! the run-time chosen instruction set and the portable path; the neural material's
 //! `features` and `eval` likewise; the decoder's dense layers in multiply-adds per second
-//! next to this CPU's measured multiply-add peak. Figures are medians over passes; the
-//! machine should be otherwise idle. Nothing here is an assertion.
+//! next to this CPU's measured multiply-add peak; and the same network shapes through a kept
+//! GEMM library ([`library`]), whose large product also checks the peak estimate. Figures are
+//! medians over passes; the machine should be otherwise idle. Nothing here is an assertion.
+
+pub mod library;
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -38,6 +41,8 @@ pub struct BenchConfig {
     pub lanes_per_pass: usize,
     /// Timed passes per figure (the median is reported).
     pub passes: usize,
+    /// Only these sampler methods (blob file stems); empty: every blob of the folder.
+    pub methods: Vec<String>,
 }
 
 impl BenchConfig {
@@ -50,6 +55,7 @@ impl BenchConfig {
             material: root.join("materials/neural/goat_leather_neural.nsb"),
             lanes_per_pass: 1 << 14,
             passes: 7,
+            methods: Vec::new(),
         }
     }
 }
@@ -106,6 +112,10 @@ pub struct DenseThroughput {
     pub peak_gmacs: f64,
     /// `decoder_gmacs / peak_gmacs`.
     pub fraction_of_peak: f64,
+    /// The same peak measurement on AVX2 + FMA vectors (x86-64-v3), where this CPU has them:
+    /// the ceiling of a library whose widest kernels are AVX2 + FMA.
+    #[serde(default)]
+    pub peak_gmacs_x86_v3: Option<f64>,
 }
 
 /// Everything `neusample bench` measures (`--json`).
@@ -125,6 +135,8 @@ pub struct BenchReport {
     pub dense: DenseThroughput,
     /// The histogram mixture's table layouts (when the folder has one).
     pub tables: Option<TableLayouts>,
+    /// The network shapes through a GEMM library, and the peak check.
+    pub library: library::LibraryReference,
 }
 
 /// One table layout of the folder's histogram mixture.
@@ -370,40 +382,62 @@ fn eval_batch_ns(m: &NeuralMaterial<Tensor<'_>>, rows: &Rows, n: usize, passes: 
     )
 }
 
-/// The measured multiply-add peak of one core, 10⁹/s: independent multiply-add chains on the
-/// widest vectors of the chosen instruction set.
-fn peak_gmacs(passes: usize) -> f64 {
-    struct Peak(u64);
-    impl pulp::WithSimd for Peak {
-        type Output = (f32, usize);
-        #[inline(always)]
-        fn with_simd<S: pulp::Simd>(self, simd: S) -> (f32, usize) {
-            let b = simd.splat_f32s(0.999_999);
-            let c = simd.splat_f32s(1e-7);
-            let mut acc = [simd.splat_f32s(1.0); 12];
-            for _ in 0..self.0 {
-                for a in acc.iter_mut() {
-                    *a = simd.mul_add_e_f32s(*a, b, c);
-                }
+/// Independent multiply-add chains on one instruction set's widest vectors: the peak loop.
+struct Peak(u64);
+
+impl pulp::WithSimd for Peak {
+    type Output = (f32, usize);
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, simd: S) -> (f32, usize) {
+        let b = simd.splat_f32s(0.999_999);
+        let c = simd.splat_f32s(1e-7);
+        let mut acc = [simd.splat_f32s(1.0); 12];
+        for _ in 0..self.0 {
+            for a in acc.iter_mut() {
+                *a = simd.mul_add_e_f32s(*a, b, c);
             }
-            let mut s = simd.splat_f32s(0.0);
-            for a in acc {
-                s = simd.add_f32s(s, a);
-            }
-            (simd.reduce_sum_f32s(s), S::F32_LANES)
         }
+        let mut s = simd.splat_f32s(0.0);
+        for a in acc {
+            s = simd.add_f32s(s, a);
+        }
+        (simd.reduce_sum_f32s(s), S::F32_LANES)
     }
-    let arch = pulp::Arch::new();
+}
+
+/// The measured multiply-add peak of one core, 10⁹/s, through `run` (which calls [`Peak`]
+/// on some instruction set): independent multiply-add chains on its widest vectors.
+fn peak_of(passes: usize, run: impl Fn(Peak) -> (f32, usize)) -> f64 {
     let iters = 2_000_000u64;
-    let width = arch.dispatch(Peak(1)).1;
+    let width = run(Peak(1)).1;
     let ns = time_per(passes, 1, || {
-        black_box(arch.dispatch(Peak(black_box(iters))));
+        black_box(run(Peak(black_box(iters))));
     });
     (iters * 12 * width as u64) as f64 / ns
 }
 
+/// [`peak_of`] on the run-time chosen instruction set.
+fn peak_gmacs(passes: usize) -> f64 {
+    let arch = pulp::Arch::new();
+    peak_of(passes, |p| arch.dispatch(p))
+}
+
+/// [`peak_of`] on AVX2 + FMA (`None` where this CPU lacks them).
+fn peak_gmacs_x86_v3(passes: usize) -> Option<f64> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        pulp::x86::V3::try_new().map(|v3| peak_of(passes, |p| pulp::Simd::vectorize(v3, p)))
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = passes;
+        None
+    }
+}
+
 /// Runs the benchmark.
 pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
+    check_methods(cfg)?;
     let inp = Inputs::cycling(&read_conditions(&cfg.blobs)?, cfg.lanes_per_pass.max(1));
     let rows = Rows::new(&inp);
     let passes = cfg.passes;
@@ -449,6 +483,9 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
     let mut methods = Vec::new();
     // The sampler blobs, by kind name (`<method>.nsb`), in `SamplerKind::ALL` order.
     for method in neusample::SamplerKind::ALL.map(neusample::SamplerKind::name) {
+        if !cfg.methods.is_empty() && !cfg.methods.iter().any(|m| m == method) {
+            continue;
+        }
         let path = cfg.blobs.join(format!("{method}.nsb"));
         let bytes = match std::fs::read(&path) {
             Ok(b) => b,
@@ -512,9 +549,56 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
             decoder_gmacs_portable,
             peak_gmacs: peak,
             fraction_of_peak: decoder_gmacs / peak,
+            peak_gmacs_x86_v3: peak_gmacs_x86_v3(passes),
         },
         tables: table_layouts(cfg, &rows)?,
+        library: library::run(cfg.lanes_per_pass, passes),
     })
+}
+
+/// Refuses a method name that is no sampler kind's.
+fn check_methods(cfg: &BenchConfig) -> Result<()> {
+    let names = neusample::SamplerKind::ALL.map(neusample::SamplerKind::name);
+    if let Some(bad) = cfg.methods.iter().find(|m| !names.contains(&m.as_str())) {
+        bail!("unknown method `{bad}` (methods: {})", names.join(", "));
+    }
+    Ok(())
+}
+
+/// A profiling run: the batched API at N = 64 (run-time chosen instruction set) of each of
+/// `cfg.methods` (at least one), `prepare`, `sample` and `pdf` over the bench's conditions,
+/// repeated for `seconds` per method and nothing else, so that a sampling profiler (`perf
+/// record -g -- neusample bench --methods M --profile-seconds S`) sees only the hot path.
+/// Returns the passes made per method.
+pub fn profile(cfg: &BenchConfig, seconds: f64) -> Result<Vec<(String, usize)>> {
+    if cfg.methods.is_empty() {
+        bail!("a profile needs --methods");
+    }
+    check_methods(cfg)?;
+    let inp = Inputs::cycling(&read_conditions(&cfg.blobs)?, cfg.lanes_per_pass.max(1));
+    let rows = Rows::new(&inp);
+    let mut done = Vec::new();
+    for method in &cfg.methods {
+        let path = cfg.blobs.join(format!("{method}.nsb"));
+        let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        let blob = Blob::open(&bytes).with_context(|| path.display().to_string())?;
+        let s = blob.sampler().with_context(|| path.display().to_string())?;
+        let start = std::time::Instant::now();
+        let mut passes = 0;
+        while start.elapsed().as_secs_f64() < seconds {
+            with_concrete(
+                s,
+                BatchedAt {
+                    rows: &rows,
+                    n: 64,
+                    passes: 1,
+                },
+            );
+            passes += 1;
+        }
+        done.push((method.clone(), passes));
+    }
+    Ok(done)
 }
 
 /// The report as text tables.
@@ -596,11 +680,80 @@ pub fn text(r: &BenchReport) -> String {
     let d = &r.dense;
     let _ = writeln!(
         s,
-        "\ndense layers (decoder at N = 1024): {:.1} G multiply-adds/s ({:.0} % of the measured peak {:.1}); portable path {:.1}",
+        "\ndense layers: the decoder's whole eval at N = 1024 {:.1} G multiply-adds/s ({:.0} % of the measured peak {:.1}; its layers alone below, \"runtime kernel\"); portable path {:.1}",
         d.decoder_gmacs,
         100.0 * d.fraction_of_peak,
         d.peak_gmacs,
         d.decoder_gmacs_portable
+    );
+    let lib = &r.library;
+    let _ = writeln!(
+        s,
+        "\nlibrary reference: {} (ns per point; 10⁹ multiply-adds/s)",
+        lib.library
+    );
+    for n in &lib.networks {
+        let cells: Vec<String> = n
+            .ns_per_point
+            .iter()
+            .map(|&(b, ns)| format!("N={b} {ns:.0} ns ({:.1} G/s)", n.gmacs(b)))
+            .collect();
+        let _ = writeln!(
+            s,
+            "  {:<24} {:<18} {:>5} MACs  {}",
+            n.network,
+            n.widths,
+            n.macs,
+            cells.join("  ")
+        );
+    }
+    let ours = &lib.runtime_decoder;
+    let cells: Vec<String> = ours
+        .ns_per_point
+        .iter()
+        .map(|&(b, ns)| {
+            let g = ours.gmacs(b);
+            format!(
+                "N={b} {ns:.0} ns ({g:.1} G/s, {:.0} % of peak)",
+                100.0 * g / d.peak_gmacs
+            )
+        })
+        .collect();
+    let _ = writeln!(
+        s,
+        "  {:<24} {:<18} {:>5} MACs  {}",
+        "decoder, runtime kernel",
+        ours.widths,
+        ours.macs,
+        cells.join("  ")
+    );
+    if let Some(dec) = lib.networks.first() {
+        let ratio = |b: usize| ours.gmacs(b) / dec.gmacs(b);
+        let _ = writeln!(
+            s,
+            "  runtime kernel ÷ library, decoder throughput: N=64 {:.2}×, N=1024 {:.2}×",
+            ratio(64),
+            ratio(1024)
+        );
+    }
+    let [lm, lk, ln] = lib.large_shape;
+    let v3 = d.peak_gmacs_x86_v3.map_or(String::new(), |p| {
+        format!(
+            ", {:.0} % of the AVX2 + FMA peak {p:.1}",
+            100.0 * lib.large_gmacs / p
+        )
+    });
+    let _ = writeln!(
+        s,
+        "  peak check, {lm}×{lk} by {lk}×{ln}: {:.1} G/s = {:.0} % of the measured peak {:.1}{v3}{}",
+        lib.large_gmacs,
+        100.0 * lib.large_gmacs / d.peak_gmacs,
+        d.peak_gmacs,
+        if lib.large_gmacs > d.peak_gmacs {
+            "  — ABOVE the peak estimate: the estimate is wrong"
+        } else {
+            ""
+        }
     );
     if let Some(t) = &r.tables {
         let _ = writeln!(
@@ -635,4 +788,23 @@ fn r_total(m: &MethodCost, n: usize) -> f64 {
         .iter()
         .find(|b| b.n == n)
         .map_or(0.0, |b| b.dispatched.total_ns)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_method_lists_are_refused_before_any_work() {
+        let mut cfg = BenchConfig::fixtures();
+        cfg.methods = vec!["flow".into(), "flwo".into()];
+        let e = run(&cfg).unwrap_err().to_string();
+        assert!(e.contains("unknown method `flwo`"), "{e}");
+        let e = profile(&cfg, 1.0).unwrap_err().to_string();
+        assert!(e.contains("unknown method `flwo`"), "{e}");
+        let e = profile(&BenchConfig::fixtures(), 1.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--methods"), "{e}");
+    }
 }
