@@ -11,6 +11,9 @@
 
 use ndarray::linalg::general_mat_mul;
 use ndarray::{Array1, Array2, Axis, Zip};
+use neusample::neural_material::{
+    DECODER_HIDDEN as DH, DECODER_INPUTS as DI, DECODER_OUTPUTS as DO, DECODER_PARAM_COUNT,
+};
 use serde::{Deserialize, Serialize};
 
 use crate::eval::cost::time_per;
@@ -36,7 +39,7 @@ pub struct Shape {
 pub const SHAPES: [Shape; 5] = [
     Shape {
         name: "neural material decoder",
-        widths: &[14, 64, 64, 64, 3],
+        widths: &[DI, DH, DH, DH, DO],
     },
     Shape {
         name: "flow coupling network",
@@ -195,23 +198,23 @@ const CHUNK: usize = 64;
 fn runtime_decoder_ns(n: usize, lanes: usize, passes: usize) -> f64 {
     use neusample::nn::{dense_len, Activation};
     use neusample::wavefront::dense_layer;
-    const L1: usize = dense_len(14, 64);
-    const L2: usize = L1 + dense_len(64, 64);
-    const L3: usize = L2 + dense_len(64, 64);
-    let params = filled(1, L3 + dense_len(64, 3), 0xDEC)
+    const L1: usize = dense_len(DI, DH);
+    const L2: usize = L1 + dense_len(DH, DH);
+    const L3: usize = L2 + dense_len(DH, DH);
+    let params = filled(1, DECODER_PARAM_COUNT, 0xDEC)
         .into_raw_vec_and_offset()
         .0;
     let w: &[f32] = &params;
     let chunks = n.div_ceil(CHUNK);
-    let inputs: Vec<[[f32; CHUNK]; 14]> = (0..chunks)
+    let inputs: Vec<[[f32; CHUNK]; DI]> = (0..chunks)
         .map(|c| {
-            let v = filled(14, CHUNK, 0x1A7 + c as u64);
+            let v = filled(DI, CHUNK, 0x1A7 + c as u64);
             core::array::from_fn(|i| core::array::from_fn(|b| v[[i, b]]))
         })
         .collect();
-    let mut h = [[0.0f32; CHUNK]; 64];
-    let mut g = [[0.0f32; CHUNK]; 64];
-    let mut o = [[0.0f32; CHUNK]; 3];
+    let mut h = [[0.0f32; CHUNK]; DH];
+    let mut g = [[0.0f32; CHUNK]; DH];
+    let mut o = [[0.0f32; CHUNK]; DO];
     let calls = lanes.div_ceil(n).max(1);
     let relu = Activation::Relu;
     time_per(passes, calls * n, || {

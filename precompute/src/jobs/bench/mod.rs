@@ -28,7 +28,10 @@ use crate::materials::neural::NeuralMaterialModel;
 pub const BATCH_SIZES: [usize; 4] = [1, 8, 64, 1024];
 
 /// Multiply-adds of one decoder evaluation (`core/ARCHITECTURES.md` §7: 14→64→64→64→3).
-const DECODER_MACS: f64 = (14 * 64 + 64 * 64 + 64 * 64 + 64 * 3) as f64;
+const DECODER_MACS: f64 = {
+    use neusample::neural_material::{DECODER_HIDDEN as H, DECODER_INPUTS, DECODER_OUTPUTS};
+    (DECODER_INPUTS * H + 2 * H * H + H * DECODER_OUTPUTS) as f64
+};
 
 /// What to measure.
 #[derive(Clone, Debug)]
