@@ -149,10 +149,26 @@ impl Lane for V8 {
         V8(each(|l| self.0[l].max(lo.0[l]).min(hi.0[l])))
     }
     #[inline(always)]
+    fn exp(self) -> V8 {
+        let mut r = self.0;
+        for v in &mut r {
+            *v = approx::exp(*v);
+        }
+        V8(r)
+    }
+    #[inline(always)]
     fn exp_nonpositive(self) -> V8 {
         let mut r = self.0;
         for v in &mut r {
             *v = approx::exp_nonpositive(*v);
+        }
+        V8(r)
+    }
+    #[inline(always)]
+    fn sigmoid(self) -> V8 {
+        let mut r = self.0;
+        for v in &mut r {
+            *v = approx::sigmoid(*v);
         }
         V8(r)
     }

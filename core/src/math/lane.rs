@@ -7,7 +7,7 @@
 
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
-use super::{clamp, exp_nonpositive, ln, safe_sqrt, softplus};
+use super::{clamp, exp, exp_nonpositive, ln, safe_sqrt, sigmoid, softplus};
 
 /// One point (`f32`) or several, with the scalar semantics per element (NaN included).
 pub(crate) trait Lane:
@@ -37,8 +37,12 @@ pub(crate) trait Lane:
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
     /// [`clamp`] per element with lane bounds.
     fn clamp_to(self, lo: Self, hi: Self) -> Self;
+    /// [`exp`] per element (within 2 ulp for lanes).
+    fn exp(self) -> Self;
     /// [`exp_nonpositive`] per element (within 2 ulp for lanes).
     fn exp_nonpositive(self) -> Self;
+    /// [`sigmoid`] per element (within 3 ulp for lanes).
+    fn sigmoid(self) -> Self;
     /// [`ln`] per element (within 2 ulp for lanes).
     fn ln(self) -> Self;
     /// [`softplus`] per element (within 4 ulp for lanes).
@@ -98,8 +102,16 @@ impl Lane for f32 {
         clamp(self, lo, hi)
     }
     #[inline(always)]
+    fn exp(self) -> f32 {
+        exp(self)
+    }
+    #[inline(always)]
     fn exp_nonpositive(self) -> f32 {
         exp_nonpositive(self)
+    }
+    #[inline(always)]
+    fn sigmoid(self) -> f32 {
+        sigmoid(self)
     }
     #[inline(always)]
     fn ln(self) -> f32 {

@@ -28,11 +28,12 @@ use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
 use crate::math;
+use crate::math::lane::Lane;
 use crate::nn::{self, check_condition, encode_condition, CONDITION_DIM, FEATURE_DIM};
 use crate::warp::inside_disk;
 use crate::weights::Weights;
 
-use super::coupling::{all_finite, density_from_log};
+use super::coupling::all_finite;
 use super::traits::{params_constructors, Held};
 use super::{Prepared, Sample, Sampler};
 
@@ -66,9 +67,9 @@ pub const LOG_DENSITY_MAX: f32 = 16.0;
 
 /// `(silu(a), silu'(a))` with `silu(a) = a·σ(a)`, `silu'(a) = σ(a)·(1 + a·(1 − σ(a)))`.
 #[inline(always)]
-pub(crate) fn silu_slope(a: f32) -> (f32, f32) {
-    let s = math::sigmoid(a);
-    (a * s, s * (1.0 + a * (1.0 - s)))
+pub(crate) fn silu_slope<L: Lane>(a: L) -> (L, L) {
+    let s = a.sigmoid();
+    (a * s, s * (L::splat(1.0) + a * (L::splat(1.0) - s)))
 }
 
 /// The warp at one latent point: where it lands and how it stretches area there.
@@ -83,50 +84,49 @@ pub struct Warped {
 }
 
 /// The warp's last step, shared by the scalar and batched paths: from the output `o =
-/// (a, b, w)` and its derivatives `d0 = ∂o/∂z.x`, `d1 = ∂o/∂z.y` to the point, its direction
-/// and `det ∂T/∂z` (`ARCHITECTURES.md` §8).
+/// (a, b, w)` and its derivatives `d0 = ∂o/∂z.x`, `d1 = ∂o/∂z.y` to the direction `v` above
+/// the point and `det ∂T/∂z` (`ARCHITECTURES.md` §8).
 #[inline(always)]
-pub(crate) fn finish_warp(
-    o: [f32; WARP_OUTPUTS],
-    d0: [f32; WARP_OUTPUTS],
-    d1: [f32; WARP_OUTPUTS],
-) -> Warped {
-    let s = math::softplus(o[2]);
-    let ds = math::sigmoid(o[2]);
-    let n = math::sqrt(o[0] * o[0] + o[1] * o[1] + s * s);
-    let inv = 1.0 / n;
-    let v = Vec3::new(o[0] * inv, o[1] * inv, s * inv);
+pub(crate) fn finish_warp<L: Lane>(
+    o: [L; WARP_OUTPUTS],
+    d0: [L; WARP_OUTPUTS],
+    d1: [L; WARP_OUTPUTS],
+) -> ([L; 3], L) {
+    let s = o[2].softplus();
+    let ds = o[2].sigmoid();
+    let inv = L::splat(1.0) / (o[0] * o[0] + o[1] * o[1] + s * s).safe_sqrt();
+    let v = [o[0] * inv, o[1] * inv, s * inv];
     // d(u/|u|) = (du − v (v·du)) / |u|, for u = (a, b, s) along each latent axis.
-    let t0 = v.x * d0[0] + v.y * d0[1] + v.z * (ds * d0[2]);
-    let t1 = v.x * d1[0] + v.y * d1[1] + v.z * (ds * d1[2]);
-    let x0 = (d0[0] - v.x * t0) * inv;
-    let y0 = (d0[1] - v.y * t0) * inv;
-    let x1 = (d1[0] - v.x * t1) * inv;
-    let y1 = (d1[1] - v.y * t1) * inv;
-    Warped {
-        point: Vec2::new(v.x, v.y),
-        wo: v,
-        det: x0 * y1 - x1 * y0,
-    }
+    let t0 = v[0] * d0[0] + v[1] * d0[1] + v[2] * (ds * d0[2]);
+    let t1 = v[0] * d1[0] + v[1] * d1[1] + v[2] * (ds * d1[2]);
+    let x0 = (d0[0] - v[0] * t0) * inv;
+    let y0 = (d0[1] - v[1] * t0) * inv;
+    let x1 = (d1[0] - v[0] * t1) * inv;
+    let y1 = (d1[1] - v[1] * t1) * inv;
+    (v, x0 * y1 - x1 * y0)
 }
 
-/// The density `N(z; 0, I) / det` on the projected disk of a warp sample, or 0 unless
-/// `det > 0` and the result is finite (a folded or degenerate Jacobian refuses the sample).
+/// The density `N(z; 0, I) / det` on the projected disk of a warp sample at `z = (zx, zy)`,
+/// or 0 unless `det > 0` and the result is finite (a folded or degenerate Jacobian refuses
+/// the sample).
 #[inline(always)]
-pub(crate) fn sample_density(z: Vec2, det: f32) -> f32 {
-    if !(det > 0.0) || !math::is_finite(det) {
-        return 0.0;
-    }
-    density_from_log(-0.5 * (z.x * z.x + z.y * z.y) - math::LN_TWO_PI - math::ln(det))
+pub(crate) fn sample_density<L: Lane>(zx: L, zy: L, det: L) -> L {
+    let zero = L::splat(0.0);
+    let log = L::splat(-0.5) * (zx * zx + zy * zy) - L::splat(math::LN_TWO_PI) - det.ln();
+    let p = log.exp();
+    let det_ok = L::and(det.gt(zero), det.le(L::splat(f32::MAX)));
+    let p_ok = L::and(p.gt(zero), p.le(L::splat(f32::MAX)));
+    L::select(L::and(det_ok, p_ok), p, zero)
 }
 
-/// The sample of a warped point with its disk density `q` (0: refused).
+/// The sample at disk point `point` below the direction with `cos θo = cos` and disk
+/// density `q` (0: refused).
 #[inline(always)]
-pub(crate) fn warp_sample(w: &Warped, q: f32) -> Option<Sample> {
-    if !(q > 0.0) || !(w.wo.z > 0.0) {
+pub(crate) fn warp_sample(point: Vec2, cos: f32, q: f32) -> Option<Sample> {
+    if !(q > 0.0) || !(cos > 0.0) {
         return None;
     }
-    Sample::from_disk(w.point, q)
+    Sample::from_disk(point, q)
 }
 
 /// The pdf network's log-density to density step, shared by both paths.
@@ -242,7 +242,12 @@ fn warp_lane<W: Weights>(w: &W, lane: &ReparamLane, z: Vec2) -> Warped {
     let o = nn::linear::<W, H, WARP_OUTPUTS>(w, l2, &h2);
     let d0 = tangent::<W, H, WARP_OUTPUTS>(w, l2, &t0);
     let d1 = tangent::<W, H, WARP_OUTPUTS>(w, l2, &t1);
-    finish_warp(o, d0, d1)
+    let (v, det) = finish_warp(o, d0, d1);
+    Warped {
+        point: Vec2::new(v[0], v[1]),
+        wo: Vec3::from_array(v),
+        det,
+    }
 }
 
 /// The pdf network of a lane at disk point `p` (inside the disk): `p̂(p)`.
@@ -317,7 +322,7 @@ impl<W: Weights + Copy> Prepared for ReparamPrepared<'_, W> {
         let u = math::sanitize_u2(u)?;
         let z = gaussian::box_muller(u);
         let t = self.warp(z);
-        warp_sample(&t, sample_density(z, t.det))
+        warp_sample(t.point, t.wo.z, sample_density(z.x, z.y, t.det))
     }
 
     /// The pdf network `p̂` on the projected disk (area measure); 0 outside the open disk.

@@ -1,8 +1,9 @@
 //! [`ReparamSampler`] over wavefronts ([`BatchSampler`](crate::wavefront::BatchSampler)):
 //! both networks as matrix products over a chunk's lanes; the warp's value and its two
 //! tangents go through each layer as one product of three lane blocks (the weights are read
-//! once for all three). The per-lane steps are the scalar path's own functions, in its
-//! order, so both paths give the same bits.
+//! once for all three). The per-lane steps are the scalar path's own functions, written over
+//! [`Lane`](crate::math::lane::Lane) and run eight lanes at a time ([`V8`]) with the fast
+//! approximations of `math::approx`: both paths agree within the `wavefront` tolerances.
 
 use glam::Vec2;
 
@@ -12,8 +13,8 @@ use super::{
     WARP_L2, WARP_OUTPUTS,
 };
 use crate::batch::chunked::ChunkedSampler;
+use crate::batch::lanes::{self, V8};
 use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
-use crate::distrib::gaussian;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
 use crate::warp::{self, inside_disk};
@@ -54,33 +55,43 @@ impl<W: Weights + Copy> ReparamSampler<W> {
             dense::bias::<W, REPARAM_INPUTS, H, CHUNK>(w, off as u32, s);
             dense::accumulate::<W, CONDITION_DIM, H, CHUNK>(w, off as u32, 0, &c, s, m);
         }
+        // ReparamLane::new's finiteness check, across lanes.
+        let mut keep = valid;
+        for row in shares.iter().flatten() {
+            for (k, v) in keep.iter_mut().zip(row) {
+                *k &= math::is_finite(*v);
+            }
+        }
         for l in 0..m {
-            out[l] = if valid[l] {
-                ReparamLane::new(batch::column(&shares[0], l), batch::column(&shares[1], l))
-            } else {
-                None
-            };
+            out[l] = keep[l].then(|| ReparamLane {
+                warp: batch::column(&shares[0], l),
+                density: batch::column(&shares[1], l),
+            });
         }
     }
 
     #[inline(always)]
     fn chunk_sample(&self, lanes: &[Option<ReparamLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
+        let groups = m.div_ceil(8);
         let w = &self.params;
+        // Refused lanes keep u = 0 (z = 0) and are dropped at the end.
+        let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         let mut ok = [false; CHUNK];
-        let mut z = [Vec2::ZERO; CHUNK];
-        let mut zs: Soa<2> = [[0.0; CHUNK]; 2];
         let mut a: Soa<H> = [[0.0; CHUNK]; H];
         for i in 0..m {
             if let (Some(l), Some(uu)) = (&lanes[i], math::sanitize_u2(u.at(i))) {
-                z[i] = gaussian::box_muller(uu);
+                (u0[i], u1[i]) = (uu.x, uu.y);
                 ok[i] = true;
                 for j in 0..H {
                     a[j][i] = l.warp[j];
                 }
             }
-            zs[0][i] = z[i].x;
-            zs[1][i] = z[i].y;
+        }
+        let mut zs: Soa<2> = [[0.0; CHUNK]; 2];
+        {
+            let [zx, zy] = &mut zs;
+            lanes::box_muller_rows(&u0, &u1, zx, zy);
         }
         let l0 = WARP_L0 as u32;
         dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &zs, &mut a, m);
@@ -88,11 +99,12 @@ impl<W: Weights + Copy> ReparamSampler<W> {
         let r1: [f32; H] = w.read(l0 + ((CONDITION_DIM + 1) * H) as u32);
         let mut x = [[0.0f32; STACK]; H];
         for j in 0..H {
-            for i in 0..m {
-                let (y, d) = silu_slope(a[j][i]);
-                x[j][i] = y;
-                x[j][CHUNK + i] = d * r0[j];
-                x[j][2 * CHUNK + i] = d * r1[j];
+            let (r0j, r1j) = (V8::splat(r0[j]), V8::splat(r1[j]));
+            for g in 0..groups {
+                let (y, d) = silu_slope(V8::load(&a[j][8 * g..]));
+                y.store(&mut x[j][8 * g..]);
+                (d * r0j).store(&mut x[j][CHUNK + 8 * g..]);
+                (d * r1j).store(&mut x[j][2 * CHUNK + 8 * g..]);
             }
         }
         let active = 2 * CHUNK + m;
@@ -100,21 +112,36 @@ impl<W: Weights + Copy> ReparamSampler<W> {
         let mut a2 = stacked_bias::<W, H, H>(w, l1);
         dense::accumulate::<W, H, H, STACK>(w, l1, 0, &x, &mut a2, active);
         for j in 0..H {
-            for i in 0..m {
-                let (y, d) = silu_slope(a2[j][i]);
-                x[j][i] = y;
-                x[j][CHUNK + i] = d * a2[j][CHUNK + i];
-                x[j][2 * CHUNK + i] = d * a2[j][2 * CHUNK + i];
+            for g in 0..groups {
+                let at = |base: usize| V8::load(&a2[j][base + 8 * g..]);
+                let (y, d) = silu_slope(at(0));
+                let (t0, t1) = (d * at(CHUNK), d * at(2 * CHUNK));
+                y.store(&mut x[j][8 * g..]);
+                t0.store(&mut x[j][CHUNK + 8 * g..]);
+                t1.store(&mut x[j][2 * CHUNK + 8 * g..]);
             }
         }
         let l2 = WARP_L2 as u32;
         let mut o = stacked_bias::<W, H, WARP_OUTPUTS>(w, l2);
         dense::accumulate::<W, H, WARP_OUTPUTS, STACK>(w, l2, 0, &x, &mut o, active);
+        // Each lane's direction and density, eight lanes at a time.
+        let mut v: Soa<3> = [[0.0; CHUNK]; 3];
+        let mut q = [0.0f32; CHUNK];
+        for g in 0..groups {
+            let block = |base: usize| {
+                let at = |k: usize| V8::load(&o[k][base + 8 * g..]);
+                [at(0), at(1), at(2)]
+            };
+            let (dir, det) = finish_warp(block(0), block(CHUNK), block(2 * CHUNK));
+            let z = |k: usize| V8::load(&zs[k][8 * g..]);
+            sample_density(z(0), z(1), det).store(&mut q[8 * g..]);
+            for (row, d) in v.iter_mut().zip(dir) {
+                d.store(&mut row[8 * g..]);
+            }
+        }
         for i in 0..m {
             let s = if ok[i] {
-                let col = |base: usize| [o[0][base + i], o[1][base + i], o[2][base + i]];
-                let t = finish_warp(col(0), col(CHUNK), col(2 * CHUNK));
-                warp_sample(&t, sample_density(z[i], t.det))
+                warp_sample(Vec2::new(v[0][i], v[1][i]), v[2][i], q[i])
             } else {
                 None
             };
