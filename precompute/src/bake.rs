@@ -99,12 +99,25 @@ pub fn checked_blob_bytes(
     conditions: usize,
     seed: u64,
 ) -> Result<(Vec<u8>, Verification)> {
+    checked_blob_bytes_by(trained, dtype, label, |bytes| {
+        verify(trained, bytes, material, conditions, seed)
+    })
+}
+
+/// [`checked_blob_bytes`] with the check given: `check` verifies a written blob (the
+/// compact one first, then, if it fails, the one with value tables).
+pub fn checked_blob_bytes_by(
+    trained: &Trained,
+    dtype: DType,
+    label: &str,
+    check: impl Fn(&[u8]) -> Result<Verification>,
+) -> Result<(Vec<u8>, Verification)> {
     let bytes = blob_bytes(trained, dtype, label)?;
-    match verify(trained, &bytes, material, conditions, seed) {
+    match check(&bytes) {
         Ok(v) => Ok((bytes, v)),
         Err(e) if trained.tables.is_some() && DEFAULT_TABLE_LAYOUT == TableLayout::Compact => {
             let values = blob_bytes_with(trained, dtype, TableLayout::Values, label)?;
-            let v = verify(trained, &values, material, conditions, seed)
+            let v = check(&values)
                 .with_context(|| format!("value tables, after the compact ones failed: {e:#}"))?;
             eprintln!(
                 "note: {e:#}; the blob keeps its tables as values and f32 CDFs instead ({} bytes, max relative difference {:.1e})",

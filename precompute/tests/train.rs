@@ -507,3 +507,45 @@ fn histogram_mixture_bakes_compact_tables_that_verify() {
     let flow = bake::blob_bytes(&quick(SamplerKind::Flow), DType::F32, "test").unwrap();
     assert!(bake::compact_blob(&flow).is_err());
 }
+
+/// The fallback of `bake::checked_blob_bytes`: a compact blob that fails its check is baked
+/// again with value tables, which are checked in turn; if those fail too, the error names
+/// both failures. A check that refuses compact blobs forces the first failure.
+#[test]
+fn histogram_mixture_falls_back_to_value_tables() {
+    use neusample::{Blob, DType};
+    use neusample_precompute::bake;
+
+    let t = quick(SamplerKind::HistogramMixture);
+    let m = neusample_precompute::materials::builtin("goat_leather").unwrap();
+    let compact_fails = |bytes: &[u8]| {
+        if Blob::open(bytes)?.is_compact() {
+            anyhow::bail!("compact tables refused by the test");
+        }
+        bake::verify(&t, bytes, m.as_ref(), 8, 1)
+    };
+    let (bytes, v) = bake::checked_blob_bytes_by(&t, DType::F32, "test", compact_fails).unwrap();
+    let blob = Blob::open(&bytes).unwrap();
+    assert!(!blob.is_compact());
+    assert_eq!(v.tolerance, bake::F32_TOLERANCE);
+    assert!(v.points > 0 && v.max_relative <= v.tolerance);
+    // Without a failure the blob stays compact.
+    let (bytes, _) = bake::checked_blob_bytes(&t, DType::F32, "test", m.as_ref(), 8, 1).unwrap();
+    assert!(Blob::open(&bytes).unwrap().is_compact());
+    // Both layouts refused: an error that names both.
+    let e = bake::checked_blob_bytes_by(&t, DType::F32, "test", |_| {
+        anyhow::bail!("refused by the test")
+    })
+    .unwrap_err();
+    let msg = format!("{e:#}");
+    assert!(
+        msg.contains("value tables, after the compact ones failed"),
+        "{msg}"
+    );
+    // Another kind has no fallback: its failure is the error.
+    let flow = quick(SamplerKind::Flow);
+    assert!(bake::checked_blob_bytes_by(&flow, DType::F32, "test", |_| {
+        anyhow::bail!("refused by the test")
+    })
+    .is_err());
+}
