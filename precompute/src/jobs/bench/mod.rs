@@ -169,10 +169,10 @@ pub struct RowSearch {
     pub guide_ns: f64,
 }
 
-/// The histogram mixture in both table layouts.
+/// The histogram mixture in both table layouts, or in the compact one alone.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct TableLayouts {
-    /// `values` and `compact`.
+    /// `values` and `compact`, or `compact` alone.
     pub layouts: Vec<LayoutCost>,
     /// Conditions of the KL figures (each tabulated at 64², 2 × 2 points per cell).
     pub kl_conditions: usize,
@@ -197,27 +197,26 @@ fn table_bytes(blob: &Blob<'_>) -> usize {
     .sum()
 }
 
-/// The folder's histogram mixture in both layouts (`None` without one).
+/// The folder's histogram mixture in both layouts (`None` without one); a blob that is
+/// already compact has lost its values and is measured alone.
 fn table_layouts(cfg: &BenchConfig, rows: &Rows) -> Result<Option<TableLayouts>> {
     let path = cfg.blobs.join("histogram-mixture.nsb");
     let Ok(stored) = std::fs::read(&path) else {
         return Ok(None);
     };
-    if Blob::open(&stored)
+    let compact_only = Blob::open(&stored)
         .with_context(|| path.display().to_string())?
-        .is_compact()
-    {
-        bail!(
-            "{}: the bench compares layouts from a blob that stores values",
-            path.display()
-        );
-    }
-    let compact = bake::compact_blob(&stored)?;
-    let values = stored;
+        .is_compact();
+    let candidates = if compact_only {
+        vec![("compact", stored)]
+    } else {
+        let compact = bake::compact_blob(&stored)?;
+        vec![("values", stored), ("compact", compact)]
+    };
     let material = NeuralMaterialModel::load(&cfg.material)?;
     let mut layouts = Vec::new();
     let mut search = None;
-    for (layout, bytes) in [("values", &values), ("compact", &compact)] {
+    for (layout, bytes) in &candidates {
         let blob = Blob::open(bytes).with_context(|| format!("{layout} tables"))?;
         let s = blob.sampler()?;
         let batched = with_concrete(
