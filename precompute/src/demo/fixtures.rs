@@ -25,12 +25,14 @@ use crate::util::progress::stages_bar;
 pub const FIXTURE_SLOW_LEARNER_STEPS: usize = 3;
 
 /// The training settings of the committed fixtures: the default run with smaller histogram
-/// tables (T = 8, N = 32) and [`FIXTURE_SLOW_LEARNER_STEPS`]× the steps for the flow and the
-/// histogram mixture, seed 1 (the disk flow's fixtures are trained with its default steps).
+/// tables, interpolated in t (T = 8, N = 32: the fixtures predate the table study's
+/// defaults), and [`FIXTURE_SLOW_LEARNER_STEPS`]× the steps for the flow and the histogram
+/// mixture, seed 1 (the disk flow's fixtures are trained with its default steps).
 fn fixture_config() -> TrainConfig {
     let mut c = TrainConfig::default();
     c.histogram_mixture.t_levels = 8;
     c.histogram_mixture.res = 32;
+    c.histogram_mixture.interpolate_t = true;
     for kind in [SamplerKind::Flow, SamplerKind::HistogramMixture] {
         if let Some(s) = c.schedule_mut(kind) {
             s.steps *= FIXTURE_SLOW_LEARNER_STEPS;

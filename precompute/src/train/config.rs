@@ -151,11 +151,13 @@ pub struct HistogramMixture {
     pub batch_conditions: usize,
     /// Regression points per condition (half uniform on the disk, half from p*; even).
     pub points_per_condition: usize,
-    /// Latent-code levels T of the baked tables.
+    /// Latent-code levels T of the baked tables (default 8: more levels bought little in the
+    /// README's table study, at T/8 times the bytes).
     pub t_levels: usize,
-    /// Cells per side N of the baked tables.
+    /// Cells per side N of the baked tables (default 64).
     pub res: usize,
-    /// Whether the runtime interpolates linearly in t (else the nearest level).
+    /// Whether the runtime interpolates linearly in t (else the nearest level, the default:
+    /// at T = 8 it fits as well and reads half the tables).
     pub interpolate_t: bool,
     /// Points per cell side when baking.
     pub supersample: usize,
@@ -187,9 +189,9 @@ impl Default for HistogramMixture {
             },
             batch_conditions: 16,
             points_per_condition: 64,
-            t_levels: 32,
+            t_levels: 8,
             res: 64,
-            interpolate_t: true,
+            interpolate_t: false,
             supersample: 2,
             quant_weight: 100.0,
             output_scale: 5.0,
@@ -210,6 +212,7 @@ impl HistogramMixture {
             points_per_condition: 32,
             t_levels: 8,
             res: 16,
+            interpolate_t: true,
             supersample: 1,
             ..HistogramMixture::default()
         }

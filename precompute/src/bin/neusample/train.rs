@@ -56,9 +56,13 @@ pub struct TrainArgs {
     /// Histogram mixture: table resolution N.
     #[arg(long)]
     hist_res: Option<usize>,
-    /// Histogram mixture: nearest latent level instead of linear interpolation.
-    #[arg(long)]
+    /// Histogram mixture: the nearest latent level (the default; kept for scripts).
+    #[arg(long, conflicts_with = "interpolate_t")]
     nearest_t: bool,
+    /// Histogram mixture: interpolate linearly between the two nearest latent levels
+    /// (twice the table reads; the default is the nearest level).
+    #[arg(long)]
+    interpolate_t: bool,
     /// Train on the fit metrics' targets (cells wholly inside the disk, the release's 0.98
     /// cut-off) instead of targets up to the horizon.
     #[arg(long)]
@@ -147,6 +151,9 @@ impl TryFrom<&TrainArgs> for TrainConfig {
         }
         if a.nearest_t {
             cfg.histogram_mixture.interpolate_t = false;
+        }
+        if a.interpolate_t {
+            cfg.histogram_mixture.interpolate_t = true;
         }
         if a.no_horizon {
             cfg.common.horizon_targets = false;
