@@ -8,14 +8,15 @@
 use glam::Vec2;
 
 use super::{
-    density_from_output, finish_warp, sample_density, silu_slope, warp_sample, ReparamLane,
-    ReparamSampler, DENSITY_L0, DENSITY_L1, REPARAM_HIDDEN, REPARAM_INPUTS, WARP_L0, WARP_L1,
-    WARP_L2, WARP_OUTPUTS,
+    density_from_output, finish_warp, sample_density, warp_sample, ReparamLane, ReparamSampler,
+    DENSITY_L0, DENSITY_L1, REPARAM_HIDDEN, REPARAM_INPUTS, WARP_L0, WARP_L1, WARP_L2,
+    WARP_OUTPUTS,
 };
 use crate::batch::chunked::ChunkedSampler;
 use crate::batch::lanes::{self, V8};
 use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::math;
+use crate::math::approx;
 use crate::nn::{Activation, CONDITION_DIM};
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
@@ -27,6 +28,14 @@ const STACK: usize = 3 * CHUNK;
 const H: usize = REPARAM_HIDDEN;
 
 type Soa<const N: usize> = batch::Soa<N, CHUNK>;
+
+/// [`silu_slope`](super::silu_slope) of one lane with the fast sigmoid (the same operations as its eight-lane
+/// form): written per lane so that loops over a chunk's rows run at the full vector width.
+#[inline(always)]
+fn silu_fast(a: f32) -> (f32, f32) {
+    let s = approx::sigmoid(a);
+    (a * s, s * (1.0 + a * (1.0 - s)))
+}
 
 /// `acc[j]` = the layer's bias on the value lanes and 0 on the tangent lanes.
 #[inline(always)]
@@ -55,18 +64,29 @@ impl<W: Weights + Copy> ReparamSampler<W> {
             dense::bias::<W, REPARAM_INPUTS, H, CHUNK>(w, off as u32, s);
             dense::accumulate::<W, CONDITION_DIM, H, CHUNK>(w, off as u32, 0, &c, s, m);
         }
-        // ReparamLane::new's finiteness check, across lanes.
-        let mut keep = valid;
+        // ReparamLane::new's finiteness check, across lanes: 0·v is ±0 for a finite v and NaN
+        // otherwise, so a lane's sum of them is 0 exactly when all its values are finite
+        // (float adds vectorise where a chain of boolean ands does not).
+        let mut nonfinite = [0.0f32; CHUNK];
         for row in shares.iter().flatten() {
-            for (k, v) in keep.iter_mut().zip(row) {
-                *k &= math::is_finite(*v);
+            for (acc, v) in nonfinite.iter_mut().zip(row) {
+                *acc += 0.0 * *v;
             }
         }
+        // Each kept lane's shares written in place (no per-lane temporaries to move).
         for l in 0..m {
-            out[l] = keep[l].then(|| ReparamLane {
-                warp: batch::column(&shares[0], l),
-                density: batch::column(&shares[1], l),
-            });
+            if valid[l] && nonfinite[l] == 0.0 {
+                let lane = out[l].insert(ReparamLane {
+                    warp: [0.0; H],
+                    density: [0.0; H],
+                });
+                for j in 0..H {
+                    lane.warp[j] = shares[0][j][l];
+                    lane.density[j] = shares[1][j][l];
+                }
+            } else {
+                out[l] = None;
+            }
         }
     }
 
@@ -98,27 +118,27 @@ impl<W: Weights + Copy> ReparamSampler<W> {
         let r0: [f32; H] = w.read(l0 + (CONDITION_DIM * H) as u32);
         let r1: [f32; H] = w.read(l0 + ((CONDITION_DIM + 1) * H) as u32);
         let mut x = [[0.0f32; STACK]; H];
-        for j in 0..H {
-            let (r0j, r1j) = (V8::splat(r0[j]), V8::splat(r1[j]));
-            for g in 0..groups {
-                let (y, d) = silu_slope(V8::load(&a[j][8 * g..]));
-                y.store(&mut x[j][8 * g..]);
-                (d * r0j).store(&mut x[j][CHUNK + 8 * g..]);
-                (d * r1j).store(&mut x[j][2 * CHUNK + 8 * g..]);
+        for (xj, (aj, (r0j, r1j))) in x.iter_mut().zip(a.iter().zip(r0.into_iter().zip(r1))) {
+            let (y, t) = xj.split_at_mut(CHUNK);
+            let (t0, t1) = t.split_at_mut(CHUNK);
+            for (((y, t0), t1), a) in y.iter_mut().zip(t0).zip(t1).zip(&aj[..m]) {
+                let (v, d) = silu_fast(*a);
+                (*y, *t0, *t1) = (v, d * r0j, d * r1j);
             }
         }
         let active = 2 * CHUNK + m;
         let l1 = WARP_L1 as u32;
         let mut a2 = stacked_bias::<W, H, H>(w, l1);
         dense::accumulate::<W, H, H, STACK>(w, l1, 0, &x, &mut a2, active);
-        for j in 0..H {
-            for g in 0..groups {
-                let at = |base: usize| V8::load(&a2[j][base + 8 * g..]);
-                let (y, d) = silu_slope(at(0));
-                let (t0, t1) = (d * at(CHUNK), d * at(2 * CHUNK));
-                y.store(&mut x[j][8 * g..]);
-                t0.store(&mut x[j][CHUNK + 8 * g..]);
-                t1.store(&mut x[j][2 * CHUNK + 8 * g..]);
+        for (xj, aj) in x.iter_mut().zip(&a2) {
+            let (y, t) = xj.split_at_mut(CHUNK);
+            let (t0, t1) = t.split_at_mut(CHUNK);
+            let (a, da) = aj.split_at(CHUNK);
+            let (da0, da1) = da.split_at(CHUNK);
+            let lanes = y.iter_mut().zip(t0).zip(t1).zip(&a[..m]).zip(da0).zip(da1);
+            for (((((y, t0), t1), a), da0), da1) in lanes {
+                let (v, d) = silu_fast(*a);
+                (*y, *t0, *t1) = (v, d * da0, d * da1);
             }
         }
         let l2 = WARP_L2 as u32;
