@@ -1,9 +1,10 @@
 //! [`ReparamSampler`] over wavefronts ([`BatchSampler`](crate::wavefront::BatchSampler)):
 //! both networks as matrix products over a chunk's lanes; the warp's value and its two
 //! tangents go through each layer as one product of three lane blocks (the weights are read
-//! once for all three). The per-lane steps are the scalar path's own functions, written over
-//! [`Lane`](crate::math::lane::Lane) and run eight lanes at a time ([`V8`]) with the fast
-//! approximations of `math::approx`: both paths agree within the `wavefront` tolerances.
+//! once for all three). The per-lane steps are the scalar path's operations with the fast
+//! approximations of `math::approx`: the SiLUs as loops over whole rows (the full vector
+//! width), the warp's last step through [`Lane`](crate::math::lane::Lane) eight lanes at a
+//! time ([`V8`]); both paths agree within the `wavefront` tolerances.
 
 use glam::Vec2;
 
