@@ -65,11 +65,17 @@ pub const LOG_DENSITY_MIN: f32 = -16.0;
 /// Upper clamp of the pdf network's log-density (see [`LOG_DENSITY_MIN`]).
 pub const LOG_DENSITY_MAX: f32 = 16.0;
 
-/// `(silu(a), silu'(a))` with `silu(a) = a·σ(a)`, `silu'(a) = σ(a)·(1 + a·(1 − σ(a)))`.
+/// `(silu(a), silu'(a))` from `a` and `s = σ(a)`: `silu(a) = a·s`,
+/// `silu'(a) = s·(1 + a·(1 − s))`. Both paths call it, each with its own sigmoid.
 #[inline(always)]
-pub(crate) fn silu_slope<L: Lane>(a: L) -> (L, L) {
-    let s = a.sigmoid();
-    (a * s, s * (L::splat(1.0) + a * (L::splat(1.0) - s)))
+pub(crate) fn silu_from_sigmoid(a: f32, s: f32) -> (f32, f32) {
+    (a * s, s * (1.0 + a * (1.0 - s)))
+}
+
+/// `(silu(a), silu'(a))` with [`math::sigmoid`].
+#[inline(always)]
+fn silu_slope(a: f32) -> (f32, f32) {
+    silu_from_sigmoid(a, math::sigmoid(a))
 }
 
 /// The warp at one latent point: where it lands and how it stretches area there.

@@ -9,9 +9,9 @@
 use glam::Vec2;
 
 use super::{
-    density_from_output, finish_warp, sample_density, warp_sample, ReparamLane, ReparamSampler,
-    DENSITY_L0, DENSITY_L1, REPARAM_HIDDEN, REPARAM_INPUTS, WARP_L0, WARP_L1, WARP_L2,
-    WARP_OUTPUTS,
+    density_from_output, finish_warp, sample_density, silu_from_sigmoid, warp_sample, ReparamLane,
+    ReparamSampler, DENSITY_L0, DENSITY_L1, REPARAM_HIDDEN, REPARAM_INPUTS, WARP_L0, WARP_L1,
+    WARP_L2, WARP_OUTPUTS,
 };
 use crate::batch::chunked::ChunkedSampler;
 use crate::batch::lanes::{self, V8};
@@ -30,12 +30,11 @@ const H: usize = REPARAM_HIDDEN;
 
 type Soa<const N: usize> = batch::Soa<N, CHUNK>;
 
-/// [`silu_slope`](super::silu_slope) of one lane with the fast sigmoid (the same operations as its eight-lane
-/// form): written per lane so that loops over a chunk's rows run at the full vector width.
+/// `(silu(a), silu'(a))` with the fast sigmoid, per lane so that loops over a chunk's rows
+/// run at the full vector width.
 #[inline(always)]
 fn silu_fast(a: f32) -> (f32, f32) {
-    let s = approx::sigmoid(a);
-    (a * s, s * (1.0 + a * (1.0 - s)))
+    silu_from_sigmoid(a, approx::sigmoid(a))
 }
 
 /// `acc[j]` = the layer's bias on the value lanes and 0 on the tangent lanes.
