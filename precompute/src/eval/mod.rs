@@ -7,6 +7,8 @@
 //!   primitives `neusample bench` shares;
 //! * `concrete` — a blob's sampler as its concrete type ([`with_concrete`]);
 //! * `oracle` — the tabulated near-optimal sampler ([`OracleSampler`], paper Fig. 10);
+//! * [`warp_inverse`] — the reparameterization sampler's exact sampling density anywhere on
+//!   the disk, by inverting its warp, and what it shows ([`warp_inverse::exact_fit`]);
 //! * [`metrics`] — rendering metrics with `neusample_render` (paper §4: MSE at equal spp and
 //!   equal time, convergence, speed-up over the improved baseline).
 
@@ -15,6 +17,7 @@ pub mod cost;
 mod fit;
 pub mod metrics;
 mod oracle;
+pub mod warp_inverse;
 
 pub use concrete::{with_concrete, WithSampler};
 pub use cost::{cost, cost_any, cost_scalar, eval_cost, Cost, EvalCost, COST_BATCH};

@@ -527,8 +527,21 @@ pub fn pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f
 /// point and `det ∂T/∂z`, by forward-mode tangents as the runtime computes them.
 #[must_use]
 pub fn warp_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, z: Vec2) -> (Vec2, f64) {
-    let mut x = encoded_condition_f64(phi, wi);
-    x.extend([f64::from(z.x), f64::from(z.y)]);
+    let cond = encoded_condition_f64(phi, wi);
+    let (p, j) = warp_jacobian_f64(params, &cond, [f64::from(z.x), f64::from(z.y)]);
+    (
+        Vec2::new(p[0] as f32, p[1] as f32),
+        j[0][0] * j[1][1] - j[0][1] * j[1][0],
+    )
+}
+
+/// The warp of exported parameters at latent point `z` for an encoded condition `cond`
+/// ([`encoded_condition_f64`]), all in f64: the disk point and the Jacobian `∂T/∂z`, rows
+/// the point's coordinates, columns `z.x`, `z.y`.
+#[must_use]
+pub fn warp_jacobian_f64(params: &[f32], cond: &[f64], z: [f64; 2]) -> ([f64; 2], [[f64; 2]; 2]) {
+    let mut x = cond.to_vec();
+    x.extend(z);
     // Value and the two tangents through each layer.
     let mut at = 0usize;
     let mut h = x;
@@ -572,7 +585,7 @@ pub fn warp_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, z: Vec2) -> 
     };
     let (x0, y0) = d(&t[0]);
     let (x1, y1) = d(&t[1]);
-    (Vec2::new(v[0] as f32, v[1] as f32), x0 * y1 - x1 * y0)
+    ([v[0], v[1]], [[x0, x1], [y0, y1]])
 }
 
 /// The pdf network's log-density on the training graph for exported parameters at `points`

@@ -5,6 +5,7 @@
 mod bench;
 mod defend;
 mod demo;
+mod inverse;
 mod material;
 mod output;
 mod scene;
@@ -73,6 +74,9 @@ enum Command {
     /// The runtime's cost per shading point: every sampler and the neural material, scalar
     /// and batched, and the dense layers' throughput against the CPU's peak.
     Bench(bench::BenchArgs),
+    /// The reparameterization sampler's exact sampling density (its warp inverted) against
+    /// its own samples and its pdf network: missed integrand, exact χ², the MIS mismatch.
+    ReparamExact(inverse::ReparamExactArgs),
 }
 
 fn main() {
@@ -105,6 +109,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::ImportMaterial(a) => material::import_material(&a),
         Command::MaterialCost(a) => material::material_cost(&a),
         Command::Bench(a) => bench::run(&a),
+        Command::ReparamExact(a) => inverse::run(&a),
     }
 }
 
