@@ -24,15 +24,12 @@ use crate::util::progress::stages_bar;
 /// histogram mixture: both are still improving at the default step counts (README, "Fits").
 pub const FIXTURE_SLOW_LEARNER_STEPS: usize = 3;
 
-/// The training settings of the committed fixtures: the default run with smaller histogram
-/// tables, interpolated in t (T = 8, N = 32: the fixtures predate the table study's
-/// defaults), and [`FIXTURE_SLOW_LEARNER_STEPS`]× the steps for the flow and the histogram
-/// mixture, seed 1 (the disk flow's fixtures are trained with its default steps).
+/// The training settings of the committed fixtures: the default run (histogram tables T = 8,
+/// N = 64, nearest latent level) with [`FIXTURE_SLOW_LEARNER_STEPS`]× the steps for the flow
+/// and the histogram mixture, seed 1 (the disk flow's fixtures are trained with its default
+/// steps).
 fn fixture_config() -> TrainConfig {
     let mut c = TrainConfig::default();
-    c.histogram_mixture.t_levels = 8;
-    c.histogram_mixture.res = 32;
-    c.histogram_mixture.interpolate_t = true;
     for kind in [SamplerKind::Flow, SamplerKind::HistogramMixture] {
         if let Some(s) = c.schedule_mut(kind) {
             s.steps *= FIXTURE_SLOW_LEARNER_STEPS;
@@ -100,7 +97,7 @@ pub const DEFEND_SEED: u64 = 0xDEF;
 
 /// `neusample fixtures`: trains the methods `methods` (every trainable method when empty) on
 /// the built-ins `names` with fixed seeds and writes `<out>/<material>/<method>.nsb` (f32,
-/// histogram tables T = 8, N = 32) plus `<out>/cosine.nsb`; for the neural set, first fits the
+/// the settings of `fixture_config`) plus `<out>/cosine.nsb`; for the neural set, first fits the
 /// neural version of each material (`train-material` defaults, seed 1, f32) into
 /// `<materials>/<name>_neural.nsb` and then trains the samplers on it into
 /// `<out>/<name>_neural/`.
