@@ -536,7 +536,7 @@ pub fn warp_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, z: Vec2) -> 
 }
 
 /// The warp of exported parameters at latent point `z` for an encoded condition `cond`
-/// ([`encoded_condition_f64`]), all in f64: the disk point and the Jacobian `∂T/∂z`, rows
+/// (`neusample::nn::encode_condition`, widened to f64), all in f64: the disk point and the Jacobian `∂T/∂z`, rows
 /// the point's coordinates, columns `z.x`, `z.y`.
 #[must_use]
 pub fn warp_jacobian_f64(params: &[f32], cond: &[f64], z: [f64; 2]) -> ([f64; 2], [[f64; 2]; 2]) {
