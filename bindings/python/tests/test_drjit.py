@@ -11,8 +11,12 @@ Tolerances (the measured worst cases are printed at the end of the run):
   the lanes may exceed PDF_RTOL, none FLOW_RTOL;
 - samples: the sampling maps are discontinuous (mixture component choice, histogram cell
   search), so a lane whose uniform lies within rounding of a boundary can land elsewhere:
-  at most SAMPLE_OUTLIERS of the lanes may differ by more than SAMPLE_ATOL; every Dr.Jit
-  sample's pdf must equal the Rust pdf of that direction within PDF_RTOL.
+  at most SAMPLE_OUTLIERS of the lanes may differ by more than SAMPLE_ATOL (scaled by N/32
+  for histogram tables finer than 32², whose cell boundaries are denser); every Dr.Jit
+  sample's pdf must equal the Rust pdf of that direction within PDF_RTOL;
+- the histogram mixture's nearest latent level is a step in the network's output: a lane
+  whose level lies within f32 rounding of a half-integer may read the neighbouring slice, so
+  at most HM_LEVEL_FLIPS of its lanes may exceed PDF_RTOL.
 """
 
 import os
@@ -45,6 +49,7 @@ FLOW_RTOL = 3e-3
 FLOW_OUTLIERS = 1e-2
 SAMPLE_ATOL = 1e-4
 SAMPLE_OUTLIERS = 2e-3
+HM_LEVEL_FLIPS = 1e-3
 EVAL_RTOL = 1e-4
 
 SAMPLER_BLOBS = sorted(
@@ -133,11 +138,15 @@ def test_sampler_matches_the_rust_scalar_runtime(path, conditions):
     above = float(np.mean(errs > PDF_RTOL))
     RESULTS.append((short(path) if path else "cosine", d.alpha, float(errs.max()), above,
                     1 - agree, far.mean()))
+    moved = SAMPLE_OUTLIERS
     if d.name == "flow":
         assert errs.max() <= FLOW_RTOL and above <= FLOW_OUTLIERS
+    elif d.name == "histogram-mixture" and not d.kind.linear:
+        assert above <= HM_LEVEL_FLIPS
+        moved *= max(1.0, d.kind.n / 32)
     else:
         assert errs.max() <= PDF_RTOL
-    assert 1 - agree <= SAMPLE_OUTLIERS and far.mean() <= SAMPLE_OUTLIERS
+    assert 1 - agree <= SAMPLE_OUTLIERS and far.mean() <= moved
 
 
 def test_flow_outliers_are_f32_rounding():
