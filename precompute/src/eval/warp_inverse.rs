@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use crate::defend::ALPHA_GRID;
 use crate::groundtruth;
 use crate::materials::Material;
-use crate::train::reparam::warp_jacobian_f64;
+use crate::train::reparam::{jacobian_det, warp_jacobian_f64};
 
 /// Half-width of the latent square the grid covers (the normal's mass outside it is below
 /// 3·10⁻⁶).
@@ -41,6 +41,27 @@ const SAME_ROOT: f64 = 1e-7;
 /// A cell's image box is padded by this fraction of its size on every side (the image of a
 /// cell is curved; its corners' box can miss a sliver).
 const BOX_PAD: f64 = 0.25;
+
+/// The lookup bin of a disk coordinate in `[−1, 1]` (clamped to the grid).
+fn disk_bin(v: f64) -> usize {
+    (((v + 1.0) * 0.5 * BINS as f64).floor().max(0.0) as usize).min(BINS - 1)
+}
+
+/// The standard normal density at `z`.
+fn standard_normal(z: [f64; 2]) -> f64 {
+    (-0.5 * (z[0] * z[0] + z[1] * z[1])).exp() / std::f64::consts::TAU
+}
+
+/// A reparameterization blob's parameter tensor, widened to f32.
+fn reparam_params(blob: &Blob<'_>) -> Result<Vec<f32>> {
+    let n = blob
+        .entry(TensorRole::Params)
+        .context("the blob has no parameters")?
+        .count as usize;
+    let mut params = vec![0.0f32; n];
+    blob.widen_into(TensorRole::Params, &mut params)?;
+    Ok(params)
+}
 
 /// One condition's warp, inverted on demand.
 pub struct WarpInverse<'a> {
@@ -87,8 +108,6 @@ impl<'a> WarpInverse<'a> {
             .collect();
         let mut bins = vec![Vec::new(); BINS * BINS];
         let mut boxes = Vec::with_capacity(cells * cells);
-        let bin =
-            |v: f64| (((v + 1.0) * 0.5 * BINS as f64).floor().max(0.0) as usize).min(BINS - 1);
         for r in 0..cells {
             for c in 0..cells {
                 let k = [
@@ -115,8 +134,8 @@ impl<'a> WarpInverse<'a> {
                 let b = [b[0] - pad, b[1] - pad, b[2] + pad, b[3] + pad];
                 let id = (r * cells + c) as u32;
                 if b.iter().all(|v| v.is_finite()) {
-                    for by in bin(b[1])..=bin(b[3]) {
-                        for bx in bin(b[0])..=bin(b[2]) {
+                    for by in disk_bin(b[1])..=disk_bin(b[3]) {
+                        for bx in disk_bin(b[0])..=disk_bin(b[2]) {
                             bins[by * BINS + bx].push(id);
                         }
                     }
@@ -141,10 +160,8 @@ impl<'a> WarpInverse<'a> {
         if !(x[0] * x[0] + x[1] * x[1] < 1.0) {
             return out;
         }
-        let bin =
-            |v: f64| (((v + 1.0) * 0.5 * BINS as f64).floor().max(0.0) as usize).min(BINS - 1);
         let mut roots: Vec<[f64; 2]> = Vec::new();
-        for &id in &self.bins[bin(x[1]) * BINS + bin(x[0])] {
+        for &id in &self.bins[disk_bin(x[1]) * BINS + disk_bin(x[0])] {
             let b = self.boxes[id as usize];
             if !(x[0] >= b[0] && x[0] <= b[2] && x[1] >= b[1] && x[1] <= b[3]) {
                 continue;
@@ -158,7 +175,7 @@ impl<'a> WarpInverse<'a> {
                 let (p, j) = warp_jacobian_f64(self.params, &self.cond, z);
                 out.evaluations += 1;
                 let e = [p[0] - x[0], p[1] - x[1]];
-                let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+                let det = jacobian_det(&j);
                 if e[0] * e[0] + e[1] * e[1] < NEWTON_TOLERANCE * NEWTON_TOLERANCE {
                     if !roots
                         .iter()
@@ -167,9 +184,7 @@ impl<'a> WarpInverse<'a> {
                         roots.push(z);
                         out.roots += 1;
                         if det > 0.0 {
-                            let n =
-                                (-0.5 * (z[0] * z[0] + z[1] * z[1])).exp() / std::f64::consts::TAU;
-                            out.density += n / det;
+                            out.density += standard_normal(z) / det;
                         } else {
                             out.folded_roots += 1;
                         }
@@ -260,12 +275,7 @@ pub fn exact_fit(
             blob.kind().name()
         );
     }
-    let n = blob
-        .entry(TensorRole::Params)
-        .context("the blob has no parameters")?
-        .count as usize;
-    let mut params = vec![0.0f32; n];
-    blob.widen_into(TensorRole::Params, &mut params)?;
+    let params = reparam_params(&blob)?;
     // The MIS density a renderer uses (with the blob's defensive weight, if any).
     let sampler = blob.reparam()?;
     let conds = groundtruth::conditions(material, conditions, seed);
@@ -391,10 +401,7 @@ mod tests {
     }
 
     fn params(bytes: &[u8]) -> Vec<f32> {
-        let blob = Blob::open(bytes).unwrap();
-        let mut p = vec![0.0; blob.entry(TensorRole::Params).unwrap().count as usize];
-        blob.widen_into(TensorRole::Params, &mut p).unwrap();
-        p
+        reparam_params(&Blob::open(bytes).unwrap()).unwrap()
     }
 
     /// At `x = T(z)` the inverse finds `z` among the roots: `q(x) ≥ N(z)/det` (other roots
@@ -418,11 +425,11 @@ mod tests {
                     rng.random::<f64>() * 4.0 - 2.0,
                 ];
                 let (x, j) = warp_jacobian_f64(&p, &cond, z);
-                let det = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+                let det = jacobian_det(&j);
                 let r = inv.density(x);
                 assert!(r.roots >= 1, "no root found at T({z:?}) = {x:?}");
                 if det > 0.0 {
-                    let n = (-0.5 * (z[0] * z[0] + z[1] * z[1])).exp() / std::f64::consts::TAU;
+                    let n = standard_normal(z);
                     assert!(
                         r.density >= n / det * (1.0 - 1e-6),
                         "q = {} below N/det = {} at {x:?}",

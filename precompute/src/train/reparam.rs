@@ -529,10 +529,13 @@ pub fn pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f
 pub fn warp_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, z: Vec2) -> (Vec2, f64) {
     let cond = encoded_condition_f64(phi, wi);
     let (p, j) = warp_jacobian_f64(params, &cond, [f64::from(z.x), f64::from(z.y)]);
-    (
-        Vec2::new(p[0] as f32, p[1] as f32),
-        j[0][0] * j[1][1] - j[0][1] * j[1][0],
-    )
+    (Vec2::new(p[0] as f32, p[1] as f32), jacobian_det(&j))
+}
+
+/// `det ∂T/∂z` of a Jacobian from [`warp_jacobian_f64`].
+#[must_use]
+pub fn jacobian_det(j: &[[f64; 2]; 2]) -> f64 {
+    j[0][0] * j[1][1] - j[0][1] * j[1][0]
 }
 
 /// The warp of exported parameters at latent point `z` for an encoded condition `cond`
