@@ -52,6 +52,12 @@ def pytest_terminal_summary(terminalreporter):
         w(f"{'sampler':<20} {'mean':>9} {'ref mean':>9} {'rel diff':>9} {'RMSE':>9} {'s':>6}")
         for method, mean, ref, rel, rmse, secs in tm.RENDER_RESULTS:
             w(f"{method:<20} {mean:>9.5f} {ref:>9.5f} {rel:>9.4f} {rmse:>9.5f} {secs:>6.2f}")
+    if tm.REPARAM_RESULTS:
+        w("")
+        w("reparam, symbolic plugin vs the Rust plugin (4096 lanes): largest relative difference of "
+          "the weight and of bs.pdf; share of lanes where p̂/q differs from 1 by > 1 %")
+        for material, w_err, p_err, off in tm.REPARAM_RESULTS:
+            w(f"{material:<24} {w_err:>9.2e} {p_err:>9.2e} {off:>7.3f}")
 
 
 def _drjit_summary(w):
@@ -74,6 +80,10 @@ def _drjit_summary(w):
         if rows:
             worst = max(rows, key=lambda r: r[2])
             w(f"worst pdf error, {label}: {worst[2]:.3e} ({worst[0]})")
+    if td.REPARAM_Q:
+        name, err = max(td.REPARAM_Q, key=lambda r: r[1])
+        w(f"reparam, the warp's sample density (N(z)/det J) at the same uniforms: largest relative "
+          f"difference {err:.2e} ({name}; bound {td.REPARAM_Q_RTOL})")
     if td.FLOW_F64:
         r, d, x = td.FLOW_F64
         w(f"goat_leather/flow against its f64 evaluation: Rust f32 {r:.2e}, Dr.Jit f32 {d:.2e} "

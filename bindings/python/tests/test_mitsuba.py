@@ -229,6 +229,7 @@ def evaluated_flags():
 RENDER_BOUND = 0.01  # relative difference of image means allowed against the reference (largest seen: 0.0019)
 SAME_SEED_BOUND = 1e-3  # symbolic vs evaluated render with the same samples
 RENDER_RESULTS = []
+REPARAM_RESULTS = []  # (material, weight rel. diff, bs.pdf rel. diff, share of lanes with p̂/q off by > 1 %)
 
 
 def check_convergence(methods, mode):
@@ -252,10 +253,10 @@ def test_render_converges_to_the_same_image_with_every_sampler(evaluated_flags):
 
 
 def test_symbolic_render_converges_to_the_same_image_with_every_sampler():
-    check_convergence(["cosine"] + SYMBOLIC_METHODS, "symbolic")
+    check_convergence(["cosine"] + SYMBOLIC_METHODS + ["reparam"], "symbolic")
 
 
-@pytest.mark.parametrize("method", ["flow", "histogram-mixture"])
+@pytest.mark.parametrize("method", ["flow", "histogram-mixture", "reparam"])
 def test_symbolic_render_matches_the_evaluated_render(method):
     """The same scene, samples and seed in both modes (and the Dr.Jit plugin under the
     evaluated flags): the same image up to f32 rounding and the rare sample that lands across
@@ -276,6 +277,59 @@ def test_symbolic_render_matches_the_evaluated_render(method):
         rmse = float(np.sqrt(((img - ev) ** 2).mean()))
         RENDER_RESULTS.append((f"{method} {name} vs evaluated", img.mean(), ev.mean(), rel, rmse, 0.0))
         assert np.isfinite(img).all() and rel < SAME_SEED_BOUND
+
+
+def test_symbolic_reparam_weighs_like_the_rust_plugin():
+    """The reparameterization sampler, whose samples carry the warp's own density q while its
+    pdf (for MIS) is the pdf network p̂: the symbolic plugin, called inside a symbolic loop,
+    returns the same directions, weights f·cos/q and bs.pdf = p̂ as the evaluated (Rust)
+    plugin on the same lanes, and bs.pdf is its own pdf() at the sampled direction."""
+    n = 4096
+    rng = np.random.default_rng(11)
+    cos = np.sqrt(rng.random(n)).astype(np.float32)
+    ang = (rng.random(n) * 2 * np.pi).astype(np.float32)
+    sin = np.sqrt(1 - cos * cos)
+    wi = mi.Vector3f(mi.Float(sin * np.cos(ang)), mi.Float(sin * np.sin(ang)), mi.Float(cos))
+    uv = mi.Point2f(mi.Float(rng.random(n).astype(np.float32)), mi.Float(rng.random(n).astype(np.float32)))
+    u = mi.Point2f(mi.Float(rng.random(n).astype(np.float32)), mi.Float(rng.random(n).astype(np.float32)))
+    ctx = mi.BSDFContext()
+    for material in MATERIALS:
+        plugins = {mode: mi.load_dict(bsdf_dict(material, "reparam", mode=mode))
+                   for mode in ("symbolic", "evaluated")}
+
+        def si_of():
+            si = dr.zeros(mi.SurfaceInteraction3f, n)
+            si.wi, si.uv = wi, uv
+            return si
+
+        def body(i, si, s, wo, pdf, w, own):
+            bs, weight = plugins["symbolic"].sample(ctx, si, 0.5, s, True)
+            own = plugins["symbolic"].pdf(ctx, si, bs.wo, True)
+            return i + 1, si, s, bs.wo, bs.pdf, weight, own
+
+        state = (dr.zeros(mi.UInt32, n), si_of(), u, dr.zeros(mi.Vector3f, n), dr.zeros(mi.Float, n),
+                 dr.zeros(mi.Color3f, n), dr.zeros(mi.Float, n))
+        _, _, _, wo_s, pdf_s, w_s, own_s = dr.while_loop(state, lambda i, *_: i < 1, body, mode="symbolic")
+        bs, w_e = plugins["evaluated"].sample(ctx, si_of(), 0.5, u, True)
+        wo_s, wo_e = np.array(wo_s), np.array(bs.wo)
+        pdf_s, pdf_e, own_s = np.array(pdf_s), np.array(bs.pdf), np.array(own_s)
+        w_s, w_e = np.array(w_s)[0], np.array(w_e)[0]  # red; arrays are (3, n)
+        drawn = (pdf_s > 0) & (pdf_e > 0)
+        assert np.mean((pdf_s > 0) != (pdf_e > 0)) <= 2e-3
+        same = drawn & (np.max(np.abs(wo_s - wo_e), axis=0) <= 1e-4)
+        assert same.mean() >= 0.99 * drawn.mean()
+        rel = lambda a, b: np.abs(a[same] - b[same]) / np.abs(b[same])  # noqa: E731
+        lit = same & (w_e > 0)
+        w_err = np.abs(w_s[lit] - w_e[lit]) / w_e[lit]
+        # The weight is not f·cos/p̂: the two densities differ (else this test could not fail).
+        value = np.array(plugins["evaluated"].eval(ctx, si_of(), mi.Vector3f(bs.wo), True))[0]
+        ratio = w_e[lit] * pdf_e[lit] / value[lit]
+        REPARAM_RESULTS.append((material, float(w_err.max()), float(rel(pdf_s, pdf_e).max()),
+                                float(np.mean(np.abs(ratio - 1) > 1e-2))))
+        assert rel(pdf_s, pdf_e).max() <= 1e-4, "bs.pdf is the pdf network's density, as in Rust"
+        assert w_err.max() <= 1e-3, "the weight divides by the warp's own density, as in Rust"
+        assert np.array_equal(pdf_s > 0, own_s > 0) and rel(pdf_s, own_s).max() <= 1e-6
+        assert np.mean(np.abs(ratio - 1) > 1e-2) > 0.1
 
 
 def test_scalar_rgb_variant_renders_and_samples():

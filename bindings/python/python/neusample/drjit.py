@@ -19,6 +19,9 @@ Directions are ``(x, y, z)`` tuples (or Dr.Jit 3-vectors) in the local shading f
 are densities with respect to **solid angle** (`sample`, `pdf`) or area on the **projected
 disk** (`pdf_disk`, ``core/ARCHITECTURES.md``). Refused lanes (below-horizon or non-finite
 ``wi``, samples outside the disk) give ``pdf = 0``, ``f = 0`` and never disturb other lanes.
+A sample's pdf is the density it was drawn with (divide ``f·cos θo`` by it); for the
+reparameterization sampler that is its warp's own density, while ``pdf`` is its pdf network,
+the density MIS must use: :meth:`Sampler.sample_mis` returns both.
 
 Networks run as cooperative-vector matrix products (``drjit.nn.matvec``). Their precision is
 ``"f32"`` by default on the LLVM backend (the Rust runtime's arithmetic; agreement is tested)
@@ -295,6 +298,8 @@ class Mlp:
                 mats += [w, b]
         self.end = at
         self.split = split
+        # The matrices as float32 (O, I) / (O,) arrays, in the order of `views`.
+        self.arrays = [np.asarray(m, dtype=np.float32) for m in mats]
         if precision == "plain":
             # Explicit sums with the weights as constants (any Float type, e.g. Float64: the
             # reference the tests measure f32 rounding against; slow to trace).
@@ -324,6 +329,18 @@ class Mlp:
         if self.precision == "plain":
             return self._plain(self.mats[0], xs, self.mats[2])
         return nn.matvec(self.views[0], self._vec(xs), self.views[2])
+
+    def product(self, k, xs, bias=None):
+        """``A_k x`` (plus bias ``b_bias``) with the ``k``-th packed matrix, as a list of
+        Floats: one layer's pieces, for code that needs more than the forward pass (the
+        reparameterization sampler's tangents pass each hidden layer without its bias)."""
+        if self.precision == "plain":
+            b = None if bias is None else self.mats[bias]
+            return [self.t.Float(y) for y in self._plain(self.mats[k], xs, b)]
+        b = None if bias is None else self.views[bias]
+        v = nn.matvec(self.views[k], self._vec(xs), b) if b is not None \
+            else nn.matvec(self.views[k], self._vec(xs))
+        return [self.t.Float(c) for c in v]
 
     def _call_plain(self, xs, act, share):
         v = list(xs)
@@ -380,6 +397,10 @@ class Kind:
     as in the Rust runtime."""
 
     name = ""
+    # Whether a sample's density is ``pdf_disk`` at its point. Kinds where it is not (the
+    # reparameterization sampler) implement ``sample_point_density``, which also returns the
+    # density the sample was drawn with; ``pdf_disk`` is then the density MIS uses.
+    exact = True
 
     def prepare(self, phi, wi):
         raise NotImplementedError
@@ -843,6 +864,105 @@ class HistogramMixture(Kind):
         return px, py, ok
 
 
+def silu_slope(a):
+    """``(silu(a), silu'(a))`` from one sigmoid (``reparam::silu_from_sigmoid``)."""
+    s = sigmoid(a)
+    return a * s, s * (1.0 + a * (1.0 - s))
+
+
+def warp_density(zx, zy, det):
+    """``N(z; 0, I) / det`` on the projected disk, 0 unless ``det > 0`` and the density is
+    finite and positive (``reparam::sample_density``: a folded warp refuses the sample)."""
+    p = dr.exp(-0.5 * (zx * zx + zy * zy) - LN_TWO_PI - dr.log(dr.select(det > 0, det, 1.0)))
+    ok = (det > 0) & (det <= F32_MAX) & (p > 0) & (p <= F32_MAX)
+    return dr.select(ok, p, 0.0)
+
+
+class Reparam(Kind):
+    """The reparameterization sampler (``ARCHITECTURES.md`` §8; Wu et al. 2025): a warp MLP
+    ``T(z; c)`` (32 → 16 → 16 → 3, SiLU) from a standard-normal ``z`` to the projected disk,
+    the sample's exact density ``N(z) / det ∂T/∂z`` by forward-mode tangents through the
+    warp, and a pdf network ``p̂`` (32 → 16 → 1, ReLU, ``exp`` of a clamped log-density) for
+    MIS. ``pdf_disk`` is ``p̂``; samples carry the warp's own density (``exact = False``)."""
+
+    name = "reparam"
+    exact = False
+    HIDDEN = 16
+    LOG_DENSITY_MIN, LOG_DENSITY_MAX = -16.0, 16.0
+
+    def __init__(self, t: Types, blob, precision):
+        self.t = t
+        params = _params(blob)
+        h = self.HIDDEN
+        self.warp = Mlp(t, params, 0, [(32, h), (h, h), (h, 3)], precision, split=30)
+        self.density = Mlp(t, params, self.warp.end, [(32, h), (h, 1)], precision, split=30)
+        # ∂(first layer)/∂z.k: column k of the first layer's point part, as opaque values so
+        # that blobs of this kind share compiled kernels (as the packed matrices do).
+        point = self.warp.arrays[1]
+        if precision == "plain":
+            self.rows = [[float(point[j, k]) for j in range(h)] for k in range(2)]
+        else:
+            self.rows = [[dr.opaque(t.Float, float(point[j, k])) for j in range(h)]
+                         for k in range(2)]
+
+    def prepare(self, phi, wi):
+        wi, ok = check_condition(phi, wi)
+        c = encode_condition(phi, wi)
+        warp = [self.t.Float(v) for v in self.warp.first_share(c)]
+        density = self.density.first_share(c)
+        for v in warp + [self.t.Float(v) for v in density]:
+            ok = ok & is_finite(v)
+        return (warp, density), ok
+
+    def warp_at(self, st, zx, zy):
+        """``T(z)``: the direction ``(vx, vy, vz)`` above the disk point ``(vx, vy)`` and
+        ``det ∂T/∂z`` (signed), with the tangents ``∂/∂z.x``, ``∂/∂z.y`` carried alongside."""
+        r0, r1 = self.rows
+        h1, t0, t1 = [], [], []
+        for j, s in enumerate(st[0]):
+            y, d = silu_slope(s + zx * r0[j] + zy * r1[j])
+            h1.append(y)
+            t0.append(d * r0[j])
+            t1.append(d * r1[j])
+        m = self.warp
+        a2, u0, u1 = m.product(3, h1, 4), m.product(3, t0), m.product(3, t1)
+        h2, t0, t1 = [], [], []
+        for a, g0, g1 in zip(a2, u0, u1):
+            y, d = silu_slope(a)
+            h2.append(y)
+            t0.append(d * g0)
+            t1.append(d * g1)
+        o, d0, d1 = m.product(5, h2, 6), m.product(5, t0), m.product(5, t1)
+        # v = (a, b, softplus(w)) / |·|; d(u/|u|) = (du − v (v·du)) / |u| (`finish_warp`).
+        s, ds = softplus(o[2]), sigmoid(o[2])
+        inv = 1.0 / safe_sqrt(o[0] * o[0] + o[1] * o[1] + s * s)
+        v = (o[0] * inv, o[1] * inv, s * inv)
+        k0 = v[0] * d0[0] + v[1] * d0[1] + v[2] * (ds * d0[2])
+        k1 = v[0] * d1[0] + v[1] * d1[1] + v[2] * (ds * d1[2])
+        x0 = (d0[0] - v[0] * k0) * inv
+        y0 = (d0[1] - v[1] * k0) * inv
+        x1 = (d1[0] - v[0] * k1) * inv
+        y1 = (d1[1] - v[1] * k1) * inv
+        return v, x0 * y1 - x1 * y0
+
+    def sample_point_density(self, st, u0, u1):
+        """The disk point, whether it was drawn, and its density on the projected disk (the
+        warp's own, ``N(z)/det``; 0 where refused)."""
+        zx, zy = box_muller(u0, u1)
+        v, det = self.warp_at(st, zx, zy)
+        q = warp_density(zx, zy, det)
+        return v[0], v[1], (q > 0) & (v[2] > 0), q
+
+    def sample_point(self, st, u0, u1):
+        px, py, ok, _ = self.sample_point_density(st, u0, u1)
+        return px, py, ok
+
+    def pdf_disk(self, st, px, py):
+        o = self.density([px, py], act="relu", share=st[1])[0]
+        p = dr.exp(clamp(o, self.LOG_DENSITY_MIN, self.LOG_DENSITY_MAX))
+        return dr.select(inside_disk(px, py), p, 0.0)
+
+
 def _params(blob):
     """The network parameters: a blob's `params` tensor, or a float32 array as is (tests)."""
     return blob if isinstance(blob, np.ndarray) else blob.tensor("params")
@@ -854,6 +974,7 @@ KIND_CLASSES = {
     "analytic": AnalyticMixture,
     "flow": Flow,
     "histogram-mixture": HistogramMixture,
+    "reparam": Reparam,
 }
 """Blob kind name → its :class:`Kind` (a new kind is one class and one entry here)."""
 KINDS = tuple(KIND_CLASSES)
@@ -900,22 +1021,39 @@ class Sampler:
 
     def sample_prepared(self, st, ok, u):
         """``(wo, pdf, valid)`` from a prepared state: ``wo`` a tuple of 3 Floats, ``pdf``
-        the solid-angle density (0 where refused)."""
+        the solid-angle density the sample was drawn with (0 where refused), as the Rust
+        runtime's ``Sample::pdf``: divide ``f·cos θo`` by it."""
+        wo, pdf, valid, _ = self.sample_mis(st, ok, u)
+        return wo, pdf, valid
+
+    def sample_mis(self, st, ok, u):
+        """``(wo, pdf, valid, mis_pdf)``: :meth:`sample_prepared` and the density MIS weighs
+        the sample with (``Prepared::mis_pdf``: :meth:`pdf_prepared` at ``wo``). The two
+        differ only for kinds whose samples carry their own density (``Kind.exact`` false,
+        the reparameterization sampler); with a defensive weight such a kind is combined
+        with cosine by one-sample MIS over its ``pdf_disk`` (``samplers/defensive.rs``)."""
         u0, ok0 = sanitize_u(u[0])
         u1, ok1 = sanitize_u(u[1])
         valid = ok & ok0 & ok1
         alpha = self._alpha
+        exact = self.kind.exact
         if self.alpha > 0:
             cos_lane = u0 < alpha
             v0 = dr.select(cos_lane, u0 / alpha, (u0 - alpha) / (1.0 - alpha))
             v0 = dr.select(v0 < ONE_MINUS_EPSILON, v0, ONE_MINUS_EPSILON)
-            lx, ly, lok = self.kind.sample_point(st, v0, u1)
+            if exact:
+                lx, ly, lok = self.kind.sample_point(st, v0, u1)
+            else:
+                lx, ly, lok, q = self.kind.sample_point_density(st, v0, u1)
             cx, cy = concentric(v0, u1)
             px = dr.select(cos_lane, cx, lx)
             py = dr.select(cos_lane, cy, ly)
             valid = valid & (cos_lane | lok)
         else:
-            px, py, lok = self.kind.sample_point(st, u0, u1)
+            if exact:
+                px, py, lok = self.kind.sample_point(st, u0, u1)
+            else:
+                px, py, lok, q = self.kind.sample_point_density(st, u0, u1)
             valid = valid & lok
         r2 = px * px + py * py
         z = dr.sqrt(dr.maximum(1.0 - r2, 0.0))
@@ -923,15 +1061,25 @@ class Sampler:
         p_disk = self.kind.pdf_disk(st, px, py)
         if self.alpha > 0:
             p_learned = p_disk * z
-            # A lane the learned part drew must have a positive learned density, as alone.
-            valid = valid & (cos_lane | ((p_learned > 0) & is_finite(p_learned)))
-            pdf = (1.0 - alpha) * p_learned + alpha * (z * INV_PI)
+            mis = (1.0 - alpha) * p_learned + alpha * (z * INV_PI)
+            if exact:
+                # A lane the learned part drew must have a positive learned density, as alone.
+                valid = valid & (cos_lane | ((p_learned > 0) & is_finite(p_learned)))
+                pdf = mis
+            else:
+                q_learned = q * z
+                valid = valid & (cos_lane | ((q_learned > 0) & is_finite(q_learned)))
+                # Learned lanes divide by mix(p̂)·q/p̂ (0, refused, where p̂ is not positive).
+                divisor = dr.select(p_learned > 0,
+                                    mis / dr.select(p_learned > 0, p_learned, 1.0) * q_learned, 0.0)
+                pdf = dr.select(cos_lane, mis, divisor)
         else:
-            pdf = p_disk * z
+            mis = p_disk * z
+            pdf = mis if exact else q * z
         valid = valid & (pdf > 0) & is_finite(pdf)
         zero = 0.0
         wo = (dr.select(valid, px, zero), dr.select(valid, py, zero), dr.select(valid, z, zero))
-        return wo, dr.select(valid, pdf, zero), valid
+        return wo, dr.select(valid, pdf, zero), valid, dr.select(valid, mis, zero)
 
     def pdf_prepared(self, st, ok, wo):
         """The solid-angle density of ``wo`` (0 below the horizon and for refused lanes)."""

@@ -268,12 +268,14 @@ def symbolic_bsdf_class():
         def sample(self, ctx, si, sample1, sample2, active=True):
             phi = self._features(si)
             st, ok = self.sampler.prepare(phi, si.wi)
-            wo, pdf, valid = self.sampler.sample_prepared(st, ok, (sample2.x, sample2.y))
+            # The weight divides by the sample's own density, MIS weighs with `mis` (they
+            # differ for the reparameterization sampler: its warp's density and p̂).
+            wo, pdf, valid, mis = self.sampler.sample_mis(st, ok, (sample2.x, sample2.y))
             valid = valid & active & ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
             f_cos = self._f_cos(phi, si, wo)
             bs = dr.zeros(mi.BSDFSample3f)
             bs.wo = mi.Vector3f(wo[0], wo[1], wo[2])
-            bs.pdf = dr.select(valid, pdf, 0.0)
+            bs.pdf = dr.select(valid, mis, 0.0)
             bs.eta = 1.0
             bs.sampled_type = mi.UInt32(+mi.BSDFFlags.GlossyReflection)
             bs.sampled_component = mi.UInt32(0)
