@@ -34,7 +34,7 @@ import neusample.mitsuba as nsm  # noqa: E402
 
 nsm.register()
 
-METHODS = ["cosine", "baseline", "analytic", "flow", "histogram-mixture"]
+METHODS = ["cosine", "baseline", "analytic", "flow", "histogram-mixture", "reparam"]
 OBJECTS = [
     # (name, material, shape, transform, uv_scale)
     ("leather", "goat_leather_neural", "sphere", dict(translate=[-1.25, 0.2, 0.55], scale=0.55), 3.0),
@@ -188,7 +188,9 @@ def equal_time(a):
         print(f"{m:<18} spp {spp:>5} time {statistics.median(secs_all):6.2f} s  relMSE {errs}", flush=True)
     base = statistics.median({r[0]: r for r in rows}["baseline"][4])
     DOCS.mkdir(exist_ok=True)
-    grid = np.concatenate([np.concatenate(tiles[:3], axis=1), np.concatenate(tiles[3:], axis=1)], axis=0)
+    # Rows of four tiles (the reference, then the samplers in METHODS' order), black padding.
+    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % 4)
+    grid = np.concatenate([np.concatenate(tiles[i:i + 4], axis=1) for i in range(0, len(tiles), 4)], axis=0)
     mi.util.write_bitmap(str(DOCS / "mitsuba_scene.png"), (grid * 255).astype(np.uint8), write_async=False)
     h, w = ref.shape[:2]
     lines = [
@@ -205,7 +207,8 @@ def equal_time(a):
         "",
         "![equal time](mitsuba_scene.png)",
         "",
-        "Top: reference, cosine, improved baseline. Bottom: analytic mixture, flow, histogram mixture.",
+        "Top: reference, cosine, improved baseline, analytic mixture. Bottom: flow, histogram mixture,",
+        "reparameterization sampler.",
         "",
         f"{w}×{h}, budget {a.budget:g} s per sampler, {machine()}.",
         "",

@@ -84,7 +84,6 @@ def _drjit_summary(w):
         name, err = max(td.REPARAM_Q, key=lambda r: r[1])
         w(f"reparam, the warp's sample density (N(z)/det J) at the same uniforms: largest relative "
           f"difference {err:.2e} ({name}; bound {td.REPARAM_Q_RTOL})")
-    if td.FLOW_F64:
-        r, d, x = td.FLOW_F64
-        w(f"goat_leather/flow against its f64 evaluation: Rust f32 {r:.2e}, Dr.Jit f32 {d:.2e} "
+    for name, r, d, x in td.FLOW_F64:
+        w(f"{name} against its f64 evaluation: Rust f32 {r:.2e}, Dr.Jit f32 {d:.2e} "
           f"(Dr.Jit vs Rust {x:.2e})")

@@ -7,8 +7,9 @@ Tolerances (the measured worst cases are printed at the end of the run):
   exp/log/sin/cos are its own few-ulp approximations, not libm's). The flows' steep splines
   (slopes up to e⁴ and more) amplify f32 rounding beyond that on a few lanes, where the Rust
   runtime is itself as far from the f64 evaluation of the same model
-  (`test_flow_outliers_are_f32_rounding` measures it): for flows at most FLOW_OUTLIERS of
-  the lanes may exceed PDF_RTOL, none FLOW_RTOL;
+  (`f64_errors` measures it): for flows at most FLOW_OUTLIERS of the lanes may exceed
+  PDF_RTOL, and a flow with a lane beyond FLOW_RTOL must be no farther from its f64
+  evaluation than 1.5× the Rust runtime is;
 - samples: the sampling maps are discontinuous (mixture component choice, histogram cell
   search), so a lane whose uniform lies within rounding of a boundary can land elsewhere:
   at most SAMPLE_OUTLIERS of the lanes may differ by more than SAMPLE_ATOL (scaled by N/32
@@ -24,6 +25,7 @@ Tolerances (the measured worst cases are printed at the end of the run):
   PDF_RTOL like every other pdf.
 """
 
+import functools
 import os
 from pathlib import Path
 
@@ -161,7 +163,12 @@ def test_sampler_matches_the_rust_scalar_runtime(path, conditions):
                     1 - agree, far.mean()))
     moved = SAMPLE_OUTLIERS
     if d.name == "flow":
-        assert errs.max() <= FLOW_RTOL and above <= FLOW_OUTLIERS
+        assert above <= FLOW_OUTLIERS
+        if errs.max() > FLOW_RTOL:
+            # Steeper splines than FLOW_RTOL allows for: the difference must be f32 rounding,
+            # i.e. the Rust runtime as far from the f64 evaluation as Dr.Jit is.
+            rust_err, drjit_err, _ = f64_errors(path)
+            assert drjit_err <= 1.5 * rust_err
     elif d.name == "histogram-mixture" and not d.kind.linear:
         assert above <= HM_LEVEL_FLIPS
         moved *= max(1.0, d.kind.n / 32)
@@ -170,14 +177,14 @@ def test_sampler_matches_the_rust_scalar_runtime(path, conditions):
     assert 1 - agree <= SAMPLE_OUTLIERS and far.mean() <= moved
 
 
-def test_flow_outliers_are_f32_rounding():
-    """The flow lanes beyond PDF_RTOL: on the fixture flow with the largest difference, the
-    f64 evaluation of the same model (explicit sums on Float64) is as far from the Rust f32
-    runtime as from the Dr.Jit one; a real difference in definition would show up as Dr.Jit
-    alone being far from it. Costs ~15 s (tracing the unrolled f64 networks)."""
+@functools.lru_cache(maxsize=None)
+def f64_errors(path):
+    """The largest relative pdf differences of the Rust f32 runtime and of Dr.Jit's f32 from
+    the f64 evaluation of the same model (explicit sums on Float64), and the 99.9 % quantiles
+    of both, at the Rust samples of :func:`lanes`. Costs ~15 s per blob (tracing the unrolled
+    f64 networks)."""
     from drjit.llvm.ad import Float64
 
-    path = str(FIXTURES / "blobs" / "goat_leather" / "flow.nsb")
     _, phi, wi, u = lanes()
     rust = neusample.Sampler(path)
     wo, pdf = rust.sample_scalar(phi, wi, u)
@@ -186,13 +193,22 @@ def test_flow_outliers_are_f32_rounding():
     q64 = np.array(nd.Sampler(path, Float64, precision="plain").pdf(j64(phi), j64(wi), j64(wo)))
     rust_err = rel_errs(pdf, q64)
     drjit_err = rel_errs(q32, q64)
-    FLOW_F64.extend([float(rust_err.max()), float(drjit_err.max()),
-                     float(rel_errs(q32, pdf).max())])
-    assert drjit_err.max() <= 1.5 * rust_err.max()
-    assert np.quantile(drjit_err, 0.999) <= 2 * np.quantile(rust_err, 0.999)
+    FLOW_F64.append((short(path), float(rust_err.max()), float(drjit_err.max()),
+                     float(rel_errs(q32, pdf).max())))
+    return (float(rust_err.max()), float(drjit_err.max()),
+            (float(np.quantile(rust_err, 0.999)), float(np.quantile(drjit_err, 0.999))))
 
 
-FLOW_F64 = []
+def test_flow_outliers_are_f32_rounding():
+    """The flow lanes beyond PDF_RTOL: on the fixture flow with the largest difference, the
+    f64 evaluation of the same model is as far from the Rust f32 runtime as from the Dr.Jit
+    one; a real difference in definition would show up as Dr.Jit alone being far from it."""
+    rust_err, drjit_err, (rust_q, drjit_q) = f64_errors(str(FIXTURES / "blobs" / "goat_leather" / "flow.nsb"))
+    assert drjit_err <= 1.5 * rust_err
+    assert drjit_q <= 2 * rust_q
+
+
+FLOW_F64 = []  # (blob, Rust f32 vs f64, Dr.Jit f32 vs f64, Dr.Jit vs Rust)
 REPARAM_Q = []  # (blob, largest relative difference of the warp's sample density)
 
 

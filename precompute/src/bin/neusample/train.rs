@@ -68,7 +68,8 @@ pub struct TrainArgs {
     #[arg(long)]
     no_horizon: bool,
     /// Weight λ of the χ² term: the flows' fine-tuning phase (0: maximum likelihood only), the
-    /// histogram mixture's added loss term.
+    /// histogram mixture's and the reparameterization warp's added loss term (0: the release's
+    /// objective).
     #[arg(long)]
     chi2: Option<f32>,
     /// Flows: length of the χ² fine-tuning phase as a fraction of the steps.
@@ -163,6 +164,7 @@ impl TryFrom<&TrainArgs> for TrainConfig {
                 bail!("--chi2 must be a non-negative number");
             }
             cfg.histogram_mixture.chi2_weight = w;
+            cfg.reparam.chi2_weight = w;
         }
         for flow in [&mut cfg.flow, &mut cfg.disk_flow] {
             if let Some(w) = a.chi2 {
