@@ -298,8 +298,6 @@ class Mlp:
                 mats += [w, b]
         self.end = at
         self.split = split
-        # The matrices as float32 (O, I) / (O,) arrays, in the order of `views`.
-        self.arrays = [np.asarray(m, dtype=np.float32) for m in mats]
         if precision == "plain":
             # Explicit sums with the weights as constants (any Float type, e.g. Float64: the
             # reference the tests measure f32 rounding against; slow to trace).
@@ -407,6 +405,12 @@ class Kind:
 
     def sample_point(self, st, u0, u1):
         raise NotImplementedError
+
+    def sample_point_density(self, st, u0, u1):
+        """:meth:`sample_point` and the density the point was drawn with on the projected
+        disk; ``None`` for exact kinds (it is ``pdf_disk`` there)."""
+        px, py, ok = self.sample_point(st, u0, u1)
+        return px, py, ok, None
 
     def pdf_disk(self, st, px, py):
         raise NotImplementedError
@@ -896,14 +900,11 @@ class Reparam(Kind):
         h = self.HIDDEN
         self.warp = Mlp(t, params, 0, [(32, h), (h, h), (h, 3)], precision, split=30)
         self.density = Mlp(t, params, self.warp.end, [(32, h), (h, 1)], precision, split=30)
-        # ∂(first layer)/∂z.k: column k of the first layer's point part, as opaque values so
-        # that blobs of this kind share compiled kernels (as the packed matrices do).
-        point = self.warp.arrays[1]
-        if precision == "plain":
-            self.rows = [[float(point[j, k]) for j in range(h)] for k in range(2)]
-        else:
-            self.rows = [[dr.opaque(t.Float, float(point[j, k])) for j in range(h)]
-                         for k in range(2)]
+        # ∂(first layer)/∂z.k: the first layer's input row 30 + k (weights are input-major),
+        # as opaque values so that blobs of this kind share compiled kernels (as the packed
+        # matrices do).
+        const = float if precision == "plain" else (lambda x: dr.opaque(t.Float, float(x)))
+        self.rows = [[const(x) for x in params[(30 + k) * h:(31 + k) * h]] for k in range(2)]
 
     def prepare(self, phi, wi):
         wi, ok = check_condition(phi, wi)
@@ -1041,19 +1042,13 @@ class Sampler:
             cos_lane = u0 < alpha
             v0 = dr.select(cos_lane, u0 / alpha, (u0 - alpha) / (1.0 - alpha))
             v0 = dr.select(v0 < ONE_MINUS_EPSILON, v0, ONE_MINUS_EPSILON)
-            if exact:
-                lx, ly, lok = self.kind.sample_point(st, v0, u1)
-            else:
-                lx, ly, lok, q = self.kind.sample_point_density(st, v0, u1)
+            lx, ly, lok, q = self.kind.sample_point_density(st, v0, u1)
             cx, cy = concentric(v0, u1)
             px = dr.select(cos_lane, cx, lx)
             py = dr.select(cos_lane, cy, ly)
             valid = valid & (cos_lane | lok)
         else:
-            if exact:
-                px, py, lok = self.kind.sample_point(st, u0, u1)
-            else:
-                px, py, lok, q = self.kind.sample_point_density(st, u0, u1)
+            px, py, lok, q = self.kind.sample_point_density(st, u0, u1)
             valid = valid & lok
         r2 = px * px + py * py
         z = dr.sqrt(dr.maximum(1.0 - r2, 0.0))
