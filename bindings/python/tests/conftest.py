@@ -55,7 +55,8 @@ def pytest_terminal_summary(terminalreporter):
     if tm.REPARAM_RESULTS:
         w("")
         w("reparam, symbolic plugin vs the Rust plugin (4096 lanes): largest relative difference of "
-          "the weight and of bs.pdf; share of lanes where p̂/q differs from 1 by > 1 %")
+          "the weight and of bs.pdf (at the Rust plugin's directions); share of lanes where "
+          "p̂/q differs from 1 by > 1 %")
         for material, w_err, p_err, off in tm.REPARAM_RESULTS:
             w(f"{material:<24} {w_err:>9.2e} {p_err:>9.2e} {off:>7.3f}")
 

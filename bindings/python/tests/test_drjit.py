@@ -20,7 +20,8 @@ Tolerances (the measured worst cases are printed at the end of the run):
   at most HM_LEVEL_FLIPS of its lanes may exceed PDF_RTOL;
 - the reparameterization sampler's samples carry the warp's own density N(z)/det J, compared
   with the Rust sample's at the same uniforms within REPARAM_Q_RTOL (det J is a difference of
-  products of tangents, so f32 rounding reaches ~2·10⁻⁴ relative; measured worst is printed);
+  products of tangents, so f32 rounding reaches ~5·10⁻⁴ relative on the sharper warps trained
+  with 3× steps; measured worst is printed; a Jacobian off by 1 % fails);
   its pdf network (the MIS density, `pdf` and the fourth value of `sample_mis`) is held to
   PDF_RTOL like every other pdf.
 """
@@ -57,7 +58,7 @@ FLOW_OUTLIERS = 1e-2
 SAMPLE_ATOL = 1e-4
 SAMPLE_OUTLIERS = 2e-3
 HM_LEVEL_FLIPS = 1e-3
-REPARAM_Q_RTOL = 5e-4
+REPARAM_Q_RTOL = 1e-3
 EVAL_RTOL = 1e-4
 
 SAMPLER_BLOBS = sorted(

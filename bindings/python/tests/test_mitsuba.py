@@ -324,9 +324,12 @@ def test_symbolic_reparam_weighs_like_the_rust_plugin():
         # The weight is not f·cos/p̂: the two densities differ (else this test could not fail).
         value = np.array(plugins["evaluated"].eval(ctx, si_of(), mi.Vector3f(bs.wo), True))[0]
         ratio = w_e[lit] * pdf_e[lit] / value[lit]
-        REPARAM_RESULTS.append((material, float(w_err.max()), float(rel(pdf_s, pdf_e).max()),
+        # p̂ at the same directions (the two plugins' directions differ by rounding, which a
+        # sharp pdf network turns into ~4e-4 of p̂ between them).
+        own_at_e = np.array(plugins["symbolic"].pdf(ctx, si_of(), mi.Vector3f(bs.wo), True))
+        REPARAM_RESULTS.append((material, float(w_err.max()), float(rel(own_at_e, pdf_e).max()),
                                 float(np.mean(np.abs(ratio - 1) > 1e-2))))
-        assert rel(pdf_s, pdf_e).max() <= 1e-4, "bs.pdf is the pdf network's density, as in Rust"
+        assert rel(own_at_e, pdf_e).max() <= 1e-4, "bs.pdf is the pdf network's density, as in Rust"
         assert w_err.max() <= 1e-3, "the weight divides by the warp's own density, as in Rust"
         assert np.array_equal(pdf_s > 0, own_s > 0) and rel(pdf_s, own_s).max() <= 1e-6
         assert np.mean(np.abs(ratio - 1) > 1e-2) > 0.1

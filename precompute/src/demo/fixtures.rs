@@ -20,21 +20,28 @@ use crate::train::{self, needs_integrand, TrainConfig, METHODS};
 use crate::util::io;
 use crate::util::progress::stages_bar;
 
-/// How much longer than `neusample train`'s defaults the fixtures train the flow and the
-/// histogram mixture: both are still improving at the default step counts (README, "Fits").
+/// How much longer than `neusample train`'s defaults the fixtures train the flow, the
+/// histogram mixture and the reparameterization sampler (warp and pdf network): all three are
+/// still improving at the default step counts (README, "Fits" and the reparameterization
+/// ablation).
 pub const FIXTURE_SLOW_LEARNER_STEPS: usize = 3;
 
 /// The training settings of the committed fixtures: the default run (histogram tables T = 8,
-/// N = 64, nearest latent level) with [`FIXTURE_SLOW_LEARNER_STEPS`]× the steps for the flow
-/// and the histogram mixture, seed 1 (the disk flow's fixtures are trained with its default
-/// steps).
+/// N = 64, nearest latent level) with [`FIXTURE_SLOW_LEARNER_STEPS`]× the steps for the flow,
+/// the histogram mixture and the reparameterization sampler, seed 1 (the disk flow's fixtures
+/// are trained with its default steps).
 fn fixture_config() -> TrainConfig {
     let mut c = TrainConfig::default();
-    for kind in [SamplerKind::Flow, SamplerKind::HistogramMixture] {
+    for kind in [
+        SamplerKind::Flow,
+        SamplerKind::HistogramMixture,
+        SamplerKind::Reparam,
+    ] {
         if let Some(s) = c.schedule_mut(kind) {
             s.steps *= FIXTURE_SLOW_LEARNER_STEPS;
         }
     }
+    c.reparam.density_schedule.steps *= FIXTURE_SLOW_LEARNER_STEPS;
     c
 }
 
