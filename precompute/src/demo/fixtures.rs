@@ -37,11 +37,8 @@ fn fixture_config() -> TrainConfig {
         SamplerKind::HistogramMixture,
         SamplerKind::Reparam,
     ] {
-        if let Some(s) = c.schedule_mut(kind) {
-            s.steps *= FIXTURE_SLOW_LEARNER_STEPS;
-        }
+        c.scale_steps(kind, FIXTURE_SLOW_LEARNER_STEPS as f64);
     }
-    c.reparam.density_schedule.steps *= FIXTURE_SLOW_LEARNER_STEPS;
     c
 }
 

@@ -376,12 +376,21 @@ impl TrainConfig {
     #[must_use]
     pub fn with_steps_scaled(mut self, factor: f64) -> Self {
         for kind in METHODS {
-            if let Some(s) = self.schedule_mut(kind) {
-                s.steps = ((s.steps as f64 * factor).round() as usize).max(1);
-            }
+            self.scale_steps(kind, factor);
         }
-        let d = &mut self.reparam.density_schedule;
-        d.steps = ((d.steps as f64 * factor).round() as usize).max(1);
         self
+    }
+
+    /// `method`'s step counts multiplied by `factor` (rounded, at least 1): its schedule and,
+    /// for the reparameterization sampler, the pdf network's too.
+    pub fn scale_steps(&mut self, method: SamplerKind, factor: f64) {
+        let scale =
+            |s: &mut Schedule| s.steps = ((s.steps as f64 * factor).round() as usize).max(1);
+        if let Some(s) = self.schedule_mut(method) {
+            scale(s);
+        }
+        if method == SamplerKind::Reparam {
+            scale(&mut self.reparam.density_schedule);
+        }
     }
 }
