@@ -24,10 +24,11 @@
 //! |---|---|
 //! | `error`, `kind`, `math`, [`warp`], `weights` | leaves: the error type, the kind enums, the only calls to transcendental functions, disk ↔ hemisphere warps, parameter storage ([`Weights`]) |
 //! | [`nn`] | dense layers and the condition encodings |
-//! | [`distrib`] | Gaussians, RQ splines, [`Table2D`] |
+//! | [`distrib`] | Gaussians, RQ splines, [`Table2D`], [`distrib::Marginal2D`] |
 //! | `batch` | the batched path's building blocks (not on SPIR-V): structure-of-arrays views, the `BatchSampler` trait, chunked kernels, run-time instruction-set dispatch, dense layers over lanes |
 //! | [`samplers`] | one file per method (scalar, and batched beside it), the [`Sampler`]/[`Prepared`] traits, [`AnySampler`] |
 //! | [`neural_material`] | the neural BRDF the samplers are trained for |
+//! | [`measured`] | measured (RGL) BRDFs: their evaluation and their own VNDF sampler |
 //! | [`blob`] | the file format: layout, reader, validation, writer |
 //! | `wavefront` | the batched API as users see it: `batch`'s public items and the samplers' lane types |
 //!
@@ -76,6 +77,7 @@ pub mod distrib;
 mod error;
 mod kind;
 mod math;
+pub mod measured;
 pub mod neural_material;
 pub mod nn;
 pub mod samplers;
@@ -92,6 +94,9 @@ pub use error::{Error, Result};
 pub use glam::{Vec2, Vec3};
 pub use kind::{DType, Interpolation, SamplerKind};
 pub use math::ONE_MINUS_EPSILON;
+pub use measured::{
+    MeasuredMaterial, MeasuredPrepared, MeasuredSample, MeasuredShape, MeasuredTables,
+};
 pub use neural_material::NeuralMaterial;
 pub use nn::FEATURE_DIM;
 pub use samplers::{

@@ -388,6 +388,37 @@ impl<const N: usize> Weights for [f32; N] {
     }
 }
 
+/// Host arrays the caller owns (measured materials read from files, test tables).
+#[cfg(feature = "alloc")]
+impl Weights for alloc::vec::Vec<f32> {
+    #[inline(always)]
+    fn len(&self) -> u32 {
+        self.as_slice().len() as u32
+    }
+    #[inline(always)]
+    fn as_f32_slice(&self) -> Option<&[f32]> {
+        Some(self)
+    }
+    #[inline(always)]
+    fn at(&self, i: u32) -> f32 {
+        Weights::at(self.as_slice(), i)
+    }
+    #[inline(always)]
+    fn accumulate<const I: usize, const O: usize>(
+        &self,
+        offset: u32,
+        row0: u32,
+        x: &[f32; I],
+        acc: &mut [f32; O],
+    ) {
+        self.as_slice().accumulate(offset, row0, x, acc);
+    }
+    #[inline(always)]
+    fn read<const M: usize>(&self, offset: u32) -> [f32; M] {
+        Weights::read(self.as_slice(), offset)
+    }
+}
+
 impl<W: Weights + ?Sized> Weights for &W {
     #[inline(always)]
     fn len(&self) -> u32 {

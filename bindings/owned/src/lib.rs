@@ -10,10 +10,14 @@
 //!   [`OwnedBlob::from_bytes`].
 //! - [`OwnedSampler`]: whichever sampler a blob holds, or the cosine sampler without a blob.
 //! - [`OwnedMaterial`]: the neural material of a neural-material blob.
+//! - [`measured::OwnedMeasured`]: a measured (RGL `.bsdf`) material read from its file, with
+//!   the data's own sampler.
 //!
 //! Each is `Send + Sync` and immutable: one handle serves any number of threads. The
 //! self-references are built with `self_cell` (no `unsafe` here). [`error_kind`] gives every
 //! [`neusample::Error`] the stable name both bindings report.
+
+pub mod measured;
 
 use std::path::Path;
 use std::sync::Arc;

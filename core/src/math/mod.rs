@@ -169,6 +169,20 @@ pub fn atan2(y: f32, x: f32) -> f32 {
     libm::atan2f(y, x)
 }
 
+/// asin x in [−π/2, π/2] (NaN outside [−1, 1]).
+#[inline(always)]
+#[must_use]
+pub fn asin(x: f32) -> f32 {
+    libm::asinf(x)
+}
+
+/// x rounded to the nearest integer, ties to even.
+#[inline(always)]
+#[must_use]
+pub fn round(x: f32) -> f32 {
+    libm::rintf(x)
+}
+
 /// tanh x: libm's `tanhf`, branch-free where [`BRANCH_FREE`].
 #[inline(always)]
 #[must_use]
