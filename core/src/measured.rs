@@ -90,7 +90,7 @@ impl MeasuredShape {
 /// The tables of a measured material (module docs), each in any [`Weights`] storage: the
 /// raw `ndf`, `sigma` and `rgb` values, and the normalised `vndf` and `luminance` slices with
 /// their running integrals (from [`crate::distrib::marginal2d::build`]).
-#[derive(Clone, Debug)]
+#[derive(Copy, Clone, Debug)]
 pub struct MeasuredTables<W> {
     /// `φi` nodes, ascending (radians).
     pub phi_i: W,
@@ -136,7 +136,7 @@ impl<W: Weights> MeasuredTables<W> {
 
 /// A measured material: its tables, and whether the RGB values are to be multiplied by
 /// `D / (4σ)` (the file's `jacobian` flag).
-#[derive(Clone, Debug)]
+#[derive(Copy, Clone, Debug)]
 pub struct MeasuredMaterial<W> {
     shape: MeasuredShape,
     tables: MeasuredTables<W>,
@@ -224,6 +224,30 @@ impl<W: Weights> MeasuredMaterial<W> {
             jacobian,
             reduction,
         })
+    }
+
+    /// The same material viewing this one's tables (a `Copy` handle for owned storage).
+    #[must_use]
+    pub fn borrowed(&self) -> MeasuredMaterial<&W> {
+        let t = &self.tables;
+        MeasuredMaterial {
+            shape: self.shape,
+            tables: MeasuredTables {
+                phi_i: &t.phi_i,
+                theta_i: &t.theta_i,
+                ndf: &t.ndf,
+                sigma: &t.sigma,
+                vndf: &t.vndf,
+                vndf_marginal: &t.vndf_marginal,
+                vndf_conditional: &t.vndf_conditional,
+                luminance: &t.luminance,
+                luminance_marginal: &t.luminance_marginal,
+                luminance_conditional: &t.luminance_conditional,
+                rgb: &t.rgb,
+            },
+            jacobian: self.jacobian,
+            reduction: self.reduction,
+        }
     }
 
     /// The tables' sizes.
@@ -509,4 +533,48 @@ impl<W: Weights> MeasuredPrepared<'_, W> {
 fn jacobian(u_theta: f32, sin_theta_m: f32, wi_dot_m: f32) -> f32 {
     let j = 2.0 * PI * PI * u_theta * sin_theta_m;
     (if j > 1e-6 { j } else { 1e-6 }) * 4.0 * wi_dot_m
+}
+
+/// The data's own sampler through the runtime's [`Sampler`](crate::Sampler) interface (φ is
+/// ignored: measured data is homogeneous), so renderers and evaluations use it like any
+/// learned sampler.
+impl<W: Weights> crate::Sampler for MeasuredMaterial<W> {
+    type Prepared<'s>
+        = MeasuredPrepared<'s, W>
+    where
+        Self: 's;
+
+    #[inline]
+    fn prepare<'s>(
+        &'s self,
+        _phi: &[f32; crate::FEATURE_DIM],
+        wi: Vec3,
+    ) -> Option<MeasuredPrepared<'s, W>> {
+        MeasuredMaterial::prepare(self, wi)
+    }
+}
+
+impl<W: Weights> crate::Prepared for MeasuredPrepared<'_, W> {
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<crate::Sample> {
+        let s = MeasuredPrepared::sample(self, u)?;
+        Some(crate::Sample {
+            wo: s.wo,
+            pdf: s.pdf,
+            pdf_disk: s.pdf / s.wo.z,
+        })
+    }
+
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        match crate::warp::from_disk(p) {
+            Some(wo) => math::finite_density(MeasuredPrepared::pdf(self, wo) / wo.z),
+            None => 0.0,
+        }
+    }
+
+    #[inline]
+    fn pdf(&self, wo: Vec3) -> f32 {
+        MeasuredPrepared::pdf(self, wo)
+    }
 }

@@ -632,3 +632,85 @@ fn tilted_frame_matches_the_general_construction() {
         assert!((a.to_local(w) - b.to_local(w)).length() < 1e-5);
     }
 }
+
+/// The measured material files load through `resolve` (the TOML and the `.bsdf` itself),
+/// evaluate as the runtime's measured material does, are homogeneous, and a bad or missing
+/// `params.file` is an error naming the field.
+#[test]
+fn measured_materials_load_and_name_bad_files() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/measured");
+    let mut r = rng(5);
+    for stem in [
+        "acrylic_felt_green",
+        "cc_ibiza_sunset",
+        "chm_mint",
+        "ilm_l3_37_metallic",
+        "paper_white",
+    ] {
+        let toml = dir.join(format!("{stem}.toml"));
+        let m = materials::resolve(toml.to_str().unwrap()).unwrap_or_else(|e| panic!("{e:#}"));
+        assert_eq!(m.name(), stem);
+        let bsdf = dir.join(format!("{stem}_rgb.bsdf"));
+        let direct = materials::resolve(bsdf.to_str().unwrap()).unwrap();
+        assert_eq!(direct.name(), format!("{stem}_rgb"));
+        let data = m.measured().expect("a measured material exposes its data");
+        assert!(!m.reciprocal());
+        let phi = m.features(uv(&mut r));
+        assert_eq!(phi, [0.0; FEATURE_DIM]);
+        assert_eq!(m.features(uv(&mut r)), phi);
+        for _ in 0..200 {
+            let (wi, wo) = (hemi(&mut r, 0.05), hemi(&mut r, 0.05));
+            let f = m.eval(&phi, wi, wo);
+            assert_eq!(f, direct.eval(&phi, wi, wo));
+            assert_eq!(f, data.material().prepare(wi).unwrap().eval(wo));
+            assert!(f.iter().all(|v| v.is_finite() && *v >= 0.0));
+        }
+        assert_eq!(m.eval(&phi, Vec3::new(0.0, 0.0, -1.0), Vec3::Z), [0.0; 3]);
+    }
+    let tmp = std::env::temp_dir().join(format!("neusample-measured-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let write = |name: &str, text: &str| {
+        let p = tmp.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let missing = write(
+        "missing.toml",
+        "name = \"x\"\nmodel = \"measured\"\n[params]\nfile = \"nope_rgb.bsdf\"\n",
+    );
+    let e = format!(
+        "{:#}",
+        materials::resolve(missing.to_str().unwrap()).err().unwrap()
+    );
+    assert!(
+        e.contains("params.file") && e.contains("nope_rgb.bsdf"),
+        "{e}"
+    );
+    std::fs::write(tmp.join("bad_rgb.bsdf"), b"tensor_file\0\x01\0").unwrap();
+    let bad = write(
+        "bad.toml",
+        "name = \"x\"\nmodel = \"measured\"\n[params]\nfile = \"bad_rgb.bsdf\"\n",
+    );
+    let e = format!(
+        "{:#}",
+        materials::resolve(bad.to_str().unwrap()).err().unwrap()
+    );
+    assert!(e.contains("params.file") && e.contains("truncated"), "{e}");
+    let unknown = write(
+        "unknown.toml",
+        "name = \"x\"\nmodel = \"measured\"\n[params]\nfile = \"a.bsdf\"\nscale = 2\n",
+    );
+    let e = format!(
+        "{:#}",
+        materials::resolve(unknown.to_str().unwrap()).err().unwrap()
+    );
+    assert!(e.contains("scale"), "{e}");
+    let e = format!(
+        "{:#}",
+        materials::resolve(tmp.join("bad_rgb.bsdf").to_str().unwrap())
+            .err()
+            .unwrap()
+    );
+    assert!(e.contains("bad_rgb.bsdf") && e.contains("truncated"), "{e}");
+    std::fs::remove_dir_all(&tmp).ok();
+}

@@ -341,7 +341,7 @@ pub struct OwnedMeasured {
 fn dim(field: &str, shape: &[u64], i: usize) -> Result<u32, MeasuredError> {
     u32::try_from(shape[i])
         .ok()
-        .filter(|&d| d <= neusample::measured::MAX_TABLE_SIZE.max(1 << 16))
+        .filter(|&d| d <= neusample::measured::MAX_TABLE_SIZE)
         .ok_or_else(|| {
             MeasuredError::field(field, format!("dimension {i} of {shape:?} is too large"))
         })

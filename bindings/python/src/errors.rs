@@ -1,7 +1,10 @@
 //! Python exceptions: `neusample.BlobError` (a `ValueError`) carries the typed error of the
-//! runtime as `kind` (the stable names of `neusample_owned::error_kind`); a missing or
-//! unreadable file is the usual `OSError` (`FileNotFoundError`, …) with the file name.
+//! runtime as `kind` (the stable names of `neusample_owned::error_kind`);
+//! `neusample.MeasuredFileError` (a `ValueError`) a measured-material file's error with the
+//! `field` at fault; a missing or unreadable file is the usual `OSError`
+//! (`FileNotFoundError`, …) with the file name.
 
+use neusample_owned::measured::MeasuredError;
 use neusample_owned::{error_kind, OpenError};
 use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
@@ -14,6 +17,35 @@ pyo3::create_exception!(
      holds another kind than asked for. `kind` names the error (`\"checksum_mismatch\"`, \
      `\"not_a_sampler\"`, …), `path` the file (or None)."
 );
+
+pyo3::create_exception!(
+    neusample,
+    MeasuredFileError,
+    PyValueError,
+    "A measured-material file (`.bsdf`) could not be read: truncated, not a tensor file, or \
+     a field missing, of the wrong type or shape, or holding non-finite or negative values. \
+     `field` names the field at fault (None for the file as a whole), `path` the file."
+);
+
+/// A `MeasuredFileError` for `e` (its Display as the message) with its `field` and `path`.
+pub(crate) fn measured_error(py: Python<'_>, e: &MeasuredError, path: &str) -> PyErr {
+    let err = MeasuredFileError::new_err(e.to_string());
+    let value = err.value(py);
+    // As in `blob_error`: the exception without its attributes is still the right one.
+    let _ = value.setattr("field", e.field.as_deref());
+    let _ = value.setattr("path", path);
+    err
+}
+
+/// The `OSError` subclass (`FileNotFoundError`, …) for an I/O error on `path`.
+pub(crate) fn open_io_error(io: &std::io::Error, path: &str) -> PyErr {
+    // OSError(errno, strerror, filename) picks the subclass (FileNotFoundError, …).
+    PyOSError::new_err((
+        io.raw_os_error().unwrap_or(0),
+        io.to_string(),
+        path.to_string(),
+    ))
+}
 
 /// A `BlobError` with its `kind` and `path` attributes.
 pub(crate) fn blob_error(py: Python<'_>, e: &neusample::Error, path: Option<&str>) -> PyErr {
@@ -33,12 +65,7 @@ pub(crate) fn blob_error(py: Python<'_>, e: &neusample::Error, path: Option<&str
 /// The exception for a failed open of `path`.
 pub(crate) fn open_error(py: Python<'_>, e: OpenError, path: &str) -> PyErr {
     match e {
-        // OSError(errno, strerror, filename) picks the subclass (FileNotFoundError, …).
-        OpenError::Io(io) => PyOSError::new_err((
-            io.raw_os_error().unwrap_or(0),
-            io.to_string(),
-            path.to_string(),
-        )),
+        OpenError::Io(io) => open_io_error(&io, path),
         OpenError::Blob(b) => blob_error(py, &b, Some(path)),
     }
 }

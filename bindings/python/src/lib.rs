@@ -7,7 +7,8 @@
 //! the type stubs.
 //!
 //! Classes: `Blob` (a validated blob and its header), `Sampler` (any kind, or cosine),
-//! `NeuralMaterial` (feature texture + decoder); functions: `inspect`, and with the
+//! `NeuralMaterial` (feature texture + decoder), `MeasuredMaterial` (an RGL measured BRDF
+//! and the data's own sampler, `measured`); functions: `inspect`, and with the
 //! `train` feature the training entry points (`train`).
 
 use std::path::PathBuf;
@@ -25,11 +26,12 @@ use pyo3::types::{PyBytes, PyDict, PyList};
 
 mod arrays;
 mod errors;
+mod measured;
 #[cfg(feature = "train")]
 mod train;
 
 use arrays::{output, output1, plan, rows_mut, run, same_n, split, split_mut, Rows};
-use errors::{batch_error, blob_error, open_error, BlobError};
+use errors::{batch_error, blob_error, open_error, BlobError, MeasuredFileError};
 
 fn path_str(p: &std::path::Path) -> String {
     p.to_string_lossy().into_owned()
@@ -636,8 +638,10 @@ fn _neusample(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Blob>()?;
     m.add_class::<Sampler>()?;
     m.add_class::<NeuralMaterial>()?;
+    m.add_class::<measured::MeasuredMaterial>()?;
     m.add_function(wrap_pyfunction!(inspect, m)?)?;
     m.add("BlobError", py.get_type::<BlobError>())?;
+    m.add("MeasuredFileError", py.get_type::<MeasuredFileError>())?;
     m.add("FEATURE_DIM", FEATURE_DIM)?;
     m.add(
         "SAMPLER_KINDS",

@@ -30,6 +30,9 @@ pub const BASELINE: &str = SamplerKind::ImprovedBaseline.name();
 /// Name of the tabulated oracle in reports.
 pub const ORACLE: &str = "oracle";
 
+/// Name of a measured material's own sampler (VNDF and luminance warps) in reports.
+pub const MEASURED_DATA: &str = "measured-data";
+
 /// What `neusample demo` runs (the command line's options, typed).
 #[derive(Clone, Debug, PartialEq)]
 pub struct DemoConfig {

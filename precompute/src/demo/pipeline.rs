@@ -15,7 +15,7 @@ use neusample_render::{demo_scene, Estimator};
 
 use super::config::{
     preset, resolve_demo_material, DemoConfig, DemoMaterial, Preset, BASELINE, COSINE,
-    DEFAULT_MATERIALS, ORACLE,
+    DEFAULT_MATERIALS, MEASURED_DATA, ORACLE,
 };
 use super::figures::{self, Rgb8};
 use super::fixtures::{fixture_path, fixtures_dir};
@@ -199,6 +199,16 @@ pub fn run(a: &DemoConfig) -> Result<()> {
         methods.last_mut().expect("pushed").kl_vs_source = kl_src;
         pb.inc(1);
 
+        // A measured material's own sampler: the peer a user of the data would pick.
+        if let Some(data) = m.measured() {
+            pb.set_message(format!("{mname}/{MEASURED_DATA}"));
+            let s = data.material().borrowed();
+            let (fit, kl_src) = fits(&s, m.as_ref(), src, &p, a.seed);
+            let cost = eval::cost_scalar(&s, m.as_ref(), p.cost_n, p.cost_passes);
+            methods.push(method_report(MEASURED_DATA, 0.0, None, 0, None, fit, cost));
+            methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+        }
+
         let fit_seconds = material_started.elapsed().as_secs_f64();
         let (reference, figures, budget) = if a.no_render {
             (None, None, None)
@@ -274,6 +284,12 @@ fn render_material(
     for (n, blob) in &opened {
         let s = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
         techniques.push((n.clone(), Technique::Blob(s)));
+    }
+    if let Some(data) = m.measured() {
+        techniques.push((
+            MEASURED_DATA.to_string(),
+            Technique::Measured(data.material().borrowed()),
+        ));
     }
     techniques.push((
         ORACLE.to_string(),
@@ -601,7 +617,7 @@ fn pdf_figure(
         .iter()
         .filter_map(|(n, t)| match t {
             Technique::Blob(s) => Some((n, s)),
-            Technique::Oracle(_) => None,
+            Technique::Oracle(_) | Technique::Measured(_) => None,
         })
         .collect();
     let size = p.pdf_size;

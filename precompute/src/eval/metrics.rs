@@ -40,7 +40,7 @@
 //!   `spp_m = round(N · t_b / t_m)` (at least 1) and is rendered with a fresh seed.
 
 use neusample::wavefront::BatchSampler;
-use neusample::{BlobSampler, Sampler};
+use neusample::{BlobSampler, MeasuredMaterial, Sampler};
 use neusample_render::{self as render, Estimator, Image, Render, RenderOptions, Scene, Surface};
 use serde::{Deserialize, Serialize};
 
@@ -58,6 +58,8 @@ pub enum Technique<'a> {
     Blob(BlobSampler<'a>),
     /// The tabulated oracle (prepared once per pixel, table time excluded).
     Oracle(OracleSampler<'a>),
+    /// A measured material's own sampler (VNDF and luminance warps), scalar path.
+    Measured(MeasuredMaterial<&'a Vec<f32>>),
 }
 
 impl Technique<'_> {
@@ -83,6 +85,7 @@ impl Technique<'_> {
                 },
             ),
             Technique::Oracle(s) => render::render(scene, &[Surface::new(material, *s)], &o),
+            Technique::Measured(s) => render::render(scene, &[Surface::new(material, *s)], &o),
         }
     }
 
@@ -107,6 +110,9 @@ impl Technique<'_> {
                 },
             )?,
             Technique::Oracle(s) => {
+                render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
+            }
+            Technique::Measured(s) => {
                 render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
             }
         })

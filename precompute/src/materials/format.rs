@@ -26,7 +26,7 @@ pub struct NeuralParams {
 }
 
 /// The model names a file's `model` field accepts.
-pub const MODELS: [&str; 10] = [
+pub const MODELS: [&str; 11] = [
     "normal_mapped",
     "anisotropic",
     "clearcoat",
@@ -36,6 +36,7 @@ pub const MODELS: [&str; 10] = [
     "tiles",
     "conductor",
     "tabulated",
+    "measured",
     "neural",
 ];
 

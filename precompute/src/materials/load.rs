@@ -10,7 +10,9 @@ use super::format::{de, file, Format, NeuralParams, SideFiles, MODELS};
 use super::model::Material;
 use super::neural::{is_blob_file, NeuralMaterialModel};
 use super::surface::{SurfaceModel, Textured};
-use super::{anisotropic, clearcoat, conductor, fabric, leather, marble, tabulated, tiles, wood};
+use super::{
+    anisotropic, clearcoat, conductor, fabric, leather, marble, measured, tabulated, tiles, wood,
+};
 
 /// Names of the built-in materials (the files under `fixtures/materials/`, embedded).
 #[must_use]
@@ -74,12 +76,21 @@ pub fn builtin(name: &str) -> anyhow::Result<Box<dyn Material>> {
     })
 }
 
-/// Loads a material file (TOML, or JSON when the extension is `.json`), or a neural-material
-/// blob (`.nsb` or any file starting with the blob magic, [`super::neural`]). Side files
+/// Loads a material file (TOML, or JSON when the extension is `.json`), a neural-material
+/// blob (`.nsb` or any file starting with the blob magic, [`super::neural`]) or a measured
+/// material (`.bsdf` or the tensor-file magic, [`super::measured`]). Side files
 /// (tables, blobs) are resolved relative to the file's directory.
 pub fn load(path: &Path) -> anyhow::Result<Box<dyn Material>> {
     if is_blob_file(path) {
         return Ok(Box::new(NeuralMaterialModel::load(path)?));
+    }
+    if is_measured_file(path) {
+        let name = path
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or("measured");
+        let data = neusample_owned::measured::OwnedMeasured::open(path)?;
+        return Ok(Box::new(measured::Measured::from_data(name, data)));
     }
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read material file {}", path.display()))?;
@@ -93,6 +104,18 @@ pub fn load(path: &Path) -> anyhow::Result<Box<dyn Material>> {
         let p = dir.join(file);
         std::fs::read(&p).with_context(|| format!("cannot read side file {}", p.display()))
     })
+}
+
+/// Whether `path` is a measured-material file: a `.bsdf` extension or the tensor-file magic.
+fn is_measured_file(path: &Path) -> bool {
+    let ext = path.extension().and_then(|e| e.to_str());
+    if ext.is_some_and(|e| e.eq_ignore_ascii_case("bsdf")) {
+        return true;
+    }
+    let mut magic = [0u8; 12];
+    std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+        .is_ok_and(|()| &magic == neusample_owned::measured::MAGIC)
 }
 
 /// A material given as a file path (material file or neural-material blob) or as the name of
@@ -151,6 +174,11 @@ pub fn parse(
         "tabulated" => Box::new(
             file(text, format)
                 .and_then(|f| tabulated::Tabulated::new(f, side))
+                .map_err(ctx)?,
+        ),
+        "measured" => Box::new(
+            file(text, format)
+                .and_then(|f| measured::Measured::new(f, side))
                 .map_err(ctx)?,
         ),
         "neural" => {

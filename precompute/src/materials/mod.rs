@@ -23,6 +23,7 @@
 //! | `tiles`          | [`tiles`]       | a different material per tile (ceramic, metal, stone, grout) |
 //! | `conductor`      | [`conductor`]   | homogeneous GGX conductor, isotropic or anisotropic          |
 //! | `tabulated`      | [`tabulated`]   | BRDF values read from a table file (isotropic)               |
+//! | `measured`       | [`measured`]    | an RGL measured BRDF (`params.file = "x_rgb.bsdf"`), exact   |
 //! | `neural`         | [`neural`]      | a neural material blob (`params.blob = "x.nsb"`): learned features + decoder |
 //!
 //! Each module documents its φ layout and ranges. The analytic models share the microfacet
@@ -63,6 +64,7 @@ pub mod conductor;
 pub mod fabric;
 pub mod leather;
 pub mod marble;
+pub mod measured;
 pub mod microfacet;
 pub mod neural;
 pub mod noise;

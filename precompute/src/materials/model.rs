@@ -36,6 +36,12 @@ pub trait Material: Send + Sync {
         None
     }
 
+    /// The measured data when the material is a measured one: its own sampler is the
+    /// reference every learned sampler is compared with. `None` for every other model.
+    fn measured(&self) -> Option<&neusample_owned::measured::OwnedMeasured> {
+        None
+    }
+
     /// [`Material::features`] of every `uv[i]` (structure of arrays, equal lengths); by
     /// default lane by lane. The neural material runs core's batched path.
     fn features_batch(&self, uv: Vec2s<'_>, phi: FeaturesMut<'_>) {

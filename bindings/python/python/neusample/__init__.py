@@ -12,6 +12,13 @@ from the surface); every pdf is a density with respect to solid angle::
     f = material.eval(phi, wi, wo)              # (3, N) RGB, no cosine
     weight = f * wo[2] / np.where(pdf > 0, pdf, 1)
 
+Measured materials (RGL database ``.bsdf`` files, RGB) with the data's own sampler, as
+Mitsuba 3's ``measured`` BSDF evaluates and samples them::
+
+    brdf = neusample.MeasuredMaterial("fixtures/measured/paper_white_rgb.bsdf")
+    f = brdf.eval(wi, wo)                       # (3, N) RGB, no cosine
+    wo, pdf, weight = brdf.sample(wi, u)        # weight = f · cos θo / pdf
+
 The GIL is released during every batched call; ``threads=k`` splits a call over k threads
 (0: all of rayon's pool). ``neusample.mitsuba.register()`` registers a Mitsuba 3 BSDF.
 """
@@ -21,6 +28,8 @@ from ._neusample import (
     SAMPLER_KINDS,
     Blob,
     BlobError,
+    MeasuredFileError,
+    MeasuredMaterial,
     NeuralMaterial,
     Sampler,
     __version__,
@@ -40,6 +49,8 @@ __all__ = [
     "HAS_TRAINING",
     "Blob",
     "BlobError",
+    "MeasuredFileError",
+    "MeasuredMaterial",
     "NeuralMaterial",
     "Sampler",
     "inspect",

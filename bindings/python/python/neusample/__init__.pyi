@@ -101,6 +101,46 @@ class NeuralMaterial:
         """phi (8, N), wi, wo (3, N) → RGB BRDF (3, N) without the cosine; 0 below the
         horizon or for non-finite input."""
 
+class MeasuredFileError(ValueError):
+    """A measured-material file (``.bsdf``) could not be read: truncated, not a tensor file,
+    or a field missing, of the wrong type or shape, or holding non-finite or negative values.
+    The message names the file and the field. ``field`` is the field at fault (None for the
+    file as a whole: truncated header, wrong magic or version); ``path`` the file."""
+
+    field: Optional[str]
+    path: str
+
+class MeasuredMaterial:
+    """A measured BRDF of the RGL material database (Dupuy & Jakob 2018) read from an RGB
+    ``.bsdf`` file (Mitsuba's ``measured`` format), evaluated and sampled as Mitsuba 3's
+    ``measured`` BSDF does (the data's visible-normal sampler warped through its luminance).
+    Raises FileNotFoundError / OSError for a missing file, MeasuredFileError for a bad one.
+
+    Directions are normalised here; a lane whose input is not finite, of zero length or at or
+    below the horizon gives 0 (never NaN) and does not affect the other lanes."""
+
+    def __init__(self, path: StrPath) -> None: ...
+    @property
+    def description(self) -> str:
+        """The file's description of the material."""
+    @property
+    def isotropic(self) -> bool:
+        """Whether the data is isotropic (at most two φi nodes)."""
+    @property
+    def path(self) -> str: ...
+    def eval(self, wi: F32, wo: F32, *, threads: int = 1) -> F32:
+        """wi, wo (3, N) → the BRDF f(wi, wo) (3, N) in linear RGB, **without** the cosine
+        (Mitsuba's ``eval`` / cos θo); 0 below the horizon or for non-finite input."""
+    def pdf(self, wi: F32, wo: F32, *, threads: int = 1) -> F32:
+        """wi, wo (3, N) → (N,) the density of ``sample`` at wo with respect to **solid
+        angle** (Mitsuba's ``pdf``); 0 below the horizon or for non-finite input."""
+    def sample(self, wi: F32, u: F32, *, threads: int = 1) -> Tuple[F32, F32, F32]:
+        """wi (3, N), u (2, N) in [0, 1) (Mitsuba's ``sample2``) → (wo (3, N), pdf (N,),
+        weight (3, N)): the sampled direction, its density with respect to **solid angle**,
+        and f · cos θo / pdf in RGB (Mitsuba's returned weight). Refused lanes (wi below the
+        horizon or not finite, u outside [0, 1], a sample below the horizon or of zero
+        density) are wo = 0, pdf = 0, weight = 0."""
+
 def inspect(path: StrPath) -> Dict[str, Any]:
     """The header and tensors of a blob, as ``neusample inspect --json`` prints them."""
 
