@@ -170,6 +170,7 @@ pub fn atan2(y: f32, x: f32) -> f32 {
 }
 
 /// asin x in [−π/2, π/2] (NaN outside [−1, 1]).
+#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[must_use]
 pub fn asin(x: f32) -> f32 {
@@ -177,6 +178,7 @@ pub fn asin(x: f32) -> f32 {
 }
 
 /// x rounded to the nearest integer, ties to even.
+#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[must_use]
 pub fn round(x: f32) -> f32 {

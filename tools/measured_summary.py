@@ -1,0 +1,48 @@
+"""Summarises a `neusample demo` report over measured materials against the data's own
+sampler (`measured-data`): per material, the best learned or analytic sampler by equal-time
+speed-up over the improved baseline, its equal-spp variance and equal-time speed-up relative
+to the data's sampler, and their KL / χ² to p*.
+
+    python tools/measured_summary.py neusample-report/report.json
+"""
+
+import json
+import sys
+
+LEARNED = ["analytic", "flow", "disk-flow", "affine-flow", "direct-histogram",
+           "histogram-mixture", "reparam"]
+
+
+def main(path):
+    r = json.load(open(path))
+    print("| material | best learned | among learned and analytic | vs baseline, equal time | its variance / data's (equal spp) "
+          "| its equal-time speed-up / data's | data's vs baseline | KL, χ² best learned | KL, χ² data | verdict |")
+    print("|---|---|---|---:|---:|---:|---:|---:|---:|---|")
+    for m in r["materials"]:
+        by = {x["method"]: x for x in m["methods"]}
+        data = by.get("measured-data")
+        cands = [by[k] for k in LEARNED if k in by and by[k].get("render")]
+        best = max(cands, key=lambda x: x["render"]["speedup"]["value"])
+        s = best["render"]["speedup"]
+        # As the report's verdict, among the learned and analytic samplers alone: the best is
+        # clear when every other's interval lies below its lower bound.
+        tied = [x["method"] for x in cands
+                if x is not best and not (x["render"]["speedup"]["hi"] < s["lo"])]
+        among = "clear" if not tied else "tied with " + ", ".join(tied)
+        d = data["render"]["speedup"]
+        # Per-sample variance ratio at equal spp: variance_best / variance_data.
+        var_ratio = best["render"]["variance"]["value"] / data["render"]["variance"]["value"]
+        v = m.get("verdict") or {}
+        verdict = v.get("best", "") + (" (clear)" if v.get("clear") else
+                                       " tied with " + ", ".join(v.get("tied_with", [])))
+        print(
+            f"| {m['material']} | {best['method']} | {among} | {s['value']:.2f}× [{s['lo']:.2f}–{s['hi']:.2f}] "
+            f"| {var_ratio:.2f} | {s['value'] / d['value']:.2f} "
+            f"| {d['value']:.2f}× [{d['lo']:.2f}–{d['hi']:.2f}] "
+            f"| {best['kl_divergence']:.3f}, {best['chi2']:.3g} | {data['kl_divergence']:.3f}, {data['chi2']:.3g} "
+            f"| {verdict} |"
+        )
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
