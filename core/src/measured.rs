@@ -470,13 +470,11 @@ impl<W: Weights> MeasuredPrepared<'_, W> {
     /// the horizon or not finite.
     #[must_use]
     pub fn eval(&self, wo: Vec3) -> [f32; 3] {
-        let Some((wo_f, _, u_m)) = self.half(wo) else {
+        let Some(wo) = normalize(wo) else {
             return [0.0; 3];
         };
-        let (sample, _) = self.vndf().invert(&self.blend, u_m);
-        let inv_cos = 1.0 / wo_f.z;
-        self.rgb(sample, u_m)
-            .map(|v| math::finite_density(v * inv_cos))
+        let inv_cos = 1.0 / wo.z;
+        self.eval_cos(wo).map(|v| math::finite_density(v * inv_cos))
     }
 
     /// The density of the data's sampler at `wo`, with respect to solid angle; 0 when `wo`
