@@ -1,7 +1,7 @@
 //! [`ChunkedSampler`]: what a sampler writes to be batched; [`BatchSampler`] follows
 //! (argument checks, chunking, instruction-set dispatch).
 
-use super::simd::{dispatch, Kernel};
+use super::simd::{dispatch, Isa, Kernel};
 use super::{
     check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, BatchSampler,
     Features, SamplesMut, Vec2s, Vec2sMut, Vec3s,
@@ -19,6 +19,8 @@ pub trait ChunkedSampler {
     const CHUNK: usize;
     /// See [`BatchSampler::exact_pdf`].
     const EXACT_PDF: bool = true;
+    /// The widest instruction set its chunks are compiled for ([`Kernel::WIDEST`]).
+    const WIDEST: Isa = Isa::X86V4;
     /// [`BatchSampler::prepare_batch`] of one chunk.
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]);
     /// [`BatchSampler::sample_batch`] of one chunk.
@@ -48,6 +50,7 @@ struct Prepare<'a, 's, S: ChunkedSampler> {
 
 impl<S: ChunkedSampler> Kernel for Prepare<'_, '_, S> {
     type Output = ();
+    const WIDEST: Isa = S::WIDEST;
     #[inline(always)]
     fn run(self) {
         let n = self.lanes.len();
@@ -70,6 +73,7 @@ struct Sample<'a, 's, S: ChunkedSampler> {
 
 impl<S: ChunkedSampler> Kernel for Sample<'_, '_, S> {
     type Output = ();
+    const WIDEST: Isa = S::WIDEST;
     #[inline(always)]
     fn run(mut self) {
         let n = self.lanes.len();
@@ -93,6 +97,7 @@ struct Pdf<'a, 's, S: ChunkedSampler> {
 
 impl<S: ChunkedSampler> Kernel for Pdf<'_, '_, S> {
     type Output = ();
+    const WIDEST: Isa = S::WIDEST;
     #[inline(always)]
     fn run(self) {
         let n = self.lanes.len();
@@ -116,6 +121,7 @@ struct Invert<'a, 's, S: ChunkedSampler> {
 
 impl<S: ChunkedSampler> Kernel for Invert<'_, '_, S> {
     type Output = ();
+    const WIDEST: Isa = S::WIDEST;
     #[inline(always)]
     fn run(mut self) {
         let n = self.lanes.len();

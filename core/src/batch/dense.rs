@@ -129,9 +129,11 @@ fn fused(act: Activation) -> bool {
 }
 
 /// The product behind [`dense`], [`accumulate`] and [`accumulate_act`], on the instruction
-/// set the batched kernels run with ([`simd::current`]).
+/// set the batched kernels run with ([`simd::current`]). Not inlined: a sampler's kernel,
+/// compiled once per instruction set, calls the one copy of each layer shape, which holds
+/// the tiled kernel of every instruction set.
 #[allow(clippy::too_many_arguments)]
-#[inline(always)]
+#[inline(never)]
 fn product<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
     w: &W,
     offset: u32,
@@ -184,9 +186,15 @@ fn product<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
     #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
     let done = false;
     if !done {
-        portable::<W, I, O, B>(&args, y);
-    }
-    if !fuse {
+        // The activation in a pass of its own, not a run-time `match` per value inside the
+        // tile's stores.
+        let plain = Args {
+            act: Activation::Identity,
+            ..args
+        };
+        portable::<W, I, O, B>(&plain, y);
+        activate(act, y, m);
+    } else if !fuse {
         activate(act, y, m);
     }
 }
@@ -248,14 +256,15 @@ impl<W: Weights + ?Sized, const I: usize, const B: usize> Args<'_, W, I, B> {
     }
 }
 
-/// The portable product: tiles of 4 outputs × 16 lanes ([`V8`] pairs, 8 registers), separate
-/// multiplies and adds.
-#[inline(always)]
+/// The portable product: tiles of 2 outputs × 16 lanes ([`V8`] pairs), separate multiplies
+/// and adds. Two outputs keep the accumulators, inputs and weight of a tile within SSE2's
+/// sixteen registers (four outputs spill).
+#[inline(never)]
 fn portable<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
     a: &Args<'_, W, I, B>,
     y: &mut [[f32; B]; O],
 ) {
-    const TJ: usize = 4;
+    const TJ: usize = 2;
     let mut j0 = 0;
     while j0 < O {
         let cols = if O - j0 >= TJ { TJ } else { O - j0 };

@@ -2,9 +2,9 @@
 //!
 //! The kernels are plain Rust over small fixed arrays ([`super::lanes::V8`]) that LLVM turns
 //! into SIMD instructions. [`dispatch`] runs a kernel inside a function compiled for the
-//! best instruction set the CPU reports (on x86-64, through `pulp`'s safe run-time
-//! detection: AVX-512 (x86-64-v4), else AVX2 + FMA (x86-64-v3)), or as compiled for the
-//! build's target (the portable path: SSE2 on x86-64, NEON on aarch64, simd128 where the
+//! best instruction set the CPU reports up to the kernel's [`Kernel::WIDEST`] (on x86-64,
+//! through `pulp`'s safe run-time detection: AVX-512 (x86-64-v4), else AVX2 + FMA
+//! (x86-64-v3)), or as compiled for the build's target (the portable path: SSE2 on x86-64, NEON on aarch64, simd128 where the
 //! build enables it, scalar elsewhere). The dense layers ([`super::dense`]) use fused
 //! multiply-adds on the x86-64 paths and separate ones on the portable path, so the paths
 //! agree within a tolerance, not bit for bit (`wavefront` documents it); each path is
@@ -95,6 +95,15 @@ pub fn current() -> Isa {
 /// should use the chosen instruction set) must be `#[inline(always)]`: an instruction set
 /// reaches code only by inlining into the function compiled for it.
 pub(crate) trait Kernel {
+    /// The widest instruction set worth compiling the computation for: each one below it
+    /// is another copy of the code. Code written in eight-lane groups gains nothing from
+    /// AVX-512's sixteen lanes ([`Isa::X86V3`] then; the dense layers it calls still
+    /// dispatch on their own). Read on x86-64 only.
+    #[cfg_attr(
+        not(any(target_arch = "x86", target_arch = "x86_64")),
+        allow(dead_code)
+    )]
+    const WIDEST: Isa = Isa::X86V4;
     /// What the computation returns.
     type Output;
     /// The computation.
@@ -114,17 +123,20 @@ impl<K: Kernel> pulp::NullaryFnOnce for Job<K> {
     }
 }
 
-/// Runs `k` compiled for [`current`]'s instruction set.
+/// Runs `k` compiled for [`current`]'s instruction set, or for [`Kernel::WIDEST`] if that
+/// is narrower.
 #[inline(always)]
 pub(crate) fn dispatch<K: Kernel>(k: K) -> K::Output {
     #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
     match current() {
-        Isa::X86V4 => {
-            if let Some(v4) = pulp::x86::V4::try_new() {
-                return v4.vectorize(Job(k));
+        isa @ (Isa::X86V4 | Isa::X86V3) => {
+            // A constant per kernel: the copy for an instruction set above `K::WIDEST` is
+            // never compiled.
+            if const { K::WIDEST as u8 >= Isa::X86V4 as u8 } && isa == Isa::X86V4 {
+                if let Some(v4) = pulp::x86::V4::try_new() {
+                    return v4.vectorize(Job(k));
+                }
             }
-        }
-        Isa::X86V3 => {
             if let Some(v3) = pulp::x86::V3::try_new() {
                 return v3.vectorize(Job(k));
             }

@@ -12,6 +12,7 @@ use super::{
 };
 use crate::batch::chunked::ChunkedSampler;
 use crate::batch::lanes::V8;
+use crate::batch::simd::{dispatch, Isa, Kernel};
 use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::spline::Knots;
 use crate::math;
@@ -29,11 +30,34 @@ const GROUPS: usize = CHUNK / 8;
 type Splines = [Knots<DISK_FLOW_BINS, V8>; GROUPS];
 
 impl<W: Weights + Copy> DiskFlowSampler<W> {
+    /// [`Self::knots_chunk`], compiled once per instruction set and called from sample,
+    /// pdf and invert rather than inlined at each of their uses.
+    #[inline(never)]
+    fn knots_for(
+        &self,
+        net: usize,
+        lanes: &[Option<DiskFlowLane>],
+        idx: &[usize; CHUNK],
+        m: usize,
+        v: &[f32; CHUNK],
+        knots: &mut Splines,
+    ) {
+        dispatch(KnotsJob {
+            s: self,
+            net,
+            lanes,
+            idx,
+            m,
+            v,
+            knots,
+        });
+    }
+
     /// The splines of coupling network `net` (0 or 1) for the lanes `idx[..m]` of a chunk,
     /// each at its own other coordinate `v[lane]`: group `g` holds the splines of
     /// `idx[8g .. 8g + 8]`.
     #[inline(always)]
-    fn knots_for(
+    fn knots_chunk(
         &self,
         net: usize,
         lanes: &[Option<DiskFlowLane>],
@@ -274,9 +298,32 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
     }
 }
 
+/// The splines of a chunk as a kernel of their own ([`DiskFlowSampler::knots_for`]).
+struct KnotsJob<'a, W> {
+    s: &'a DiskFlowSampler<W>,
+    net: usize,
+    lanes: &'a [Option<DiskFlowLane>],
+    idx: &'a [usize; CHUNK],
+    m: usize,
+    v: &'a [f32; CHUNK],
+    knots: &'a mut Splines,
+}
+
+impl<W: Weights + Copy> Kernel for KnotsJob<'_, W> {
+    const WIDEST: Isa = Isa::X86V3;
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        self.s
+            .knots_chunk(self.net, self.lanes, self.idx, self.m, self.v, self.knots);
+    }
+}
+
 impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
     type Lane = Option<DiskFlowLane>;
     const CHUNK: usize = CHUNK;
+    // The splines run in eight-lane groups.
+    const WIDEST: Isa = Isa::X86V3;
 
     #[inline(always)]
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {

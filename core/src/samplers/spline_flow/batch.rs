@@ -11,6 +11,7 @@ use super::{
 };
 use crate::batch::chunked::ChunkedSampler;
 use crate::batch::lanes::{self, V8};
+use crate::batch::simd::{dispatch, Isa, Kernel};
 use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::spline::Knots;
 use crate::math;
@@ -80,10 +81,33 @@ impl Base {
 }
 
 impl<W: Weights + Copy> FlowSampler<W> {
+    /// [`Self::knots_chunk`], compiled once per instruction set and called from sample,
+    /// pdf and invert rather than inlined at each of their uses.
+    #[inline(never)]
+    fn knots_for(
+        &self,
+        net: usize,
+        lanes: &[Option<FlowLane>],
+        idx: &[usize; CHUNK],
+        m: usize,
+        v: &[f32; CHUNK],
+        knots: &mut [Knots<SPLINE_BINS, V8>; GROUPS],
+    ) {
+        dispatch(KnotsJob {
+            s: self,
+            net,
+            lanes,
+            idx,
+            m,
+            v,
+            knots,
+        });
+    }
+
     /// The splines of coupling network `net` for the lanes `idx[..m]` of a chunk, each at its
     /// own other coordinate `v[lane]`: group `g` holds the splines of `idx[8g .. 8g + 8]`.
     #[inline(always)]
-    fn knots_for(
+    fn knots_chunk(
         &self,
         net: usize,
         lanes: &[Option<FlowLane>],
@@ -353,9 +377,32 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 }
 
+/// The splines of a chunk as a kernel of their own ([`FlowSampler::knots_for`]).
+struct KnotsJob<'a, W> {
+    s: &'a FlowSampler<W>,
+    net: usize,
+    lanes: &'a [Option<FlowLane>],
+    idx: &'a [usize; CHUNK],
+    m: usize,
+    v: &'a [f32; CHUNK],
+    knots: &'a mut [Knots<SPLINE_BINS, V8>; GROUPS],
+}
+
+impl<W: Weights + Copy> Kernel for KnotsJob<'_, W> {
+    const WIDEST: Isa = Isa::X86V3;
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        self.s
+            .knots_chunk(self.net, self.lanes, self.idx, self.m, self.v, self.knots);
+    }
+}
+
 impl<W: Weights + Copy> ChunkedSampler for FlowSampler<W> {
     type Lane = Option<FlowLane>;
     const CHUNK: usize = CHUNK;
+    // The splines run in eight-lane groups.
+    const WIDEST: Isa = Isa::X86V3;
 
     #[inline(always)]
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
