@@ -5,6 +5,13 @@
 use crate::math;
 use crate::nn::{self, encoding_len, CONDITION_DIM};
 use crate::weights::Weights;
+#[cfg(not(target_arch = "spirv"))]
+use {
+    crate::batch::lanes::V8,
+    crate::batch::simd::{dispatch, Isa, Kernel},
+    crate::distrib::spline::Knots,
+    core::marker::PhantomData,
+};
 
 /// Frequency bands of the encoding of the coupling layers' "other coordinate" (release: 4).
 pub const OTHER_BANDS: usize = 4;
@@ -146,4 +153,104 @@ pub(crate) fn coupling_raw_chunk<W: Weights, const RAW: usize, const CHUNK: usiz
     dense::dense::<W, HIDDEN, HIDDEN, CHUNK>(w, l1, &h, leaky, &mut h2, m);
     let l2 = offset + COUPLING_L2 as u32;
     dense::dense::<W, HIDDEN, RAW, CHUNK>(w, l2, &h2, Activation::Identity, raw, m);
+}
+
+/// The splines of a chunk's lanes from coupling network `offset`: [`coupling_raw_chunk`],
+/// then group `g` of `knots` from the raw parameters of lanes `8g .. 8g + 8`, with the ends
+/// `E` ([`BoundedEnds`] on `[−tail_bound, tail_bound]`, or [`FreeEnds`]). Its own kernel,
+/// compiled once per instruction set (up to AVX2: the splines run in eight-lane groups) and
+/// called from the flows' sample, pdf and invert rather than inlined at each of their uses.
+#[cfg(not(target_arch = "spirv"))]
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+pub(crate) fn coupling_splines_chunk<
+    E: SplineEnds<K, RAW>,
+    W: Weights,
+    const K: usize,
+    const RAW: usize,
+    const CHUNK: usize,
+>(
+    w: &W,
+    offset: u32,
+    share: &[[f32; HIDDEN]; CHUNK],
+    v: &[f32; CHUNK],
+    m: usize,
+    tail_bound: f32,
+    knots: &mut [Knots<K, V8>],
+) {
+    dispatch(SplinesJob::<E, W, K, RAW, CHUNK> {
+        ends: PhantomData,
+        w,
+        offset,
+        share,
+        v,
+        m,
+        tail_bound,
+        knots,
+    });
+}
+
+/// How [`coupling_splines_chunk`] turns a group's raw parameters into splines.
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) trait SplineEnds<const K: usize, const RAW: usize> {
+    /// The splines of eight lanes (`bound`: the half-width of their interval, if bounded).
+    fn knots(raw: &[V8; RAW], bound: f32) -> Knots<K, V8>;
+}
+
+/// Splines on `[−bound, bound]` with identity tails (`RAW = 3K − 1`).
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) struct BoundedEnds;
+
+/// Splines with free end knots (`RAW = 3K + 1`).
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) struct FreeEnds;
+
+#[cfg(not(target_arch = "spirv"))]
+impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for BoundedEnds {
+    #[inline(always)]
+    fn knots(raw: &[V8; RAW], bound: f32) -> Knots<K, V8> {
+        Knots::from_raw_lanes(raw, bound)
+    }
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for FreeEnds {
+    #[inline(always)]
+    fn knots(raw: &[V8; RAW], _bound: f32) -> Knots<K, V8> {
+        Knots::from_raw_free_lanes(raw)
+    }
+}
+
+/// The arguments of [`coupling_splines_chunk`].
+#[cfg(not(target_arch = "spirv"))]
+struct SplinesJob<'a, E, W, const K: usize, const RAW: usize, const CHUNK: usize> {
+    ends: PhantomData<E>,
+    w: &'a W,
+    offset: u32,
+    share: &'a [[f32; HIDDEN]; CHUNK],
+    v: &'a [f32; CHUNK],
+    m: usize,
+    tail_bound: f32,
+    knots: &'a mut [Knots<K, V8>],
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl<E: SplineEnds<K, RAW>, W: Weights, const K: usize, const RAW: usize, const CHUNK: usize> Kernel
+    for SplinesJob<'_, E, W, K, RAW, CHUNK>
+{
+    const WIDEST: Isa = Isa::X86V3;
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        let mut raw: crate::batch::Soa<RAW, CHUNK> = [[0.0; CHUNK]; RAW];
+        coupling_raw_chunk(self.w, self.offset, self.share, self.v, self.m, &mut raw);
+        for (g, kn) in self.knots.iter_mut().enumerate().take(self.m.div_ceil(8)) {
+            let mut r = [V8::splat(0.0); RAW];
+            for (rj, row) in r.iter_mut().zip(raw.iter()) {
+                *rj = V8::load(&row[8 * g..]);
+            }
+            *kn = E::knots(&r, self.tail_bound);
+        }
+    }
 }

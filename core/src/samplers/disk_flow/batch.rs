@@ -12,12 +12,14 @@ use super::{
 };
 use crate::batch::chunked::ChunkedSampler;
 use crate::batch::lanes::V8;
-use crate::batch::simd::{dispatch, Isa, Kernel};
+use crate::batch::simd::Isa;
 use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::CONDITION_DIM;
-use crate::samplers::coupling::{coupling_raw_chunk, density_from_log, COUPLING_INPUTS, HIDDEN};
+use crate::samplers::coupling::{
+    coupling_splines_chunk, density_from_log, FreeEnds, COUPLING_INPUTS, HIDDEN,
+};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
@@ -30,34 +32,11 @@ const GROUPS: usize = CHUNK / 8;
 type Splines = [Knots<DISK_FLOW_BINS, V8>; GROUPS];
 
 impl<W: Weights + Copy> DiskFlowSampler<W> {
-    /// [`Self::knots_chunk`], compiled once per instruction set and called from sample,
-    /// pdf and invert rather than inlined at each of their uses.
-    #[inline(never)]
-    fn knots_for(
-        &self,
-        net: usize,
-        lanes: &[Option<DiskFlowLane>],
-        idx: &[usize; CHUNK],
-        m: usize,
-        v: &[f32; CHUNK],
-        knots: &mut Splines,
-    ) {
-        dispatch(KnotsJob {
-            s: self,
-            net,
-            lanes,
-            idx,
-            m,
-            v,
-            knots,
-        });
-    }
-
     /// The splines of coupling network `net` (0 or 1) for the lanes `idx[..m]` of a chunk,
     /// each at its own other coordinate `v[lane]`: group `g` holds the splines of
     /// `idx[8g .. 8g + 8]`.
     #[inline(always)]
-    fn knots_chunk(
+    fn knots_for(
         &self,
         net: usize,
         lanes: &[Option<DiskFlowLane>],
@@ -79,15 +58,15 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
             }
             vv[k] = v[idx[k]];
         }
-        let mut raw = [[0.0f32; CHUNK]; DISK_SPLINE_RAW_LEN];
-        coupling_raw_chunk(&self.params, offset as u32, &share, &vv, m, &mut raw);
-        for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
-            let mut r = [V8::splat(0.0); DISK_SPLINE_RAW_LEN];
-            for (rj, row) in r.iter_mut().zip(raw.iter()) {
-                *rj = V8::load(&row[8 * g..]);
-            }
-            *kn = Knots::from_raw_free_lanes(&r);
-        }
+        coupling_splines_chunk::<FreeEnds, W, DISK_FLOW_BINS, DISK_SPLINE_RAW_LEN, CHUNK>(
+            &self.params,
+            offset as u32,
+            &share,
+            &vv,
+            m,
+            0.0,
+            knots,
+        );
     }
 
     #[inline(always)]
@@ -295,27 +274,6 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
                 u.set(l, v);
             }
         }
-    }
-}
-
-/// The splines of a chunk as a kernel of their own ([`DiskFlowSampler::knots_for`]).
-struct KnotsJob<'a, W> {
-    s: &'a DiskFlowSampler<W>,
-    net: usize,
-    lanes: &'a [Option<DiskFlowLane>],
-    idx: &'a [usize; CHUNK],
-    m: usize,
-    v: &'a [f32; CHUNK],
-    knots: &'a mut Splines,
-}
-
-impl<W: Weights + Copy> Kernel for KnotsJob<'_, W> {
-    const WIDEST: Isa = Isa::X86V3;
-    type Output = ();
-    #[inline(always)]
-    fn run(self) {
-        self.s
-            .knots_chunk(self.net, self.lanes, self.idx, self.m, self.v, self.knots);
     }
 }
 

@@ -11,12 +11,12 @@ use super::{
 };
 use crate::batch::chunked::ChunkedSampler;
 use crate::batch::lanes::{self, V8};
-use crate::batch::simd::{dispatch, Isa, Kernel};
+use crate::batch::simd::Isa;
 use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
-use crate::samplers::coupling::{coupling_raw_chunk, COUPLING_INPUTS, HIDDEN};
+use crate::samplers::coupling::{coupling_splines_chunk, BoundedEnds, COUPLING_INPUTS, HIDDEN};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
@@ -81,33 +81,10 @@ impl Base {
 }
 
 impl<W: Weights + Copy> FlowSampler<W> {
-    /// [`Self::knots_chunk`], compiled once per instruction set and called from sample,
-    /// pdf and invert rather than inlined at each of their uses.
-    #[inline(never)]
-    fn knots_for(
-        &self,
-        net: usize,
-        lanes: &[Option<FlowLane>],
-        idx: &[usize; CHUNK],
-        m: usize,
-        v: &[f32; CHUNK],
-        knots: &mut [Knots<SPLINE_BINS, V8>; GROUPS],
-    ) {
-        dispatch(KnotsJob {
-            s: self,
-            net,
-            lanes,
-            idx,
-            m,
-            v,
-            knots,
-        });
-    }
-
     /// The splines of coupling network `net` for the lanes `idx[..m]` of a chunk, each at its
     /// own other coordinate `v[lane]`: group `g` holds the splines of `idx[8g .. 8g + 8]`.
     #[inline(always)]
-    fn knots_chunk(
+    fn knots_for(
         &self,
         net: usize,
         lanes: &[Option<FlowLane>],
@@ -125,15 +102,15 @@ impl<W: Weights + Copy> FlowSampler<W> {
             }
             vv[k] = v[idx[k]];
         }
-        let mut raw: Soa<SPLINE_RAW_LEN> = [[0.0; CHUNK]; SPLINE_RAW_LEN];
-        coupling_raw_chunk(&self.params, net as u32, &share, &vv, m, &mut raw);
-        for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
-            let mut r = [V8::splat(0.0); SPLINE_RAW_LEN];
-            for (rj, row) in r.iter_mut().zip(raw.iter()) {
-                *rj = V8::load(&row[8 * g..]);
-            }
-            *kn = Knots::from_raw_lanes(&r, TAIL_BOUND);
-        }
+        coupling_splines_chunk::<BoundedEnds, W, SPLINE_BINS, SPLINE_RAW_LEN, CHUNK>(
+            &self.params,
+            net as u32,
+            &share,
+            &vv,
+            m,
+            TAIL_BOUND,
+            knots,
+        );
     }
 
     #[inline(always)]
@@ -374,27 +351,6 @@ impl<W: Weights + Copy> FlowSampler<W> {
                 u.set(l, v);
             }
         }
-    }
-}
-
-/// The splines of a chunk as a kernel of their own ([`FlowSampler::knots_for`]).
-struct KnotsJob<'a, W> {
-    s: &'a FlowSampler<W>,
-    net: usize,
-    lanes: &'a [Option<FlowLane>],
-    idx: &'a [usize; CHUNK],
-    m: usize,
-    v: &'a [f32; CHUNK],
-    knots: &'a mut [Knots<SPLINE_BINS, V8>; GROUPS],
-}
-
-impl<W: Weights + Copy> Kernel for KnotsJob<'_, W> {
-    const WIDEST: Isa = Isa::X86V3;
-    type Output = ();
-    #[inline(always)]
-    fn run(self) {
-        self.s
-            .knots_chunk(self.net, self.lanes, self.idx, self.m, self.v, self.knots);
     }
 }
 
