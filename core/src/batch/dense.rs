@@ -449,16 +449,22 @@ impl<
             block::<S, W, I, O, B, J, NV>(s, args, y, j0);
             j0 += J;
         }
-        // The last 1 ‥ J − 1 outputs, with a tile of their width.
-        match O - full {
-            1 => block::<S, W, I, O, B, 1, NV>(s, args, y, full),
-            2 => block::<S, W, I, O, B, 2, NV>(s, args, y, full),
-            3 => block::<S, W, I, O, B, 3, NV>(s, args, y, full),
-            4 => block::<S, W, I, O, B, 4, NV>(s, args, y, full),
-            5 => block::<S, W, I, O, B, 5, NV>(s, args, y, full),
-            6 => block::<S, W, I, O, B, 6, NV>(s, args, y, full),
-            7 => block::<S, W, I, O, B, 7, NV>(s, args, y, full),
-            _ => {}
+        // The last 1 ‥ J − 1 outputs, with a tile of their width. Constant conditions, so
+        // that only the width this layer needs is compiled.
+        if const { O % J == 1 } {
+            block::<S, W, I, O, B, 1, NV>(s, args, y, full);
+        } else if const { O % J == 2 } {
+            block::<S, W, I, O, B, 2, NV>(s, args, y, full);
+        } else if const { O % J == 3 } {
+            block::<S, W, I, O, B, 3, NV>(s, args, y, full);
+        } else if const { O % J == 4 } {
+            block::<S, W, I, O, B, 4, NV>(s, args, y, full);
+        } else if const { O % J == 5 } {
+            block::<S, W, I, O, B, 5, NV>(s, args, y, full);
+        } else if const { O % J == 6 } {
+            block::<S, W, I, O, B, 6, NV>(s, args, y, full);
+        } else if const { O % J == 7 } {
+            block::<S, W, I, O, B, 7, NV>(s, args, y, full);
         }
     }
 }
