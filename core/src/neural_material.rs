@@ -21,7 +21,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::math;
-use crate::nn::{self, check_condition, Activation, FEATURE_DIM};
+use crate::nn::{self, Activation, FEATURE_DIM};
 use crate::warp;
 use crate::weights::Weights;
 
@@ -68,34 +68,50 @@ pub fn decoder_input(
     wi: Vec3,
     wo: Vec3,
 ) -> Option<[f32; DECODER_INPUTS]> {
-    let wi = check_condition(phi, wi)?;
-    let wo = warp::upper_hemisphere(wo)?;
-    // wi.z + wo.z > 0, so the half vector is never zero.
-    let s = wi + wo;
-    let inv = 1.0 / math::sqrt(s.x * s.x + s.y * s.y + s.z * s.z);
+    // Index loops, no slices or iterators: this compiles for rust-gpu.
+    let (d, ok) = direction_inputs(wi, wo);
+    if !ok {
+        return None;
+    }
     let mut x = [0.0f32; DECODER_INPUTS];
     let mut k = 0;
     while k < FEATURE_DIM {
+        if !math::is_finite(phi[k]) {
+            return None;
+        }
         x[k] = phi[k];
         k += 1;
     }
-    x[FEATURE_DIM] = wi.x;
-    x[FEATURE_DIM + 1] = wi.y;
-    x[FEATURE_DIM + 2] = wo.x;
-    x[FEATURE_DIM + 3] = wo.y;
-    x[FEATURE_DIM + 4] = s.x * inv;
-    x[FEATURE_DIM + 5] = s.y * inv;
+    while k < DECODER_INPUTS {
+        x[k] = d[k - FEATURE_DIM];
+        k += 1;
+    }
     Some(x)
+}
+
+/// The direction part of [`decoder_input`], `[wi.x, wi.y, wo.x, wo.y, h.x, h.y]`, and whether
+/// both directions are accepted (the values are meaningless where not), without branches:
+/// a loop of it over lanes vectorises.
+#[inline(always)]
+fn direction_inputs(wi: Vec3, wo: Vec3) -> ([f32; 6], bool) {
+    let (wi, ok_i) = warp::upper_hemisphere_lane(wi);
+    let (wo, ok_o) = warp::upper_hemisphere_lane(wo);
+    // wi.z + wo.z > 0 where both are accepted, so the half vector is not zero.
+    let s = wi + wo;
+    let inv = 1.0 / math::sqrt(s.x * s.x + s.y * s.y + s.z * s.z);
+    ([wi.x, wi.y, wo.x, wo.y, s.x * inv, s.y * inv], ok_i & ok_o)
 }
 
 /// `exp(clamp(o, LOG_F_MIN, LOG_F_MAX))`, and 0 for a NaN output.
 #[inline(always)]
 #[must_use]
 pub fn output_to_brdf(o: f32) -> f32 {
+    // libm's expf, bit for bit, with less work on this clamped range.
+    let f = math::exp_in_range(math::clamp(o, LOG_F_MIN, LOG_F_MAX));
     if o.is_nan() {
         0.0
     } else {
-        math::exp(math::clamp(o, LOG_F_MIN, LOG_F_MAX))
+        f
     }
 }
 
@@ -346,41 +362,75 @@ mod batch {
 
         /// [`NeuralMaterial::eval`] of lanes `a .. b` (at most [`CHUNK`]).
         #[inline(always)]
-        fn eval_chunk(&self, args: &EvalArgs<'_>, out: &mut RgbMut<'_>, a: usize, b: usize) {
+        fn eval_chunk(
+            &self,
+            args: &EvalArgs<'_>,
+            out: &mut RgbMut<'_>,
+            (a, b): (usize, usize),
+            s: &mut Scratch,
+        ) {
             let w = &self.params;
             let m = b - a;
-            let mut x: Soa<DECODER_INPUTS, CHUNK> = [[0.0; CHUNK]; DECODER_INPUTS];
-            let mut valid = [false; CHUNK];
-            for l in 0..m {
-                let i = a + l;
-                if let Some(v) = decoder_input(&args.phi.at(i), args.wi.at(i), args.wo.at(i)) {
-                    for (k, e) in v.iter().enumerate() {
-                        x[k][l] = *e;
-                    }
-                    valid[l] = true;
+            let Scratch { x, valid, h, g, o } = s;
+            encode_chunk(args, a, b, x, valid);
+            let relu = Activation::Relu;
+            dense::dense(w, L0 as u32, x, relu, h, m);
+            dense::dense(w, L1 as u32, h, relu, g, m);
+            dense::dense(w, L2 as u32, g, relu, h, m);
+            dense::dense(w, L3 as u32, h, Activation::Identity, o, m);
+            // Per channel over the lanes, without branches: the exponentials vectorise.
+            let channels = [&mut *out.r, &mut *out.g, &mut *out.b];
+            for (dst, o) in channels.into_iter().zip(o.iter()) {
+                for ((d, y), ok) in dst[a..b].iter_mut().zip(&o[..m]).zip(&valid[..m]) {
+                    let f = output_to_brdf(*y);
+                    *d = if *ok { f } else { 0.0 };
                 }
             }
-            let mut h: Soa<DECODER_HIDDEN, CHUNK> = [[0.0; CHUNK]; DECODER_HIDDEN];
-            let mut g: Soa<DECODER_HIDDEN, CHUNK> = [[0.0; CHUNK]; DECODER_HIDDEN];
-            let mut o: Soa<DECODER_OUTPUTS, CHUNK> = [[0.0; CHUNK]; DECODER_OUTPUTS];
-            let relu = Activation::Relu;
-            dense::dense(w, L0 as u32, &x, relu, &mut h, m);
-            dense::dense(w, L1 as u32, &h, relu, &mut g, m);
-            dense::dense(w, L2 as u32, &g, relu, &mut h, m);
-            dense::dense(w, L3 as u32, &h, Activation::Identity, &mut o, m);
-            for l in 0..m {
-                let f = |c: usize| {
-                    if valid[l] {
-                        output_to_brdf(o[c][l])
-                    } else {
-                        0.0
-                    }
-                };
-                out.r[a + l] = f(0);
-                out.g[a + l] = f(1);
-                out.b[a + l] = f(2);
+        }
+    }
+
+    /// [`decoder_input`] of lanes `a .. b` into `x`, with `valid[l]` whether lane `a + l` is
+    /// accepted (its inputs are then exactly [`decoder_input`]'s; a refused lane's are
+    /// meaningless and its outputs are not read). Channel by channel and lane by lane
+    /// without branches, so that the loops vectorise.
+    #[inline(always)]
+    fn encode_chunk(
+        args: &EvalArgs<'_>,
+        a: usize,
+        b: usize,
+        x: &mut Soa<DECODER_INPUTS, CHUNK>,
+        valid: &mut [bool; CHUNK],
+    ) {
+        let m = b - a;
+        let valid = &mut valid[..m];
+        valid.fill(true);
+        for (xk, c) in x.iter_mut().zip(&args.phi.channels) {
+            let c = &c[a..b];
+            xk[..m].copy_from_slice(c);
+            for (v, p) in valid.iter_mut().zip(c) {
+                *v &= math::is_finite(*p);
             }
         }
+        let (wi, wo) = (&args.wi, &args.wo);
+        let lanes = (wi.x[a..b].iter().zip(&wi.y[a..b]).zip(&wi.z[a..b]))
+            .zip(wo.x[a..b].iter().zip(&wo.y[a..b]).zip(&wo.z[a..b]));
+        for (l, (((ix, iy), iz), ((ox, oy), oz))) in lanes.enumerate() {
+            let (d, ok) = direction_inputs(Vec3::new(*ix, *iy, *iz), Vec3::new(*ox, *oy, *oz));
+            for (k, e) in d.iter().enumerate() {
+                x[FEATURE_DIM + k][l] = *e;
+            }
+            valid[l] &= ok;
+        }
+    }
+
+    /// One chunk's activations, initialised once per call and reused by its chunks: the
+    /// kernel writes every lane it reads.
+    struct Scratch {
+        x: Soa<DECODER_INPUTS, CHUNK>,
+        valid: [bool; CHUNK],
+        h: Soa<DECODER_HIDDEN, CHUNK>,
+        g: Soa<DECODER_HIDDEN, CHUNK>,
+        o: Soa<DECODER_OUTPUTS, CHUNK>,
     }
 
     /// The inputs of [`NeuralMaterial::eval_batch`].
@@ -408,10 +458,17 @@ mod batch {
                 wo: self.wo,
             };
             let n = args.wi.len();
+            let mut s = Scratch {
+                x: [[0.0; CHUNK]; DECODER_INPUTS],
+                valid: [false; CHUNK],
+                h: [[0.0; CHUNK]; DECODER_HIDDEN],
+                g: [[0.0; CHUNK]; DECODER_HIDDEN],
+                o: [[0.0; CHUNK]; DECODER_OUTPUTS],
+            };
             let mut a = 0;
             while a < n {
                 let b = if n - a > CHUNK { a + CHUNK } else { n };
-                self.m.eval_chunk(&args, &mut self.out, a, b);
+                self.m.eval_chunk(&args, &mut self.out, (a, b), &mut s);
                 a = b;
             }
         }

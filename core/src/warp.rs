@@ -80,22 +80,28 @@ impl Frame {
 #[inline]
 #[must_use]
 pub fn upper_hemisphere(w: Vec3) -> Option<Vec3> {
-    let len2 = w.x * w.x + w.y * w.y + w.z * w.z;
-    if !(len2 > 0.0) || !math::is_finite(len2) {
-        return None;
-    }
-    // Directions that are already unit length to rounding are used as given: renormalising
-    // them would move a sampled direction by an ulp and change its density slightly.
-    let w = if math::abs(len2 - 1.0) <= 4.0 * f32::EPSILON {
-        w
-    } else {
-        w * (1.0 / math::sqrt(len2))
-    };
-    if w.z > MIN_COS_THETA && math::is_finite(w.z) {
+    let (w, ok) = upper_hemisphere_lane(w);
+    if ok {
         Some(w)
     } else {
         None
     }
+}
+
+/// [`upper_hemisphere`] without branches, so that a loop of it over lanes vectorises: the
+/// direction it gives and whether it accepts `w` (the direction is meaningless, possibly NaN,
+/// where it does not).
+#[inline(always)]
+#[must_use]
+pub fn upper_hemisphere_lane(w: Vec3) -> (Vec3, bool) {
+    let len2 = w.x * w.x + w.y * w.y + w.z * w.z;
+    let ok = (len2 > 0.0) & math::is_finite(len2);
+    // Directions that are already unit length to rounding are used as given: renormalising
+    // them would move a sampled direction by an ulp and change its density slightly.
+    let unit = math::abs(len2 - 1.0) <= 4.0 * f32::EPSILON;
+    let scale = 1.0 / math::sqrt(len2);
+    let w = if unit { w } else { w * scale };
+    (w, ok & (w.z > MIN_COS_THETA) & math::is_finite(w.z))
 }
 
 /// Projected-disk point of a local direction: `(w.x, w.y)`.

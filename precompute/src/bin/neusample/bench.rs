@@ -27,7 +27,8 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',')]
     methods: Vec<String>,
     /// Instead of the report, run only the batched hot path of `--methods` for this many
-    /// seconds each (for a sampling profiler such as `perf record`).
+    /// seconds each (for a sampling profiler such as `perf record`); the method `material`
+    /// is the neural material's batched eval.
     #[arg(long, value_name = "SECONDS")]
     profile_seconds: Option<f64>,
     /// Machine-readable output (`BenchReport` in `precompute/src/jobs/bench.rs`).

@@ -121,9 +121,74 @@ pub struct DenseThroughput {
     pub peak_gmacs_x86_v3: Option<f64>,
 }
 
+/// The machine a report was measured on.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Machine {
+    /// The CPU's model name (Linux's `/proc/cpuinfo`), or the architecture where unknown.
+    pub cpu: String,
+    /// The architecture (`x86_64`, `aarch64`).
+    pub arch: String,
+    /// The vector extensions the CPU reports that the runtime's kernels may use.
+    pub features: Vec<String>,
+    /// Logical CPUs (the bench uses one thread).
+    pub threads: usize,
+}
+
+impl Machine {
+    /// This machine.
+    #[must_use]
+    pub fn this() -> Self {
+        let cpu = std::fs::read_to_string("/proc/cpuinfo")
+            .ok()
+            .and_then(|s| {
+                s.lines()
+                    .find(|l| l.starts_with("model name"))
+                    .and_then(|l| l.split_once(':'))
+                    .map(|(_, v)| v.trim().to_string())
+            })
+            .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+        #[allow(unused_mut)]
+        let mut features = Vec::new();
+        #[cfg(target_arch = "x86_64")]
+        for (name, has) in [
+            ("avx2", std::arch::is_x86_feature_detected!("avx2")),
+            ("fma", std::arch::is_x86_feature_detected!("fma")),
+            ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
+        ] {
+            if has {
+                features.push(name.to_string());
+            }
+        }
+        #[cfg(target_arch = "aarch64")]
+        if std::arch::is_aarch64_feature_detected!("neon") {
+            features.push("neon".to_string());
+        }
+        Self {
+            cpu,
+            arch: std::env::consts::ARCH.to_string(),
+            features,
+            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        }
+    }
+
+    /// `"AMD EPYC (x86_64: avx2 fma), 2 threads"`.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({}: {}), {} threads",
+            self.cpu,
+            self.arch,
+            self.features.join(" "),
+            self.threads
+        )
+    }
+}
+
 /// Everything `neusample bench` measures (`--json`).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct BenchReport {
+    /// Where it was measured.
+    pub machine: Machine,
     /// The blob folder.
     pub blobs: String,
     /// The neural material.
@@ -535,6 +600,7 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
         }
     }
     Ok(BenchReport {
+        machine: Machine::this(),
         blobs: cfg.blobs.display().to_string(),
         material: cfg.material.display().to_string(),
         isa: wavefront::current_isa().name().to_string(),
@@ -558,6 +624,9 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
     })
 }
 
+/// The `--methods` name of the neural material in a profiling run ([`profile`]).
+pub const PROFILE_MATERIAL: &str = "material";
+
 /// Refuses a method name that is no sampler kind's.
 fn check_methods(cfg: &BenchConfig) -> Result<()> {
     let names = neusample::SamplerKind::ALL.map(neusample::SamplerKind::name);
@@ -571,16 +640,40 @@ fn check_methods(cfg: &BenchConfig) -> Result<()> {
 /// `cfg.methods` (at least one), `prepare`, `sample` and `pdf` over the bench's conditions,
 /// repeated for `seconds` per method and nothing else, so that a sampling profiler (`perf
 /// record -g -- neusample bench --methods M --profile-seconds S`) sees only the hot path.
+/// The method [`PROFILE_MATERIAL`] profiles the neural material's batched `eval` at N = 64.
 /// Returns the passes made per method.
 pub fn profile(cfg: &BenchConfig, seconds: f64) -> Result<Vec<(String, usize)>> {
     if cfg.methods.is_empty() {
         bail!("a profile needs --methods");
     }
-    check_methods(cfg)?;
+    let samplers = BenchConfig {
+        methods: (cfg.methods.iter())
+            .filter(|m| *m != PROFILE_MATERIAL)
+            .cloned()
+            .collect(),
+        ..cfg.clone()
+    };
+    if !samplers.methods.is_empty() {
+        check_methods(&samplers)?;
+    }
     let inp = Inputs::cycling(&read_conditions(&cfg.blobs)?, cfg.lanes_per_pass.max(1));
     let rows = Rows::new(&inp);
     let mut done = Vec::new();
     for method in &cfg.methods {
+        if method == PROFILE_MATERIAL {
+            let bytes = std::fs::read(&cfg.material)
+                .with_context(|| format!("reading {}", cfg.material.display()))?;
+            let blob = Blob::open(&bytes).with_context(|| cfg.material.display().to_string())?;
+            let m = (blob.neural_material()).with_context(|| cfg.material.display().to_string())?;
+            let start = std::time::Instant::now();
+            let mut passes = 0;
+            while start.elapsed().as_secs_f64() < seconds {
+                eval_batch_ns(&m, &rows, 64, 1);
+                passes += 1;
+            }
+            done.push((method.clone(), passes));
+            continue;
+        }
         let path = cfg.blobs.join(format!("{method}.nsb"));
         let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
         let blob = Blob::open(&bytes).with_context(|| path.display().to_string())?;
@@ -613,6 +706,7 @@ pub fn text(r: &BenchReport) -> String {
         "neusample bench — {} (instruction set: {}), ns per shading point, single thread, medians",
         r.blobs, r.isa
     );
+    let _ = writeln!(s, "machine: {}", r.machine.describe());
     let _ = writeln!(
         s,
         "\n{:<18} {:>24} | {:>26} | {:>8} {:>8} {:>8} {:>8} | {:>9}",
