@@ -11,7 +11,7 @@
 //! deterministic.
 
 use super::lanes::V8;
-#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
 use super::simd::{self, Isa};
 use crate::nn::Activation;
 use crate::weights::Weights;
@@ -181,9 +181,22 @@ fn product<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
             }
             None => false,
         },
-        Isa::Portable => false,
+        Isa::Portable | Isa::Neon => false,
     };
-    #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
+    // 6 outputs × 4 vectors: 24 accumulators, 4 inputs and the weight in NEON's 32 registers.
+    #[cfg(target_arch = "aarch64")]
+    let done = match (simd::current(), pulp::aarch64::Neon::try_new()) {
+        (Isa::Neon, Some(s)) => {
+            s.vectorize(Tiled::<_, W, I, O, B, 6, 4> {
+                s,
+                args: &args,
+                y: &mut *y,
+            });
+            true
+        }
+        _ => false,
+    };
+    #[cfg(not(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64")))]
     let done = false;
     if !done {
         // The activation in a pass of its own, not a run-time `match` per value inside the
@@ -226,7 +239,10 @@ impl<W: Weights + ?Sized, const I: usize, const B: usize> Args<'_, W, I, B> {
         {
             Some(s) => {
                 for (t, row) in tile.iter_mut().zip(s.chunks_exact(O)) {
-                    if let Some(r) = row.get(j0..j0 + cols) {
+                    // A whole tile row is a copy of known length (moves, not a `memcpy` call).
+                    if let Some(r) = row.get(j0..j0 + J) {
+                        t.copy_from_slice(r);
+                    } else if let Some(r) = row.get(j0..j0 + cols) {
                         t[..cols].copy_from_slice(r);
                     }
                 }
@@ -306,7 +322,7 @@ fn portable<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>
 }
 
 /// A vector instruction set's fused multiply-add on `LANES` f32 lanes (a `pulp` token).
-#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
 trait Fma: Copy {
     /// The vector.
     type V: Copy;
@@ -409,9 +425,54 @@ mod x86 {
     }
 }
 
+#[cfg(target_arch = "aarch64")]
+mod neon {
+    use super::Fma;
+    use crate::nn::Activation;
+    use pulp::aarch64::Neon;
+    use pulp::f32x4;
+
+    impl Fma for Neon {
+        type V = f32x4;
+        const LANES: usize = 4;
+        #[inline(always)]
+        fn splat(self, x: f32) -> f32x4 {
+            self.splat_f32x4(x)
+        }
+        #[inline(always)]
+        fn load(self, s: &[f32], at: usize) -> f32x4 {
+            match s.get(at..at + 4).and_then(|h| <[f32; 4]>::try_from(h).ok()) {
+                Some(a) => pulp::cast(a),
+                None => self.splat_f32x4(0.0),
+            }
+        }
+        #[inline(always)]
+        fn store(self, v: f32x4, s: &mut [f32], at: usize) {
+            if let Some(h) = s.get_mut(at..at + 4) {
+                h.copy_from_slice(&pulp::cast::<f32x4, [f32; 4]>(v));
+            }
+        }
+        #[inline(always)]
+        fn fma(self, a: f32x4, b: f32x4, c: f32x4) -> f32x4 {
+            self.mul_add_f32x4(a, b, c)
+        }
+        /// Per lane with [`Activation::apply`]'s comparisons (NEON's `fmax` would keep a
+        /// NaN that ReLU maps to 0); the compiler keeps it in vector registers.
+        #[inline(always)]
+        fn act(self, act: Activation, v: f32x4) -> f32x4 {
+            match act {
+                Activation::Relu | Activation::LeakyRelu => {
+                    pulp::cast(pulp::cast::<f32x4, [f32; 4]>(v).map(|x| act.apply(x)))
+                }
+                _ => v,
+            }
+        }
+    }
+}
+
 /// The product in register tiles of `J` outputs × `NV` vectors of lanes, with fused
 /// multiply-adds of the token `S`.
-#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
 struct Tiled<
     'a,
     S,
@@ -427,7 +488,7 @@ struct Tiled<
     y: &'a mut [[f32; B]; O],
 }
 
-#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
 impl<
         S: Fma,
         W: Weights + ?Sized,
@@ -471,7 +532,7 @@ impl<
 
 /// Outputs `j0 .. j0 + J` of every tile of lanes up to `m`: tiles of `NV` vectors, then one
 /// vector at a time for what is left.
-#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
 #[inline(always)]
 fn block<
     S: Fma,
@@ -502,7 +563,7 @@ fn block<
 }
 
 /// One register tile: outputs `j0 .. j0 + J`, lanes `b0 .. b0 + NV·LANES`.
-#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
 #[inline(always)]
 fn micro<
     S: Fma,

@@ -4,11 +4,13 @@
 //! into SIMD instructions. [`dispatch`] runs a kernel inside a function compiled for the
 //! best instruction set the CPU reports up to the kernel's [`Kernel::WIDEST`] (on x86-64,
 //! through `pulp`'s safe run-time detection: AVX-512 (x86-64-v4), else AVX2 + FMA
-//! (x86-64-v3)), or as compiled for the build's target (the portable path: SSE2 on x86-64, NEON on aarch64, simd128 where the
-//! build enables it, scalar elsewhere). The dense layers ([`super::dense`]) use fused
-//! multiply-adds on the x86-64 paths and separate ones on the portable path, so the paths
-//! agree within a tolerance, not bit for bit (`wavefront` documents it); each path is
-//! deterministic. This module and [`super::dense`] are the only ones that name `pulp`.
+//! (x86-64-v3)), or as compiled for the build's target (the portable path: SSE2 on x86-64,
+//! NEON on aarch64, simd128 where the build enables it, scalar elsewhere). On aarch64, where
+//! NEON is part of the target, [`Isa::Neon`] is that compiled code with the dense layers'
+//! own NEON tiles. The dense layers ([`super::dense`]) use fused multiply-adds on the x86-64
+//! and NEON paths and separate ones on the portable path, so the paths agree within a
+//! tolerance, not bit for bit (`wavefront` documents it); each path is deterministic. This
+//! module and [`super::dense`] are the only ones that name `pulp`.
 
 use core::sync::atomic::{AtomicU8, Ordering};
 
@@ -22,25 +24,41 @@ pub enum Isa {
     X86V3,
     /// x86-64-v4: AVX-512 F/BW/CD/DQ/VL on top of x86-64-v3 (chosen at run time).
     X86V4,
+    /// aarch64 with NEON (Advanced SIMD, part of every aarch64 target): fused multiply-add
+    /// tiles in the dense layers.
+    Neon,
 }
 
 impl Isa {
-    /// Its short name (`portable`, `x86-64-v3`, `x86-64-v4`).
+    /// Its short name (`portable`, `x86-64-v3`, `x86-64-v4`, `aarch64-neon`).
     #[must_use]
     pub const fn name(self) -> &'static str {
         match self {
             Isa::Portable => "portable",
             Isa::X86V3 => "x86-64-v3",
             Isa::X86V4 => "x86-64-v4",
+            Isa::Neon => "aarch64-neon",
         }
     }
 
-    /// Every instruction set, from the portable path up.
-    pub const ALL: [Isa; 3] = [Isa::Portable, Isa::X86V3, Isa::X86V4];
+    /// Every instruction set: the portable path, then each architecture's from the
+    /// narrowest up (a later one of an architecture includes the earlier ones).
+    pub const ALL: [Isa; 4] = [Isa::Portable, Isa::X86V3, Isa::X86V4, Isa::Neon];
 
-    /// Its place in [`Isa::ALL`] (a later one includes the earlier ones).
-    const fn rank(self) -> u8 {
-        self as u8
+    /// Whether this CPU runs it.
+    #[must_use]
+    pub fn is_available(self) -> bool {
+        match self {
+            Isa::Portable => true,
+            #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+            Isa::X86V3 => pulp::x86::V3::is_available(),
+            #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+            Isa::X86V4 => pulp::x86::V4::is_available(),
+            #[cfg(target_arch = "aarch64")]
+            Isa::Neon => pulp::aarch64::Neon::is_available(),
+            #[allow(unreachable_patterns)]
+            _ => false,
+        }
     }
 }
 
@@ -53,13 +71,9 @@ static PREFERRED: AtomicU8 = AtomicU8::new(AUTO);
 /// The best instruction set this CPU supports.
 #[must_use]
 pub fn detected() -> Isa {
-    #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
-    {
-        if pulp::x86::V4::is_available() {
-            return Isa::X86V4;
-        }
-        if pulp::x86::V3::is_available() {
-            return Isa::X86V3;
+    for isa in [Isa::X86V4, Isa::X86V3, Isa::Neon] {
+        if isa.is_available() {
+            return isa;
         }
     }
     Isa::Portable
@@ -67,8 +81,8 @@ pub fn detected() -> Isa {
 
 /// Makes the batched kernels of this process run with `isa` (for benchmarks and tests that
 /// compare instruction sets), or with the best detected one for `None`. An `isa` the CPU
-/// does not support is ignored (the best supported one below it is used). Returns the
-/// instruction set now in use.
+/// does not support is ignored (the best supported one is used). Returns the instruction
+/// set now in use.
 pub fn prefer(isa: Option<Isa>) -> Isa {
     PREFERRED.store(
         match isa {
@@ -83,11 +97,10 @@ pub fn prefer(isa: Option<Isa>) -> Isa {
 /// The instruction set the batched kernels run with now.
 #[must_use]
 pub fn current() -> Isa {
-    let best = detected();
     let p = PREFERRED.load(Ordering::Relaxed);
-    match Isa::ALL.iter().find(|i| i.rank() == p) {
-        Some(&i) if i.rank() < best.rank() => i,
-        _ => best,
+    match Isa::ALL.into_iter().find(|i| *i as u8 == p) {
+        Some(i) if i.is_available() => i,
+        _ => detected(),
     }
 }
 
@@ -141,7 +154,9 @@ pub(crate) fn dispatch<K: Kernel>(k: K) -> K::Output {
                 return v3.vectorize(Job(k));
             }
         }
-        Isa::Portable => {}
+        Isa::Portable | Isa::Neon => {}
     }
+    // aarch64: NEON is part of the target, so the code as compiled is the NEON path; only
+    // the dense layers choose between their tiles.
     k.run()
 }
