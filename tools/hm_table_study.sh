@@ -1,5 +1,5 @@
 #!/bin/bash
-# The histogram mixture's table study (README, "The histogram mixture's tables"): trains the
+# The histogram mixture's table study (docs/results.md, "The histogram mixture's tables"): trains the
 # mixture with each table setting on three neural materials (one thread, seed 1, two runs at a
 # time), prints KL and χ² from each run's summary.json, then times each setting's blob on the
 # goat leather with `neusample bench` (three runs; run it on a quiet machine).

@@ -22,7 +22,7 @@ use crate::util::progress::stages_bar;
 
 /// How much longer than `neusample train`'s defaults the fixtures train the flow, the
 /// histogram mixture and the reparameterization sampler (warp and pdf network): all three are
-/// still improving at the default step counts (README, "Fits" and the reparameterization
+/// still improving at the default step counts (`docs/results.md`, "Fits" and the reparameterization
 /// ablation).
 pub const FIXTURE_SLOW_LEARNER_STEPS: usize = 3;
 

@@ -114,8 +114,8 @@ pub fn markdown(r: &Report) -> String {
         let _ = writeln!(
             s,
             "Paper: best method per material 1.28×–6.78×, mean 2.58×; flow 1.17–6.78×, histogram mixture 1.07–6.12×, cosine 0.05–0.88×. \
-             In brackets the 95 % interval (bootstrap over {} independent sample blocks per render, median of means; README \
-             \"Statistics\"). The best practical method (oracle excluded) is in bold when its interval clears every other \
+             In brackets the 95 % interval (bootstrap over {} independent sample blocks per render, median of means; \
+             docs/report_schema.md, \"Statistics\"). The best practical method (oracle excluded) is in bold when its interval clears every other \
              method's; otherwise the verdict column names the tie.\n",
             r.render.as_ref().map_or(0, |rs| rs.settings.blocks)
         );

@@ -13,7 +13,7 @@
 //!    convergence plots (Fig. 8), equal-time images (Figs. 1, 9) and the Table 2 speed-up
 //!    over the improved baseline.
 //!
-//! It writes `report.md`, `report.json` (schema in README.md and [`Report`]), `images/`,
+//! It writes `report.md`, `report.json` (schema in `docs/report_schema.md` and [`Report`]), `images/`,
 //! `plots/` and `blobs/` into the output folder, every file atomically.
 //!
 //! [`showcase`] is `neusample scene`: several neural materials in one scene, the baseline

@@ -1,4 +1,4 @@
-//! The schema of `report.json` (README.md documents it): typed, serialised and read back by
+//! The schema of `report.json` (`docs/report_schema.md` documents it): typed, serialised and read back by
 //! serde. Numbers that cannot be computed are written as `null` and read back as NaN
 //! ([`crate::util::json`]).
 
@@ -10,7 +10,7 @@ use crate::eval::{Cost, EvalCost, Fit, FitReport};
 use crate::util::json::{f64_or_nan, nan};
 use crate::util::stats::Estimate;
 
-/// Schema version of `report.json` (README.md documents it).
+/// Schema version of `report.json` (`docs/report_schema.md` documents it).
 pub const REPORT_SCHEMA: u32 = 4;
 
 /// Rendering results of one method on one material (see [`crate::eval::metrics`]).

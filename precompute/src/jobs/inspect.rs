@@ -1,5 +1,5 @@
 //! `inspect`: what a blob holds, as a typed description (`inspect --json`, schema in
-//! README.md) and as text.
+//! `docs/usage.md`) and as text.
 
 use std::fmt::Write as _;
 use std::path::Path;

@@ -152,7 +152,7 @@ pub struct HistogramMixture {
     /// Regression points per condition (half uniform on the disk, half from p*; even).
     pub points_per_condition: usize,
     /// Latent-code levels T of the baked tables (default 8: more levels bought little in the
-    /// README's table study, at T/8 times the bytes).
+    /// the table study in `docs/results.md`, at T/8 times the bytes).
     pub t_levels: usize,
     /// Cells per side N of the baked tables (default 64).
     pub res: usize,
@@ -169,7 +169,7 @@ pub struct HistogramMixture {
     pub output_scale: f32,
     /// Weight of the self-normalised NLL term (a KL(p* ‖ p) estimate) added to the paper's
     /// L2 loss; 0 gives the paper's objective (Eq. 7 + quantisation). The L2 loss ignores the
-    /// low-density tails, which the NLL term covers (`core/ARCHITECTURES.md` §6 and the README
+    /// low-density tails, which the NLL term covers (`core/ARCHITECTURES.md` §6 and `docs/performance.md`
     /// give the measured effect).
     pub nll_weight: f32,
     /// Initialise the condition network with every basis aligned to the mirror direction;

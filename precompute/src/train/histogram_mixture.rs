@@ -19,7 +19,7 @@
 //! poor ([`super::network_mean_kl`] measures it), so baking (T, N, interpolation,
 //! supersampling) is not what limits the model: the L2 loss is dominated by the peak of p*
 //! and leaves the tails, where KL(p* ‖ p) is decided, unfitted. The NLL term (normaliser by
-//! the balance heuristic, see `self_normalised_nll`) fits them; README.md gives the measured
+//! the balance heuristic, see `self_normalised_nll`) fits them; `docs/performance.md` gives the measured
 //! KL with and without it.
 //!
 //! Training aids that leave the model unchanged: the basis output is `S·softplus(z)` with a

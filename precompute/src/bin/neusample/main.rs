@@ -50,7 +50,7 @@ enum Command {
     Inspect {
         /// The blob file.
         blob: PathBuf,
-        /// Machine-readable output (schema in README.md).
+        /// Machine-readable output (schema in `docs/usage.md`).
         #[arg(long)]
         json: bool,
     },
