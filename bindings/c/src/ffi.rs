@@ -56,7 +56,7 @@ fn float_range(p: *const f32, n: usize, what: &'static str) -> Result<(usize, us
         return Err(CallError::Null(what));
     }
     let start = p as usize;
-    if start % core::mem::align_of::<f32>() != 0 {
+    if !start.is_multiple_of(core::mem::align_of::<f32>()) {
         return Err(CallError::Invalid(format!(
             "`{what}` is not aligned to 4 bytes"
         )));

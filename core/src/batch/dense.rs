@@ -144,7 +144,7 @@ fn product<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
     start: Start,
     act: Activation,
 ) {
-    const { assert!(B % TB == 0, "lane chunks are whole tiles") };
+    const { assert!(B.is_multiple_of(TB), "lane chunks are whole tiles") };
     let m = if m < B { m } else { B };
     let fuse = fused(act);
     let store_act = if fuse { act } else { Activation::Identity };

@@ -141,7 +141,7 @@ impl<'a> Blob<'a> {
                 .checked_mul(e.dtype.size())
                 .ok_or(Error::TensorBounds { role })?;
             let end = start.checked_add(len).ok_or(Error::TensorBounds { role })?;
-            if start % DATA_ALIGN != 0 || start < data_start || end > body {
+            if !start.is_multiple_of(DATA_ALIGN) || start < data_start || end > body {
                 return Err(Error::TensorBounds { role });
             }
             let data = &bytes[start..end];

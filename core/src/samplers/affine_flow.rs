@@ -215,10 +215,10 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
         let mut seen = [[0.0f32; 3]; AFFINE_LAYERS];
         let mut l = AFFINE_LAYERS - 1;
         while l > 0 {
-            let v = if l % 2 == 0 { y } else { x };
+            let v = if l.is_multiple_of(2) { y } else { x };
             let (s, t) = affine_params(&self.params.get(), l, &self.lane.share[l], v);
             seen[l] = [v, s, t];
-            if l % 2 == 0 {
+            if l.is_multiple_of(2) {
                 x = (x - t) * math::exp(-s);
             } else {
                 y = (y - t) * math::exp(-s);

@@ -140,7 +140,7 @@ impl Fabric {
     /// top thread `(cells before, float length)`.
     fn weave(w: Weave, i: u32, j: u32) -> (bool, u32, u32) {
         match w {
-            Weave::Plain => ((i + j) % 2 == 0, 0, 1),
+            Weave::Plain => ((i + j).is_multiple_of(2), 0, 1),
             Weave::Satin => {
                 // Weft floats over 4 of every 5 warp threads; the interlacing shifts by 2.
                 let k = (i + 5 - (2 * j) % 5) % 5; // position of i in the repeat

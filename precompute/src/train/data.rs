@@ -68,7 +68,7 @@ impl<'a> Pool<'a> {
 
     /// Replaces a quarter of the pool when `step` is a refresh step (not step 0).
     pub fn maybe_refresh(&mut self, step: usize) -> anyhow::Result<()> {
-        if self.refresh_every == 0 || step == 0 || step % self.refresh_every != 0 {
+        if self.refresh_every == 0 || step == 0 || !step.is_multiple_of(self.refresh_every) {
             return Ok(());
         }
         self.round += 1;

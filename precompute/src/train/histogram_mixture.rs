@@ -303,7 +303,7 @@ pub fn train(
     anyhow::ensure!(cfg.t_levels >= 2, "t_levels must be at least 2");
     anyhow::ensure!(cfg.res >= 1, "res must be at least 1");
     anyhow::ensure!(
-        cfg.points_per_condition >= 2 && cfg.points_per_condition % 2 == 0,
+        cfg.points_per_condition >= 2 && cfg.points_per_condition.is_multiple_of(2),
         "points_per_condition must be even (half uniform, half from p*)"
     );
     let device = train_device();
