@@ -1,15 +1,16 @@
 //! The only module that calls transcendental functions.
 //!
 //! Everything is `libm`'s single-precision functions (FreeBSD msun), which compile for every
-//! target this crate supports (x86-64, thumbv7em, wasm32 and SPIR-V through rust-gpu). Only
-//! functions that rust-gpu accepts are used: no `erf`, `hypot`, `lgamma`, `tgamma`, `scalbn` or
-//! `nextafter`.
+//! target this crate supports (x86-64, aarch64, thumbv7em, wasm32 and SPIR-V through
+//! rust-gpu). Only functions that rust-gpu accepts are used: no `erf`, `hypot`, `lgamma`,
+//! `tgamma`, `scalbn` or `nextafter`.
 //!
-//! On SIMD targets and GPUs ([`BRANCH_FREE`]) the hot path's functions (`exp`, `ln`, `ln_1p`,
-//! `sin_cos`, `tanh` and those built on them) run [`branch_free`] rewrites that give libm's
-//! results bit for bit without branches or calls, so that a loop of them over lanes
-//! vectorises and a batched path gives exactly the scalar path's numbers. Elsewhere they call
-//! libm: the same numbers in less code.
+//! On SIMD CPU targets ([`BRANCH_FREE`]; not SPIR-V, where the compiler maps libm's calls to
+//! GLSL.std.450 instructions) the hot path's functions (`exp`, `ln`, `ln_1p`, `sin_cos`,
+//! `tanh` and those built on them) run [`branch_free`] rewrites that give libm's results bit
+//! for bit without branches or calls, so that a loop of them over lanes vectorises and a
+//! batched path gives exactly the scalar path's numbers. Elsewhere they call libm: the same
+//! numbers in less code.
 
 // The batched path's fast approximations (not on GPUs, which have no batched path).
 #[cfg(not(target_arch = "spirv"))]
