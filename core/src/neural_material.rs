@@ -70,15 +70,12 @@ pub fn decoder_input(
 ) -> Option<[f32; DECODER_INPUTS]> {
     // Index loops, no slices or iterators: this compiles for rust-gpu.
     let (d, ok) = direction_inputs(wi, wo);
-    if !ok {
+    if !ok || !nn::features_finite(phi) {
         return None;
     }
     let mut x = [0.0f32; DECODER_INPUTS];
     let mut k = 0;
     while k < FEATURE_DIM {
-        if !math::is_finite(phi[k]) {
-            return None;
-        }
         x[k] = phi[k];
         k += 1;
     }

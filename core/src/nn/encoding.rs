@@ -56,14 +56,25 @@ pub fn encode_scalar<const B: usize, const N: usize>(x: f32, out: &mut [f32; N],
 #[must_use]
 pub fn check_condition(phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<Vec3> {
     let wi = warp::upper_hemisphere(wi)?;
+    if features_finite(phi) {
+        Some(wi)
+    } else {
+        None
+    }
+}
+
+/// Whether every feature of `phi` is finite.
+#[inline]
+#[must_use]
+pub(crate) fn features_finite(phi: &[f32; FEATURE_DIM]) -> bool {
     let mut k = 0;
     while k < FEATURE_DIM {
         if !crate::math::is_finite(phi[k]) {
-            return None;
+            return false;
         }
         k += 1;
     }
-    Some(wi)
+    true
 }
 
 /// The encoded condition for the lobe-mixture and flow networks (release layout):
