@@ -133,10 +133,10 @@ class Flags:
         dr.set_flag(dr.JitFlag.SymbolicCalls, self.saved[1])
 
 
-def timed_render(scene, spp, seed, evaluated=False):
+def timed_render(scene, spp, seed, evaluated=False, render=None):
     with Flags(evaluated):
         t = time.perf_counter()
-        img = mi.render(scene, spp=spp, seed=seed)
+        img = (render or mi.render)(scene, spp=spp, seed=seed)
         img = np.array(img, dtype=np.float64)
         return img, time.perf_counter() - t
 
@@ -251,16 +251,27 @@ def speed(a):
         # traced) and compiles them all: each scene lives only for its own render. Freed
         # instance slots are reused in the same order, so the kernels of the repeats are
         # the warm-up's (cache hits).
-        flags = mode != "symbolic"
+        # `jit-evaluated`: Mitsuba's default flags, `neusample.mitsuba.render` sets its own.
+        flags = mode == "evaluated"
         with Flags(flags):
             sc = mi.load_dict(d)
-        secs = timed_render(sc, spp, seed, evaluated=flags)[1]
+        secs = timed_render(sc, spp, seed, evaluated=flags,
+                            render=nsm.render if mode == "jit-evaluated" else None)[1]
         del sc
         gc.collect()
         return secs
 
-    for kind, m, mode, d in configs:  # warm-up: compile
+    compiled = {}
+    for kind, m, mode, d in configs:  # warm-up: compile (kernel history: size, LLVM time)
+        dr.set_flag(dr.JitFlag.KernelHistory, True)
+        dr.kernel_history()  # clears it
         run(d, mode, 0)
+        hist = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+        built = [k for k in hist if not k["cache_hit"] and not k["cache_disk"]]
+        compiled[(kind, m, mode)] = (
+            max((k["operation_count"] for k in hist), default=0),
+            sum(k["backend_time"] + k["codegen_time"] for k in built) / 1e3, len(built))
     times = {}
     for r in range(a.repeats):
         for kind, m, mode, d in configs:
@@ -288,11 +299,12 @@ def speed(a):
         "Python tracing of the plugin included (Mitsuba traces it again at every `mi.render`).",
         "The machine is shared with other jobs: compare within a row (ratios), not across runs.",
         "",
-        "**Dr.Jit, evaluated flags**: the symbolic plugin's Dr.Jit code run under the evaluated",
-        "mode's flags (Mitsuba then calls it once per bounce and BSDF with compacted, concrete",
-        "arrays, outside any symbolic call).",
+        "**`neusample.mitsuba.render`**: the same Dr.Jit plugin rendered under the evaluated",
+        "mode's flags for that call (Mitsuba then calls it once per bounce and BSDF with",
+        "compacted, concrete arrays, outside any symbolic call); for `roughconductor`, Mitsuba's",
+        "evaluated mode. Speed-ups are the evaluated Rust plugin's time ÷ the column's.",
         "",
-        "| scene | sampler | symbolic ns/sample | evaluated ns/sample | Dr.Jit, evaluated flags ns/sample | evaluated ÷ symbolic | evaluated ÷ Dr.Jit-evaluated | symbolic s/spp | sampler share (symbolic) |",
+        "| scene | sampler | symbolic ns/sample | `render` ns/sample | evaluated (Rust) ns/sample | symbolic speed-up | `render` speed-up | symbolic s/spp | sampler share (symbolic) |",
         "|---|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for kind in builders:
@@ -302,11 +314,30 @@ def speed(a):
             share = "—" if m in ("cosine", "roughconductor") else f"{max(s - cos, 0) / s * 100:.0f} %"
             if (kind, m, "jit-evaluated") in med:
                 j = med[(kind, m, "jit-evaluated")]
-                jcols = f"{ns((kind, m, 'jit-evaluated'))} | {e / s:.2f}× | {e / j:.2f}×"
-            else:
-                jcols = f"— | {e / s:.2f}× | —"
-            lines.append(f"| {kind} | {m} | {ns((kind, m, 'symbolic'))} | {ns((kind, m, 'evaluated'))} | "
-                         f"{jcols} | {s / spp:.4f} | {share} |")
+                cols = f"{ns((kind, m, 'jit-evaluated'))} | {ns((kind, m, 'evaluated'))} | {e / s:.2f}× | {e / j:.2f}×"
+            else:  # roughconductor: Mitsuba's evaluated mode in the `render` column
+                cols = f"{ns((kind, m, 'evaluated'))} | — | — | —"
+            lines.append(f"| {kind} | {m} | {ns((kind, m, 'symbolic'))} | {cols} | {s / spp:.4f} | {share} |")
+    lines += [
+        "",
+        "Compilation (the warm-up render of each configuration, Dr.Jit's kernel history): the",
+        "largest kernel's operation count and the LLVM time of the kernels not found in Dr.Jit's",
+        "cache (0 where the cache had them: run with an empty `~/.drjit` for cold figures).",
+        "",
+        "| scene | sampler | symbolic: ops, compile s | `render`: ops, compile s | evaluated (Rust): ops, compile s |",
+        "|---|---|---:|---:|---:|",
+    ]
+
+    def comp(k):
+        if k not in compiled:
+            return "—"
+        ops, secs, n = compiled[k]
+        return f"{ops}, {secs:.1f} ({n} kernels)"
+
+    for kind in builders:
+        for m in METHODS + ["roughconductor"]:
+            lines.append(f"| {kind} | {m} | {comp((kind, m, 'symbolic'))} | {comp((kind, m, 'jit-evaluated'))} | "
+                         f"{comp((kind, m, 'evaluated'))} |")
     lines += decoder_bench(a.repeats)
     lines += [
         "",
@@ -347,7 +378,7 @@ def decoder_bench(repeats, n=1 << 16):
         r = jit.eval(list(a[:8]), a[8:11], a[11:14])
         return r[0], r[1], r[2]
 
-    times = {"rust": [], "direct": [], "call": []}
+    times = {"rust": [], "direct": [], "call": [], "call-coop": []}
     for r in range(repeats + 1):
         phi = rng.normal(size=(8, n)).astype(np.float32)
         t = time.perf_counter()
@@ -363,20 +394,27 @@ def decoder_bench(repeats, n=1 << 16):
         t = time.perf_counter()
         np.array(dr.switch(dr.zeros(mi.UInt32, n), [f], *args)[0])
         times["call"].append(time.perf_counter() - t)
+        args = [x + 0.0 for x in args]
+        dr.eval(args)
+        nd.LITERAL_WEIGHTS_IN_SYMBOLIC_CALLS = False
+        t = time.perf_counter()
+        np.array(dr.switch(dr.zeros(mi.UInt32, n), [f], *args)[0])
+        times["call-coop"].append(time.perf_counter() - t)
+        nd.LITERAL_WEIGHTS_IN_SYMBOLIC_CALLS = True
     med = {k: statistics.median(v[1:]) / n * 1e9 for k, v in times.items()}  # first: compile
     return [
         "",
         f"The decoder alone ({n} lanes, median of {repeats}, goat leather): Rust batched kernel on one",
         f"thread {med['rust']:.0f} ns/lane; the Dr.Jit code on concrete arrays (both cores)",
-        f"{med['direct']:.0f} ns/lane; the same inside a symbolic call {med['call']:.0f} ns/lane.",
+        f"{med['direct']:.0f} ns/lane; inside a symbolic call (`dr.switch`) with literal weights, the",
+        f"plugin's path, {med['call']:.0f} ns/lane, with cooperative vectors there {med['call-coop']:.0f} ns/lane.",
         "Dr.Jit's LLVM fallback for cooperative vectors stores the input vector to the stack and",
         "loops over the weights; inside a call (Mitsuba's BSDF dispatch) it loads each weight with",
-        "a masked vector gather. On top, a call runs on whole 16-lane AVX-512 packets for every",
-        "instance present in the packet, and a symbolic loop keeps finished paths in their packet,",
-        "where the evaluated mode compacts the lanes per bounce and per BSDF. Together these make",
-        "the symbolic plugin slower than the evaluated one on this CPU; the built-in BSDFs alone",
-        "do gain from symbolic mode (`roughconductor` rows). Run under the evaluated flags, the",
-        "same Dr.Jit code avoids both and is the fastest configuration here.",
+        "a masked vector gather, which literal weights avoid. What remains of the symbolic mode's",
+        "cost: a call runs on whole packets for every instance present in the packet, and a",
+        "symbolic loop keeps finished paths in their packet, where the evaluated mode compacts",
+        "the lanes per bounce and per BSDF. The built-in BSDFs alone gain from symbolic mode",
+        "(`roughconductor` rows).",
     ]
 
 

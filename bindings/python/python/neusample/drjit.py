@@ -31,10 +31,11 @@ A sampler kind is one :class:`Kind` subclass (``prepare``, ``sample_point``, ``p
 and one entry of :data:`KIND_CLASSES`; the defensive mixture (α of version-2 blobs) wraps
 any of them (:class:`Sampler`).
 
-On the LLVM backend this code is correct but slower than the Rust runtime's SIMD kernels:
-Dr.Jit's CPU fallback for cooperative vectors evaluates a matrix product as a loop over the
-weights, and inside Mitsuba's BSDF calls it loads every weight with a vector gather
-(``docs/mitsuba_speed.md``).
+On the LLVM backend Dr.Jit's CPU fallback for cooperative vectors evaluates a matrix product
+as a loop over the weights, and inside a symbolic call (Mitsuba's BSDF dispatch) it would
+load every weight with a masked gather per lane: there the f32 networks are traced as fused
+multiply-adds with the weights as literal constants instead (:meth:`Mlp.literal`;
+``docs/mitsuba_speed.md``).
 """
 
 from __future__ import annotations
@@ -76,6 +77,11 @@ LOG_F_MIN, LOG_F_MAX = -20.0, 12.0
 # Sampler kinds implemented here: KIND_CLASSES / KINDS below (affine-flow and
 # direct-histogram, the paper's comparison baselines, stay on the Rust path).
 
+
+# Whether f32 networks traced inside a symbolic region on the LLVM backend take their
+# weights as literal constants (:meth:`Mlp.literal`); False keeps cooperative vectors there
+# (the comparison of ``examples/mitsuba_scene.py speed``).
+LITERAL_WEIGHTS_IN_SYMBOLIC_CALLS = True
 
 # --- types ----------------------------------------------------------------------------------
 
@@ -298,10 +304,10 @@ class Mlp:
                 mats += [w, b]
         self.end = at
         self.split = split
+        # Explicit sums with the weights as literal constants: the Float64 reference
+        # ("plain") and, on the LLVM backend, the f32 networks inside symbolic regions.
+        self.mats = [np.asarray(m, dtype=np.float64) for m in mats]
         if precision == "plain":
-            # Explicit sums with the weights as constants (any Float type, e.g. Float64: the
-            # reference the tests measure f32 rounding against; slow to trace).
-            self.mats = [np.asarray(m, dtype=np.float64) for m in mats]
             self.dtype = t.Float
             return
         T = t.TensorXf16 if precision == "f16" else t.TensorXf
@@ -312,19 +318,33 @@ class Mlp:
     def _vec(self, xs):
         return nn.CoopVec(*[self.dtype(x) for x in xs])
 
+    def literal(self) -> bool:
+        """Whether the networks traced now take their weights as literal constants: always
+        for ``"plain"``; for ``"f32"`` on the LLVM backend inside a symbolic region (a
+        Mitsuba BSDF call), where a cooperative vector's weights are loaded with a masked
+        gather per lane, and literals compile one kernel per material instance, as Mitsuba
+        compiles one callable per BSDF instance."""
+        return self.precision == "plain" or (
+            self.precision == "f32" and not self.t.cuda and LITERAL_WEIGHTS_IN_SYMBOLIC_CALLS
+            and dr.flag(dr.JitFlag.SymbolicScope))
+
     @staticmethod
-    def _plain(a, xs, b=None):
-        out = []
-        for o in range(a.shape[0]):
-            y = float(b[o]) if b is not None else 0.0
+    def _plain(a, xs, b=None, tile=8):
+        """``A x + b`` as fused multiply-adds with literal weights (as lists of Floats), a
+        tile of outputs at a time over the inputs (the order of the Rust kernel's tiles)."""
+        out = [float(b[o]) if b is not None else 0.0 for o in range(a.shape[0])]
+        for o0 in range(0, a.shape[0], tile):
             for i, x in enumerate(xs):
-                y = y + x * float(a[o, i])
-            out.append(y)
+                for o in range(o0, min(o0 + tile, a.shape[0])):
+                    w = float(a[o, i])
+                    if w != 0.0:
+                        out[o] = dr.fma(x, w, out[o])
         return out
 
     def first_share(self, xs):
-        """The first layer's condition share ``b + A[:, :split] x`` (a cooperative vector)."""
-        if self.precision == "plain":
+        """The first layer's condition share ``b + A[:, :split] x`` (a cooperative vector,
+        or a list of Floats where :meth:`literal`)."""
+        if self.literal():
             return self._plain(self.mats[0], xs, self.mats[2])
         return nn.matvec(self.views[0], self._vec(xs), self.views[2])
 
@@ -332,7 +352,7 @@ class Mlp:
         """``A_k x`` (plus bias ``b_bias``) with the ``k``-th packed matrix, as a list of
         Floats: one layer's pieces, for code that needs more than the forward pass (the
         reparameterization sampler's tangents pass each hidden layer without its bias)."""
-        if self.precision == "plain":
+        if self.literal():
             b = None if bias is None else self.mats[bias]
             return [self.t.Float(y) for y in self._plain(self.mats[k], xs, b)]
         b = None if bias is None else self.views[bias]
@@ -361,7 +381,7 @@ class Mlp:
         """The network on inputs ``xs`` (a list of Floats); hidden activations ``act``
         (``"relu"`` or ``"leaky"``), identity output. With ``share``, ``xs`` are the first
         layer's inputs after the split."""
-        if self.precision == "plain":
+        if self.literal():
             return self._call_plain(xs, act, share)
         v = self._vec(xs)
         k = 0
@@ -900,11 +920,13 @@ class Reparam(Kind):
         h = self.HIDDEN
         self.warp = Mlp(t, params, 0, [(32, h), (h, h), (h, 3)], precision, split=30)
         self.density = Mlp(t, params, self.warp.end, [(32, h), (h, 1)], precision, split=30)
-        # ∂(first layer)/∂z.k: the first layer's input row 30 + k (weights are input-major),
-        # as opaque values so that blobs of this kind share compiled kernels (as the packed
-        # matrices do).
-        const = float if precision == "plain" else (lambda x: dr.opaque(t.Float, float(x)))
-        self.rows = [[const(x) for x in params[(30 + k) * h:(31 + k) * h]] for k in range(2)]
+        # ∂(first layer)/∂z.k: the first layer's input row 30 + k (weights are input-major):
+        # literals where the networks' weights are, else opaque values so that blobs of this
+        # kind share compiled kernels (as the packed matrices do).
+        rows = [params[(30 + k) * h:(31 + k) * h] for k in range(2)]
+        self.literal_rows = [[float(x) for x in r] for r in rows]
+        self.opaque_rows = None if precision == "plain" else \
+            [[dr.opaque(t.Float, float(x)) for x in r] for r in rows]
 
     def prepare(self, phi, wi):
         wi, ok = check_condition(phi, wi)
@@ -918,7 +940,7 @@ class Reparam(Kind):
     def warp_at(self, st, zx, zy):
         """``T(z)``: the direction ``(vx, vy, vz)`` above the disk point ``(vx, vy)`` and
         ``det ∂T/∂z`` (signed), with the tangents ``∂/∂z.x``, ``∂/∂z.y`` carried alongside."""
-        r0, r1 = self.rows
+        r0, r1 = self.literal_rows if self.warp.literal() else self.opaque_rows
         h1, t0, t1 = [], [], []
         for j, s in enumerate(st[0]):
             y, d = silu_slope(s + zx * r0[j] + zy * r1[j])

@@ -11,11 +11,18 @@
         "material": "fixtures/materials/neural/goat_leather_neural.nsb",
         "sampler": "fixtures/blobs/goat_leather_neural/flow.nsb",   # optional: cosine
     })
+    # in a scene: img = neusample.mitsuba.render(scene, spp=16), the fastest path on a CPU
 
 Properties:
 
-``material`` (string, required)
+``material`` (string; this or ``bsdf``)
     A neural-material blob: the feature texture φ(uv) and the decoder giving the BRDF.
+``bsdf`` (nested BSDF; this or ``material``)
+    Any Mitsuba BSDF evaluated in place of a neural material (e.g. ``{"type": "measured",
+    "filename": "chm_mint_rgb.bsdf"}``): ``eval`` and the sample weight come from it, the
+    direction and the pdf from ``sampler`` with the condition φ = 0 (the samplers trained
+    on a measured material, whose p* has no latent). A user with an RGL file gets our
+    sampler in one line.
 ``sampler`` (string, optional)
     A sampler blob; without it, cosine-hemisphere sampling.
 ``uv_scale``, ``uv_offset`` (float, optional; 1 and 0)
@@ -23,11 +30,12 @@ Properties:
 ``mode`` (string, optional; ``"symbolic"``)
     ``"symbolic"``: the sampler and the material run as Dr.Jit code
     (:mod:`neusample.drjit`) traced into Mitsuba's own kernels, in its default symbolic
-    mode, on the LLVM and CUDA variants. ``"evaluated"``: whole wavefronts leave the kernel
-    for the Rust runtime (numpy round trip, any sampler kind); it needs
-    :func:`evaluated_mode`. The symbolic plugin works under those flags too, and on the
-    LLVM backend that is the fastest configuration: Dr.Jit's CPU code for cooperative
-    vectors is slow inside Mitsuba's symbolic calls (``docs/mitsuba_speed.md``).
+    mode, on the LLVM and CUDA variants (on LLVM, inside Mitsuba's symbolic calls, the
+    networks take their weights as literal constants: one compiled callable per instance).
+    ``"evaluated"``: whole wavefronts leave the kernel for the Rust runtime (numpy round
+    trip, any sampler kind); it needs :func:`evaluated_mode`. The symbolic plugin works
+    under those flags too, and on the LLVM backend that is the fastest configuration:
+    :func:`render` renders a scene that way (``docs/mitsuba_speed.md``).
 ``precision`` (string, optional; symbolic mode)
     The networks' arithmetic: ``"f32"`` (default on LLVM) or ``"f16"`` (default on CUDA,
     where cooperative vectors need it).
@@ -45,6 +53,8 @@ from __future__ import annotations
 import numpy as np
 
 from . import NeuralMaterial, Sampler
+
+FEATURE_DIM = 8  # φ: the condition's latent part (zero for a nested BSDF)
 
 _CLASSES: dict = {}
 
@@ -64,6 +74,27 @@ def evaluated_mode() -> None:
     dr.set_flag(dr.JitFlag.SymbolicCalls, False)
 
 
+def render(scene, *args, **kwargs):
+    """``mi.render(scene, …)`` on the fastest path for neusample BSDFs: on the LLVM
+    variants under Mitsuba's evaluated flags for this call only (the caller's flags are
+    restored after it, so other renders keep Mitsuba's default), elsewhere unchanged.
+
+    On a CPU the path integrator then calls each BSDF once per bounce with the lanes that
+    hit it, and the networks run as cooperative vectors on those lanes; in Mitsuba's
+    default symbolic mode every packet runs the callable of each instance present in it
+    and keeps finished paths, which costs more than the evaluated mode's kernel launches
+    for networks of this size (``docs/mitsuba_speed.md``). Mitsuba's own BSDFs in the scene
+    run evaluated too. Under a ``dr.scoped_set_flag`` of its own the caller decides."""
+    import drjit as dr
+    import mitsuba as mi
+
+    if not dr.is_jit_v(mi.Float) or dr.backend_v(mi.Float) != dr.JitBackend.LLVM:
+        return mi.render(scene, *args, **kwargs)
+    with dr.scoped_set_flag(dr.JitFlag.SymbolicLoops, False), \
+            dr.scoped_set_flag(dr.JitFlag.SymbolicCalls, False):
+        return mi.render(scene, *args, **kwargs)
+
+
 def _flat(x, n: int) -> np.ndarray:
     """One component of a Dr.Jit value (or a Python float) as a float32 vector of n lanes."""
     if hasattr(x, "numpy"):
@@ -73,6 +104,18 @@ def _flat(x, n: int) -> np.ndarray:
     if a.size == n:
         return a
     return np.full(n, a[0] if a.size else 0.0, dtype=np.float32)
+
+
+def _source(props):
+    """``(material path, nested BSDF)``: exactly one of the ``material`` and ``bsdf``
+    properties."""
+    has_material, has_bsdf = "material" in props, "bsdf" in props
+    if has_material == has_bsdf:
+        raise ValueError("neusample: give exactly one of 'material' (a neural-material blob) "
+                         "and 'bsdf' (a nested BSDF to evaluate)")
+    if has_bsdf:
+        return None, props["bsdf"]
+    return str(props["material"]), None
 
 
 def _width(*values) -> int:
@@ -118,8 +161,8 @@ def bsdf_class():
 
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
-            self.material_path = str(props["material"])
-            self.material = NeuralMaterial(self.material_path)
+            self.material_path, self.nested = _source(props)
+            self.material = None if self.nested is not None else NeuralMaterial(self.material_path)
             if "sampler" in props:
                 self.sampler_path = str(props["sampler"])
                 self.sampler = Sampler(self.sampler_path)
@@ -137,6 +180,8 @@ def bsdf_class():
             wi = np.stack([_flat(si.wi.x, n), _flat(si.wi.y, n), _flat(si.wi.z, n)])
             uv = np.stack([_flat(si.uv.x, n), _flat(si.uv.y, n)])
             uv = uv * np.float32(self.uv_scale) + np.float32(self.uv_offset)
+            if self.material is None:
+                return np.zeros((FEATURE_DIM, n), dtype=np.float32), wi
             phi = self.material.features(np.ascontiguousarray(uv, dtype=np.float32), threads=self.threads)
             return phi, wi
 
@@ -148,7 +193,11 @@ def bsdf_class():
             """The sampler's solid-angle pdf: the one helper `pdf` and `eval_pdf` share."""
             return self.sampler.pdf(phi, wi, wo, threads=self.threads)
 
-        def _f_cos(self, phi, wi, wo) -> np.ndarray:
+        def _f_cos(self, ctx, si, phi, wi, wo) -> np.ndarray:
+            if self.nested is not None:
+                n = wo.shape[1]
+                value = self.nested.eval(ctx, si, to_vec3(wo), True)
+                return np.stack([_flat(value[0], n), _flat(value[1], n), _flat(value[2], n)])
             f = self.material.eval(phi, wi, wo, threads=self.threads)
             return f * np.maximum(wo[2], 0.0)
 
@@ -158,7 +207,7 @@ def bsdf_class():
             phi, wi = self._inputs(si, n)
             u = np.stack([_flat(sample2.x, n), _flat(sample2.y, n)])
             wo, pdf = self.sampler.sample(phi, wi, u, threads=self.threads)
-            f_cos = self._f_cos(phi, wi, wo)
+            f_cos = self._f_cos(ctx, si, phi, wi, wo)
             ok = pdf > 0
             weight = np.where(ok, f_cos / np.where(ok, pdf, 1.0), 0.0).astype(np.float32)
             enabled = ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
@@ -179,7 +228,7 @@ def bsdf_class():
         def eval(self, ctx, si, wo, active=True):
             n = _width(si.wi, si.uv, wo)
             phi, wi = self._inputs(si, n)
-            value = to_color(self._f_cos(phi, wi, self._vec3(wo, n)).astype(np.float32))
+            value = to_color(self._f_cos(ctx, si, phi, wi, self._vec3(wo, n)).astype(np.float32))
             enabled = ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
             return dr.select(active & enabled, value, 0.0)
 
@@ -194,7 +243,7 @@ def bsdf_class():
             n = _width(si.wi, si.uv, wo)
             phi, wi = self._inputs(si, n)
             w = self._vec3(wo, n)
-            value = to_color(self._f_cos(phi, wi, w).astype(np.float32))
+            value = to_color(self._f_cos(ctx, si, phi, wi, w).astype(np.float32))
             pdf = to_float(self._pdf(phi, wi, w))
             enabled = ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
             return (
@@ -204,7 +253,7 @@ def bsdf_class():
 
         def to_string(self):
             return (
-                f"NeuSampleBSDF[material={self.material_path!r}, "
+                f"NeuSampleBSDF[material={self.material_path!r}, bsdf={self.nested}, "
                 f"sampler={self.sampler_path!r} ({self.sampler.kind})]"
             )
 
@@ -240,10 +289,11 @@ def symbolic_bsdf_class():
 
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
-            self.material_path = str(props["material"])
+            self.material_path, self.nested = _source(props)
             self.sampler_path = str(props["sampler"]) if "sampler" in props else None
             precision = str(props["precision"]) if "precision" in props else None
-            self.material = nd.NeuralMaterial(self.material_path, mi.Float, precision)
+            self.material = None if self.nested is not None else \
+                nd.NeuralMaterial(self.material_path, mi.Float, precision)
             self.sampler = nd.Sampler(self.sampler_path, mi.Float, precision)
             self.uv_scale = float(props["uv_scale"]) if "uv_scale" in props else 1.0
             self.uv_offset = float(props["uv_offset"]) if "uv_offset" in props else 0.0
@@ -251,11 +301,15 @@ def symbolic_bsdf_class():
             self.m_flags = flags
 
         def _features(self, si):
+            if self.material is None:
+                return [mi.Float(0.0) for _ in range(FEATURE_DIM)]
             u = si.uv.x * self.uv_scale + self.uv_offset
             v = si.uv.y * self.uv_scale + self.uv_offset
             return self.material.features(u, v)
 
-        def _f_cos(self, phi, si, wo):
+        def _f_cos(self, ctx, phi, si, wo):
+            if self.nested is not None:
+                return self.nested.eval(ctx, si, mi.Vector3f(wo[0], wo[1], wo[2]), True)
             f = self.material.eval(phi, si.wi, wo)
             c = dr.maximum(wo[2], 0.0)
             return mi.Color3f(f[0] * c, f[1] * c, f[2] * c)
@@ -272,7 +326,7 @@ def symbolic_bsdf_class():
             # differ for the reparameterization sampler: its warp's density and p̂).
             wo, pdf, valid, mis = self.sampler.sample_mis(st, ok, (sample2.x, sample2.y))
             valid = valid & active & ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
-            f_cos = self._f_cos(phi, si, wo)
+            f_cos = self._f_cos(ctx, phi, si, wo)
             bs = dr.zeros(mi.BSDFSample3f)
             bs.wo = mi.Vector3f(wo[0], wo[1], wo[2])
             bs.pdf = dr.select(valid, mis, 0.0)
@@ -285,7 +339,7 @@ def symbolic_bsdf_class():
         def eval(self, ctx, si, wo, active=True):
             enabled = active & ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
             w = (wo.x, wo.y, wo.z)
-            return dr.select(enabled, self._f_cos(self._features(si), si, w), 0.0)
+            return dr.select(enabled, self._f_cos(ctx, self._features(si), si, w), 0.0)
 
         def pdf(self, ctx, si, wo, active=True):
             enabled = active & ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
@@ -297,13 +351,13 @@ def symbolic_bsdf_class():
             w = (wo.x, wo.y, wo.z)
             phi = self._features(si)
             return (
-                dr.select(enabled, self._f_cos(phi, si, w), 0.0),
+                dr.select(enabled, self._f_cos(ctx, phi, si, w), 0.0),
                 dr.select(enabled, self._pdf(phi, si, w), 0.0),
             )
 
         def to_string(self):
             return (
-                f"NeuSampleJitBSDF[material={self.material_path!r}, "
+                f"NeuSampleJitBSDF[material={self.material_path!r}, bsdf={self.nested}, "
                 f"sampler={self.sampler_path!r} ({self.sampler.name}, α = {self.sampler.alpha})]"
             )
 
