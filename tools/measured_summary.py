@@ -1,7 +1,8 @@
 """Summarises a `neusample demo` report over measured materials against the data's own
 sampler (`measured-data`): per material, the best learned or analytic sampler by equal-time
 speed-up over the improved baseline, its equal-spp variance and equal-time speed-up relative
-to the data's sampler, and their KL / χ² to p*.
+to the data's sampler, and their KL / χ² to p*. On a report without the data's sampler (the
+neural route: the demo run on neural fits of the files) those columns read "—".
 
     python tools/measured_summary.py neusample-report/report.json
 """
@@ -29,15 +30,18 @@ def main(path):
         tied = [x["method"] for x in cands
                 if x is not best and not (x["render"]["speedup"]["hi"] < s["lo"])]
         among = "clear" if not tied else "tied with " + ", ".join(tied)
-        d = data["render"]["speedup"]
-        # Per-sample variance ratio at equal spp: variance_best / variance_data.
-        var_ratio = best["render"]["variance"]["value"] / data["render"]["variance"]["value"]
         v = m.get("verdict") or {}
         verdict = v.get("best", "") + (" (clear)" if v.get("clear") else
                                        " tied with " + ", ".join(v.get("tied_with", [])))
+        head = (f"| {m['material']} | {best['method']} | {among} | {s['value']:.2f}× [{s['lo']:.2f}–{s['hi']:.2f}] ")
+        if data is None:
+            print(head + f"| — | — | — | {best['kl_divergence']:.3f}, {best['chi2']:.3g} | — | {verdict} |")
+            continue
+        d = data["render"]["speedup"]
+        # Per-sample variance ratio at equal spp: variance_best / variance_data.
+        var_ratio = best["render"]["variance"]["value"] / data["render"]["variance"]["value"]
         print(
-            f"| {m['material']} | {best['method']} | {among} | {s['value']:.2f}× [{s['lo']:.2f}–{s['hi']:.2f}] "
-            f"| {var_ratio:.2f} | {s['value'] / d['value']:.2f} "
+            head + f"| {var_ratio:.2f} | {s['value'] / d['value']:.2f} "
             f"| {d['value']:.2f}× [{d['lo']:.2f}–{d['hi']:.2f}] "
             f"| {best['kl_divergence']:.3f}, {best['chi2']:.3g} | {data['kl_divergence']:.3f}, {data['chi2']:.3g} "
             f"| {verdict} |"
