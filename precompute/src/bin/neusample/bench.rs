@@ -19,6 +19,10 @@ pub struct BenchArgs {
     /// The neural material (`.nsb`); default: the committed goat leather.
     #[arg(long)]
     material: Option<PathBuf>,
+    /// A measured material (RGL `.bsdf`) whose eval and own sampler are measured too;
+    /// default: the committed mint (`fixtures/measured/chm_mint_rgb.bsdf`).
+    #[arg(long)]
+    measured: Option<PathBuf>,
     /// Fewer lanes and passes (a smoke run; noisier figures).
     #[arg(long)]
     quick: bool,
@@ -44,6 +48,9 @@ impl From<&BenchArgs> for BenchConfig {
         }
         if let Some(m) = &a.material {
             c.material = m.clone();
+        }
+        if let Some(m) = &a.measured {
+            c.measured = Some(m.clone());
         }
         c.methods.clone_from(&a.methods);
         if a.quick {

@@ -46,6 +46,8 @@ pub struct BenchConfig {
     pub passes: usize,
     /// Only these sampler methods (blob file stems); empty: every blob of the folder.
     pub methods: Vec<String>,
+    /// A measured material (RGL `.bsdf`) whose eval and own sampler are measured too.
+    pub measured: Option<PathBuf>,
 }
 
 impl BenchConfig {
@@ -59,6 +61,7 @@ impl BenchConfig {
             lanes_per_pass: 1 << 14,
             passes: 7,
             methods: Vec::new(),
+            measured: Some(root.join("measured/chm_mint_rgb.bsdf")),
         }
     }
 }
@@ -101,6 +104,22 @@ pub struct MaterialCost {
     pub eval_batch_ns: Vec<(usize, f64)>,
     /// `eval_batch` per batch size (portable).
     pub eval_batch_portable_ns: Vec<(usize, f64)>,
+}
+
+/// A measured material's figures (scalar: it has no batched path), ns per shading point,
+/// each with its own `prepare(wi)`.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct MeasuredCost {
+    /// The `.bsdf` file.
+    pub file: String,
+    /// `prepare` alone.
+    pub prepare_ns: f64,
+    /// `prepare` + `eval(wo)` (f, no cosine).
+    pub eval_ns: f64,
+    /// `prepare` + `pdf(wo)` of the data's sampler.
+    pub pdf_ns: f64,
+    /// `prepare` + `sample(u)` (direction, pdf and weight).
+    pub sample_ns: f64,
 }
 
 /// The dense layers' throughput.
@@ -199,6 +218,9 @@ pub struct BenchReport {
     pub methods: Vec<MethodCost>,
     /// The neural material.
     pub neural_material: MaterialCost,
+    /// The measured material (absent in reports written before it was measured).
+    #[serde(default)]
+    pub measured: Option<MeasuredCost>,
     /// The dense layers.
     pub dense: DenseThroughput,
     /// The histogram mixture's table layouts (when the folder has one).
@@ -545,6 +567,10 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
     let decoder_gmacs = DECODER_MACS / at(&eval_batch, 1024);
     let decoder_gmacs_portable = DECODER_MACS / at(&eval_portable, 1024);
     let peak = peak_gmacs(passes);
+    let measured = match &cfg.measured {
+        Some(path) => Some(measured_cost(path, &inp, passes)?),
+        None => None,
+    };
 
     // The samplers.
     let mut methods = Vec::new();
@@ -612,6 +638,7 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
             eval_batch_ns: eval_batch,
             eval_batch_portable_ns: eval_portable,
         },
+        measured,
         dense: DenseThroughput {
             decoder_gmacs,
             decoder_gmacs_portable,
@@ -621,6 +648,40 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
         },
         tables: table_layouts(cfg, &rows)?,
         library: library::run(cfg.lanes_per_pass, passes),
+    })
+}
+
+/// The measured material at `path` over the bench's conditions (their `wi`, `wo` and `u`).
+fn measured_cost(path: &Path, inp: &Inputs, passes: usize) -> Result<MeasuredCost> {
+    let data = neusample_owned::measured::OwnedMeasured::open(path)?;
+    let m = data.material();
+    let n = inp.conds.len();
+    let prepare_ns = time_per(passes, n, || {
+        for (_, wi) in &inp.conds {
+            black_box(m.prepare(*wi));
+        }
+    });
+    let eval_ns = time_per(passes, n, || {
+        for ((_, wi), wo) in inp.conds.iter().zip(&inp.wos) {
+            black_box(m.prepare(*wi).map(|p| p.eval(*wo)));
+        }
+    });
+    let pdf_ns = time_per(passes, n, || {
+        for ((_, wi), wo) in inp.conds.iter().zip(&inp.wos) {
+            black_box(m.prepare(*wi).map(|p| p.pdf(*wo)));
+        }
+    });
+    let sample_ns = time_per(passes, n, || {
+        for ((_, wi), u) in inp.conds.iter().zip(&inp.us) {
+            black_box(m.prepare(*wi).and_then(|p| p.sample(*u)));
+        }
+    });
+    Ok(MeasuredCost {
+        file: path.display().to_string(),
+        prepare_ns,
+        eval_ns,
+        pdf_ns,
+        sample_ns,
     })
 }
 
@@ -773,6 +834,13 @@ pub fn text(r: &BenchReport) -> String {
         fmt(&nm.eval_batch_ns),
         fmt(&nm.eval_batch_portable_ns)
     );
+    if let Some(mc) = &r.measured {
+        let _ = writeln!(
+            s,
+            "\nmeasured material {} (scalar, each with its prepare): prepare {:.0} ns, eval {:.0} ns, data's sampler pdf {:.0} ns, sample {:.0} ns",
+            mc.file, mc.prepare_ns, mc.eval_ns, mc.pdf_ns, mc.sample_ns
+        );
+    }
     let d = &r.dense;
     let _ = writeln!(
         s,
@@ -902,5 +970,19 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("--methods"), "{e}");
+    }
+
+    #[test]
+    fn the_measured_material_is_timed_and_a_bad_file_named() {
+        let cfg = BenchConfig::fixtures();
+        let inp = Inputs::cycling(&read_conditions(&cfg.blobs).unwrap(), 256);
+        let path = cfg.measured.expect("the default measures the mint");
+        let m = measured_cost(&path, &inp, 1).unwrap();
+        for v in [m.prepare_ns, m.eval_ns, m.pdf_ns, m.sample_ns] {
+            assert!(v.is_finite() && v > 0.0, "{m:?}");
+        }
+        let bad = path.with_file_name("no_such_rgb.bsdf");
+        let e = format!("{:#}", measured_cost(&bad, &inp, 1).unwrap_err());
+        assert!(e.contains("no_such_rgb.bsdf"), "{e}");
     }
 }
