@@ -329,16 +329,15 @@ class Mlp:
             and dr.flag(dr.JitFlag.SymbolicScope))
 
     @staticmethod
-    def _plain(a, xs, b=None, tile=8):
-        """``A x + b`` as fused multiply-adds with literal weights (as lists of Floats), a
-        tile of outputs at a time over the inputs (the order of the Rust kernel's tiles)."""
-        out = [float(b[o]) if b is not None else 0.0 for o in range(a.shape[0])]
-        for o0 in range(0, a.shape[0], tile):
+    def _plain(a, xs, b=None):
+        """``A x + b`` as fused multiply-adds with literal weights (a list of Floats): each
+        output from its bias over the inputs in order, as the Rust kernel accumulates."""
+        out = []
+        for o in range(a.shape[0]):
+            y = float(b[o]) if b is not None else 0.0
             for i, x in enumerate(xs):
-                for o in range(o0, min(o0 + tile, a.shape[0])):
-                    w = float(a[o, i])
-                    if w != 0.0:
-                        out[o] = dr.fma(x, w, out[o])
+                y = dr.fma(x, float(a[o, i]), y)
+            out.append(y)
         return out
 
     def first_share(self, xs):

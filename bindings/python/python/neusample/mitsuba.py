@@ -178,10 +178,10 @@ def bsdf_class():
         # -- conversions: one numpy round trip per call -----------------------------------
         def _inputs(self, si, n: int):
             wi = np.stack([_flat(si.wi.x, n), _flat(si.wi.y, n), _flat(si.wi.z, n)])
-            uv = np.stack([_flat(si.uv.x, n), _flat(si.uv.y, n)])
-            uv = uv * np.float32(self.uv_scale) + np.float32(self.uv_offset)
             if self.material is None:
                 return np.zeros((FEATURE_DIM, n), dtype=np.float32), wi
+            uv = np.stack([_flat(si.uv.x, n), _flat(si.uv.y, n)])
+            uv = uv * np.float32(self.uv_scale) + np.float32(self.uv_offset)
             phi = self.material.features(np.ascontiguousarray(uv, dtype=np.float32), threads=self.threads)
             return phi, wi
 
