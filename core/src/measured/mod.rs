@@ -37,6 +37,9 @@ use crate::error::{Error, Result};
 use crate::math::{self, PI};
 use crate::weights::Weights;
 
+#[cfg(not(target_arch = "spirv"))]
+mod batch;
+
 /// Largest table width or height a measured material may have.
 pub const MAX_TABLE_SIZE: u32 = 1024;
 
