@@ -441,3 +441,129 @@ fn bad_files_name_the_field() {
         .unwrap()
         .starts_with(MAGIC));
 }
+
+/// The batched path is the scalar path bit for bit on every committed file, over random
+/// directions and variates with bad lanes mixed in, at batch sizes that leave partial chunks.
+#[test]
+fn batched_is_scalar_bit_for_bit() {
+    use neusample::wavefront::{RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let n = 4099;
+    let mut dir = |i: usize| match i % 97 {
+        7 => Vec3::new(f32::NAN, 0.0, 1.0),
+        8 => Vec3::ZERO,
+        9 => Vec3::new(0.2, 0.3, -0.5),
+        10 => Vec3::new(0.0, 0.0, 1.0),
+        _ => {
+            let (a, b) = (next(), next());
+            let r = 0.999 * b.sqrt();
+            let phi = std::f32::consts::TAU * a;
+            Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - r * r).sqrt())
+        }
+    };
+    let wi: Vec<Vec3> = (0..n).map(&mut dir).collect();
+    let wo: Vec<Vec3> = (0..n).map(&mut dir).collect();
+    let u: Vec<Vec2> = (0..n)
+        .map(|i| match i % 89 {
+            3 => Vec2::new(1.0, 0.0),
+            4 => Vec2::new(f32::NAN, 0.5),
+            _ => Vec2::new(next(), next()),
+        })
+        .collect();
+    let col = |v: &[Vec3], k: usize| -> Vec<f32> { v.iter().map(|d| d[k]).collect() };
+    let (ix, iy, iz) = (col(&wi, 0), col(&wi, 1), col(&wi, 2));
+    let (ox, oy, oz) = (col(&wo, 0), col(&wo, 1), col(&wo, 2));
+    let ux: Vec<f32> = u.iter().map(|v| v.x).collect();
+    let uy: Vec<f32> = u.iter().map(|v| v.y).collect();
+    for file in FILES {
+        let m = open(file);
+        let mat = m.material();
+        let mut f = vec![vec![0.0f32; n]; 3];
+        let mut pdf = vec![0.0f32; n];
+        let mut s = vec![vec![0.0f32; n]; 7];
+        for batch in [1usize, 13, 64, 1000] {
+            for a in (0..n).step_by(batch) {
+                let b = (a + batch).min(n);
+                let wis = Vec3s {
+                    x: &ix[a..b],
+                    y: &iy[a..b],
+                    z: &iz[a..b],
+                };
+                let wos = Vec3s {
+                    x: &ox[a..b],
+                    y: &oy[a..b],
+                    z: &oz[a..b],
+                };
+                let [r, g, bl] = &mut f[..] else {
+                    unreachable!()
+                };
+                let out = RgbMut {
+                    r: &mut r[a..b],
+                    g: &mut g[a..b],
+                    b: &mut bl[a..b],
+                };
+                mat.eval_batch(wis, wos, out).unwrap();
+                mat.pdf_batch(wis, wos, &mut pdf[a..b]).unwrap();
+                let [x, y, z, p, wr, wg, wb] = &mut s[..] else {
+                    unreachable!()
+                };
+                let samples = SamplesMut {
+                    wo: Vec3sMut {
+                        x: &mut x[a..b],
+                        y: &mut y[a..b],
+                        z: &mut z[a..b],
+                    },
+                    pdf: &mut p[a..b],
+                };
+                let weight = RgbMut {
+                    r: &mut wr[a..b],
+                    g: &mut wg[a..b],
+                    b: &mut wb[a..b],
+                };
+                let us = Vec2s {
+                    x: &ux[a..b],
+                    y: &uy[a..b],
+                };
+                mat.sample_batch(wis, us, samples, weight).unwrap();
+            }
+            for i in 0..n {
+                let p = mat.prepare(wi[i]);
+                let want_f = p.as_ref().map_or([0.0; 3], |p| p.eval(wo[i]));
+                let want_pdf = p.as_ref().map_or(0.0, |p| p.pdf(wo[i]));
+                let got_f = [f[0][i], f[1][i], f[2][i]];
+                assert_eq!(
+                    got_f.map(f32::to_bits),
+                    want_f.map(f32::to_bits),
+                    "{file} eval {i}"
+                );
+                assert_eq!(pdf[i].to_bits(), want_pdf.to_bits(), "{file} pdf {i}");
+                let want = p
+                    .as_ref()
+                    .and_then(|p| p.sample(u[i]))
+                    .map_or([0.0; 7], |s| {
+                        [
+                            s.wo.x,
+                            s.wo.y,
+                            s.wo.z,
+                            s.pdf,
+                            s.weight[0],
+                            s.weight[1],
+                            s.weight[2],
+                        ]
+                    });
+                let got: [f32; 7] = std::array::from_fn(|k| s[k][i]);
+                assert_eq!(
+                    got.map(f32::to_bits),
+                    want.map(f32::to_bits),
+                    "{file} sample {i}"
+                );
+            }
+        }
+    }
+}

@@ -108,7 +108,7 @@ fn locate<W: Weights + ?Sized>(nodes: &W, p: f32) -> (u32, [f32; 2]) {
 
 /// `a + (b − a)·t`.
 #[inline(always)]
-fn lerp(a: f32, b: f32, t: f32) -> f32 {
+pub(crate) fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a + (b - a) * t
 }
 
@@ -274,7 +274,7 @@ fn search(last: u32, below: impl Fn(u32) -> bool) -> u32 {
 /// The position in a segment of `1 / inv_width` whose density goes linearly from `v0` to
 /// `v1`, at which its integral reaches `u`; in units of the segment.
 #[inline]
-fn sample_segment(u: f32, inv_width: f32, v0: f32, v1: f32) -> f32 {
+pub(crate) fn sample_segment(u: f32, inv_width: f32, v0: f32, v1: f32) -> f32 {
     let non_const = math::abs(v0 - v1) > 1e-4 * (v0 + v1);
     let divisor = if non_const { v0 - v1 } else { v0 + v1 };
     let mut s = u * (2.0 * inv_width);
@@ -289,7 +289,7 @@ fn sample_segment(u: f32, inv_width: f32, v0: f32, v1: f32) -> f32 {
 
 /// The integral of such a segment up to position `t` (in units of the segment).
 #[inline]
-fn invert_segment(t: f32, width: f32, v0: f32, v1: f32) -> f32 {
+pub(crate) fn invert_segment(t: f32, width: f32, v0: f32, v1: f32) -> f32 {
     t * lerp(v0, v1, 0.5 * t) * width
 }
 

@@ -445,6 +445,193 @@ pub fn sin_cos_fast(x: f32) -> (f32, f32) {
     }
 }
 
+// FreeBSD e_asinf.c: R(x²)'s coefficients.
+const ASIN_PS0: f32 = f32::from_bits(0x3e2a_aa75);
+const ASIN_PS1: f32 = f32::from_bits(0xbd2f_13ba);
+const ASIN_PS2: f32 = f32::from_bits(0xbc0d_d36b);
+const ASIN_QS1: f32 = f32::from_bits(0xbf34_e5ae);
+const PIO2_F64: f64 = core::f64::consts::FRAC_PI_2;
+
+/// √x in double precision (an LLVM intrinsic with `std`, so loops of it vectorise).
+#[inline(always)]
+fn sqrt_f64(x: f64) -> f64 {
+    #[cfg(feature = "std")]
+    {
+        x.sqrt()
+    }
+    #[cfg(not(feature = "std"))]
+    {
+        libm::sqrt(x)
+    }
+}
+
+/// libm's `R(z)` of `asinf`.
+#[inline(always)]
+fn asin_r(z: f32) -> f32 {
+    let p = z * (ASIN_PS0 + z * (ASIN_PS1 + z * ASIN_PS2));
+    let q = 1.0 + z * ASIN_QS1;
+    p / q
+}
+
+/// asin x: libm's `asinf` (FreeBSD e_asinf.c) bit for bit, for every `x`.
+#[inline(always)]
+#[must_use]
+pub fn asin(x: f32) -> f32 {
+    let hx = x.to_bits();
+    let ix = hx & 0x7fff_ffff;
+    // |x| < 0.5 (and x itself below 2⁻¹², where x·R(x²) vanishes against x).
+    let small = x + x * asin_r(x * x);
+    let small = if ix < 0x3980_0000 { x } else { small };
+    // 0.5 ≤ |x| < 1.
+    let z = (1.0 - abs(x)) * 0.5;
+    let s = sqrt_f64(z as f64);
+    let big = (PIO2_F64 - 2.0 * (s + s * (asin_r(z) as f64))) as f32;
+    let big = if hx >> 31 != 0 { -big } else { big };
+    // |x| = 1: ±π/2 (libm adds 2⁻¹²⁰ for inexactness, which rounds away).
+    let one = ((x as f64) * PIO2_F64 + f64::from_bits(0x3870_0000_0000_0000)) as f32;
+    if ix < 0x3f00_0000 {
+        small
+    } else if ix < 0x3f80_0000 {
+        big
+    } else if ix == 0x3f80_0000 {
+        one
+    } else {
+        f32::NAN
+    }
+}
+
+// FreeBSD s_atanf.c: atan of the reduction points (high and low parts) and the polynomial.
+const ATAN_HI: [f32; 4] = [
+    f32::from_bits(0x3eed_6338),
+    f32::from_bits(0x3f49_0fda),
+    f32::from_bits(0x3f7b_985e),
+    f32::from_bits(0x3fc9_0fda),
+];
+const ATAN_LO: [f32; 4] = [
+    f32::from_bits(0x31ac_3769),
+    f32::from_bits(0x3322_2168),
+    f32::from_bits(0x3314_0fb4),
+    f32::from_bits(0x33a2_2168),
+];
+const ATAN_T: [f32; 5] = [
+    f32::from_bits(0x3eaa_aaa9),
+    f32::from_bits(0xbe4c_ca98),
+    f32::from_bits(0x3e11_f50d),
+    f32::from_bits(0xbdda_1247),
+    f32::from_bits(0x3d7c_ac25),
+];
+
+/// atan x: libm's `atanf` (FreeBSD s_atanf.c) bit for bit, for every `x`.
+#[inline(always)]
+#[must_use]
+pub fn atan(x: f32) -> f32 {
+    let ix = x.to_bits() & 0x7fff_ffff;
+    let neg = x.to_bits() >> 31 != 0;
+    let ax = abs(x);
+    // The argument reductions of |x| ≥ 7/16, each computed, one chosen.
+    let (r, hi, lo) = if ix < 0x3f30_0000 {
+        ((2.0 * ax - 1.0) / (2.0 + ax), ATAN_HI[0], ATAN_LO[0])
+    } else if ix < 0x3f98_0000 {
+        ((ax - 1.0) / (ax + 1.0), ATAN_HI[1], ATAN_LO[1])
+    } else if ix < 0x401c_0000 {
+        ((ax - 1.5) / (1.0 + 1.5 * ax), ATAN_HI[2], ATAN_LO[2])
+    } else {
+        (-1.0 / ax, ATAN_HI[3], ATAN_LO[3])
+    };
+    let reduced = ix >= 0x3ee0_0000;
+    let v = if reduced { r } else { x };
+    let z = v * v;
+    let w = z * z;
+    let s1 = z * (ATAN_T[0] + w * (ATAN_T[2] + w * ATAN_T[4]));
+    let s2 = w * (ATAN_T[1] + w * ATAN_T[3]);
+    let plain = v - v * (s1 + s2);
+    let shifted = hi - ((v * (s1 + s2) - lo) - v);
+    let shifted = if neg { -shifted } else { shifted };
+    // |x| ≥ 2²⁶: ±(π/2 + 2⁻¹²⁰) rounded, NaN stays NaN.
+    let huge = ATAN_HI[3] + f32::from_bits(0x0380_0000);
+    let huge = if neg { -huge } else { huge };
+    if ix < 0x3980_0000 {
+        x
+    } else if !reduced {
+        plain
+    } else if ix < 0x4c80_0000 {
+        shifted
+    } else if ix > 0x7f80_0000 {
+        x
+    } else {
+        huge
+    }
+}
+
+/// atan2(y, x): libm's `atan2f` (FreeBSD e_atan2f.c) bit for bit, for every `(y, x)`.
+#[inline(always)]
+#[must_use]
+pub fn atan2(y: f32, x: f32) -> f32 {
+    const PI: f32 = f32::from_bits(0x4049_0fdb);
+    const PI_LO: f32 = f32::from_bits(0xb3bb_bd2e);
+    let (hx, hy) = (x.to_bits(), y.to_bits());
+    let m = ((hy >> 31) & 1) | ((hx >> 30) & 2);
+    let (ix, iy) = (hx & 0x7fff_ffff, hy & 0x7fff_ffff);
+    let half_pi = if m & 1 != 0 { -PI / 2.0 } else { PI / 2.0 };
+    // atan(|y/x|), 0 where |y/x| < 2⁻²⁶ and x < 0.
+    let z = atan(abs(y / x));
+    let z = if m & 2 != 0 && iy.wrapping_add(26 << 23) < ix {
+        0.0
+    } else {
+        z
+    };
+    // By the quadrant m = 2·sign(x) + sign(y), with selects (no switch: loops of this
+    // vectorise). Negating a difference is the reversed difference, bit for bit.
+    let neg_y = m & 1 != 0;
+    let neg_x = m & 2 != 0;
+    let sign = |v: f32| if neg_y { -v } else { v };
+    let general = sign(if neg_x { PI - (z - PI_LO) } else { z });
+    // y = 0 and x = ±∞ by the quadrant; both infinite: ±π/4, ±3π/4.
+    let on_axis = if neg_x { sign(PI) } else { y };
+    let x_inf = sign(if neg_x { PI } else { 0.0 });
+    let both_inf = sign(if neg_x { 3.0 * PI / 4.0 } else { PI / 4.0 });
+    if ix > 0x7f80_0000 || iy > 0x7f80_0000 {
+        x + y
+    } else if hx == 0x3f80_0000 {
+        // x = 1: libm's atan(y), which is z with y's sign (atan is odd bit for bit).
+        sign(z)
+    } else if iy == 0 {
+        on_axis
+    } else if ix == 0 {
+        half_pi
+    } else if ix == 0x7f80_0000 {
+        if iy == 0x7f80_0000 {
+            both_inf
+        } else {
+            x_inf
+        }
+    } else if ix.wrapping_add(26 << 23) < iy || iy == 0x7f80_0000 {
+        half_pi
+    } else {
+        general
+    }
+}
+
+/// ⌊x⌋: libm's `floorf` for every `x` (−0 stays −0).
+#[inline(always)]
+#[must_use]
+pub fn floor(x: f32) -> f32 {
+    // Below 2²³ in magnitude: truncate through an integer and step down below a negative x.
+    let t = (x as i32) as f32;
+    let f = if t > x { t - 1.0 } else { t };
+    // Keep the sign of zero (−0.5 → −1, −0 → −0).
+    let f = if f == 0.0 {
+        f32::from_bits(x.to_bits() & 0x8000_0000)
+    } else {
+        f
+    };
+    if abs(x) < 8_388_608.0 {
+        f
+    } else {
+        x
+    }
+}
+
 /// Softplus ln(1 + eˣ), [`super::softplus`]'s formula (`x` above 20, else
 /// `log1pf(expf(x))`) bit for bit, for every `x`.
 #[inline(always)]
@@ -759,6 +946,59 @@ pub(super) mod tests {
             domain,
             &edges,
         );
+    }
+
+    #[test]
+    fn asin_is_libm_asinf() {
+        let edges = [0.5, 1.0, f32::from_bits(0x3980_0000)];
+        check("asin", 1, one(asin), one(libm::asinf), all, &edges);
+    }
+
+    #[test]
+    fn atan_is_libm_atanf() {
+        let edges = [
+            0.4375,
+            0.6875,
+            1.1875,
+            2.4375,
+            67_108_864.0,
+            f32::from_bits(0x3980_0000),
+        ];
+        check("atan", 1, one(atan), one(libm::atanf), all, &edges);
+    }
+
+    #[test]
+    fn floor_is_libm_floorf() {
+        let edges = [0.5, 1.0, 8_388_608.0, 2_147_483_648.0];
+        check("floor", 1, one(floor), one(libm::floorf), all, &edges);
+    }
+
+    #[test]
+    fn atan2_is_libm_atan2f() {
+        // y over the sweep, x over special values and a spread of magnitudes and signs (and
+        // the reverse), so every case of e_atan2f.c is reached.
+        let mut xs: Vec<f32> = SPECIALS.to_vec();
+        xs.extend([2.0, 0.3, 1e-20, 1e20, 3e-39, 7.5, 1e30, 1.0e-8]);
+        let negs: Vec<f32> = xs.iter().map(|v| -v).collect();
+        xs.extend(negs);
+        for &x in &xs {
+            check(
+                "atan2(y, x)",
+                7,
+                |y| (atan2(y, x), 0.0),
+                |y| (libm::atan2f(y, x), 0.0),
+                all,
+                &[1.0],
+            );
+            check(
+                "atan2(x, y)",
+                7,
+                |y| (atan2(x, y), 0.0),
+                |y| (libm::atan2f(x, y), 0.0),
+                all,
+                &[1.0],
+            );
+        }
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //!
 //! On SIMD CPU targets ([`BRANCH_FREE`]; not SPIR-V, where the compiler maps libm's calls to
 //! GLSL.std.450 instructions) the hot path's functions (`exp`, `ln`, `ln_1p`, `sin_cos`,
-//! `tanh` and those built on them) run [`branch_free`] rewrites that give libm's results bit
+//! `tanh`, `asin`, `atan2`, `floor` and those built on them) run [`branch_free`] rewrites that give libm's results bit
 //! for bit without branches or calls, so that a loop of them over lanes vectorises and a
 //! batched path gives exactly the scalar path's numbers. Elsewhere they call libm: the same
 //! numbers in less code.
@@ -167,7 +167,11 @@ pub fn sin_cos_fast_covers(x: f32) -> bool {
 #[inline(always)]
 #[must_use]
 pub fn atan2(y: f32, x: f32) -> f32 {
-    libm::atan2f(y, x)
+    if BRANCH_FREE {
+        branch_free::atan2(y, x)
+    } else {
+        libm::atan2f(y, x)
+    }
 }
 
 /// asin x in [−π/2, π/2] (NaN outside [−1, 1]).
@@ -175,7 +179,11 @@ pub fn atan2(y: f32, x: f32) -> f32 {
 #[inline(always)]
 #[must_use]
 pub fn asin(x: f32) -> f32 {
-    libm::asinf(x)
+    if BRANCH_FREE {
+        branch_free::asin(x)
+    } else {
+        libm::asinf(x)
+    }
 }
 
 /// x rounded to the nearest integer, ties to even.
@@ -208,7 +216,11 @@ pub fn abs(x: f32) -> f32 {
 #[inline(always)]
 #[must_use]
 pub fn floor(x: f32) -> f32 {
-    libm::floorf(x)
+    if BRANCH_FREE {
+        branch_free::floor(x)
+    } else {
+        libm::floorf(x)
+    }
 }
 
 /// Softplus ln(1 + eˣ), computed without overflow for large x: `x` above 20, else

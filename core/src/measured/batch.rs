@@ -1,15 +1,39 @@
 //! The measured material over `N` lanes at once ([`crate::wavefront`]'s conventions:
 //! structure-of-arrays views, every buffer the caller's, a bad lane never disturbs another).
+//!
+//! Lanes run in chunks of [`CHUNK`] through the scalar path's arithmetic, operation for
+//! operation, written as loops over the chunk so that they vectorise: the transcendental
+//! functions are `math`'s branch-free ones (libm's numbers), table reads are gathers, and the
+//! two binary searches of sampling take a fixed number of steps with the scalar search's
+//! probes. The results are therefore the scalar path's **bit for bit**. Tables that are not
+//! plain f32 slices (f16 or unaligned blob tensors) take the scalar path lane by lane.
 
-use crate::batch::{check_len, RgbMut, SamplesMut, Vec2s, Vec3s};
+use glam::{Vec2, Vec3};
+
+use crate::batch::check_len;
+use crate::batch::simd::{dispatch, Kernel};
+use crate::batch::{RgbMut, SamplesMut, Vec2s, Vec3s};
+use crate::distrib::marginal2d::{invert_segment, lerp, sample_segment, SliceBlend};
 use crate::error::Result;
+use crate::math;
 use crate::weights::Weights;
 
-use super::MeasuredMaterial;
+use super::{
+    elevation, fold_sign, jacobian, phi2u, theta2u, u2phi, u2theta, MeasuredMaterial, MeasuredShape,
+};
+
+/// Lanes per chunk: one AVX2 register (wider chunks measured slower: their lane arrays
+/// spill, and the searches of sampling loop longer).
+const CHUNK: usize = 8;
+
+/// Node grids with up to this many nodes are searched by counting (which vectorises); longer
+/// ones by the scalar binary search per lane.
+const COUNTED_NODES: usize = 64;
 
 impl<W: Weights> MeasuredMaterial<W> {
     /// [`MeasuredPrepared::eval`](super::MeasuredPrepared::eval) of every `(wi[i], wo[i])`:
-    /// the RGB BRDF without the cosine, `[0, 0, 0]` for refused lanes.
+    /// the RGB BRDF without the cosine, `[0, 0, 0]` for refused lanes. The scalar path's
+    /// values bit for bit.
     ///
     /// # Errors
     /// [`Error::BatchLength`](crate::Error::BatchLength) when the slices' lengths differ
@@ -19,20 +43,13 @@ impl<W: Weights> MeasuredMaterial<W> {
         wi.check(n)?;
         wo.check(n)?;
         check_rgb(&out, n)?;
-        for i in 0..n {
-            let f = match self.prepare(wi.at(i)) {
-                Some(p) => p.eval(wo.at(i)),
-                None => [0.0; 3],
-            };
-            out.r[i] = f[0];
-            out.g[i] = f[1];
-            out.b[i] = f[2];
-        }
+        self.run(Op::Eval { wi, wo, out });
         Ok(())
     }
 
     /// [`MeasuredPrepared::pdf`](super::MeasuredPrepared::pdf) of every `(wi[i], wo[i])`:
-    /// the data sampler's density with respect to solid angle, 0 for refused lanes.
+    /// the data sampler's density with respect to solid angle, 0 for refused lanes. The
+    /// scalar path's values bit for bit.
     ///
     /// # Errors
     /// [`Error::BatchLength`](crate::Error::BatchLength) when the slices' lengths differ.
@@ -41,18 +58,14 @@ impl<W: Weights> MeasuredMaterial<W> {
         wi.check(n)?;
         wo.check(n)?;
         check_len("pdf", pdf.len(), n)?;
-        for (i, p) in pdf.iter_mut().enumerate() {
-            *p = match self.prepare(wi.at(i)) {
-                Some(prep) => prep.pdf(wo.at(i)),
-                None => 0.0,
-            };
-        }
+        self.run(Op::Pdf { wi, wo, pdf });
         Ok(())
     }
 
     /// [`MeasuredPrepared::sample`](super::MeasuredPrepared::sample) of every `(wi[i], u[i])`:
     /// directions and solid-angle densities in `out`, `f · cos θo / pdf` per channel in
-    /// `weight`; a refused lane gets `wo = 0`, `pdf = 0` and a zero weight.
+    /// `weight`; a refused lane gets `wo = 0`, `pdf = 0` and a zero weight. The scalar path's
+    /// values bit for bit.
     ///
     /// # Errors
     /// [`Error::BatchLength`](crate::Error::BatchLength) when the slices' lengths differ.
@@ -60,7 +73,7 @@ impl<W: Weights> MeasuredMaterial<W> {
         &self,
         wi: Vec3s<'_>,
         u: Vec2s<'_>,
-        mut out: SamplesMut<'_>,
+        out: SamplesMut<'_>,
         weight: RgbMut<'_>,
     ) -> Result<()> {
         let n = wi.len();
@@ -68,22 +81,111 @@ impl<W: Weights> MeasuredMaterial<W> {
         u.check(n)?;
         out.check(n)?;
         check_rgb(&weight, n)?;
-        for i in 0..n {
-            let s = self.prepare(wi.at(i)).and_then(|p| p.sample(u.at(i)));
-            let w = s.map_or([0.0; 3], |s| s.weight);
-            out.set(
-                i,
-                s.map(|s| crate::Sample {
-                    wo: s.wo,
-                    pdf: s.pdf,
-                    pdf_disk: s.pdf / s.wo.z,
-                }),
-            );
-            weight.r[i] = w[0];
-            weight.g[i] = w[1];
-            weight.b[i] = w[2];
-        }
+        self.run(Op::Sample { wi, u, out, weight });
         Ok(())
+    }
+
+    /// Runs `op` (its lengths checked) on the chunked path, or lane by lane when a table is
+    /// not a plain f32 slice.
+    fn run(&self, op: Op<'_>) {
+        let t = &self.tables;
+        let flat = (|| {
+            Some(Flat {
+                phi_i: t.phi_i.as_f32_slice()?,
+                theta_i: t.theta_i.as_f32_slice()?,
+                ndf: t.ndf.as_f32_slice()?,
+                sigma: t.sigma.as_f32_slice()?,
+                vndf: t.vndf.as_f32_slice()?,
+                vndf_marg: t.vndf_marginal.as_f32_slice()?,
+                vndf_cond: t.vndf_conditional.as_f32_slice()?,
+                lum: t.luminance.as_f32_slice()?,
+                lum_marg: t.luminance_marginal.as_f32_slice()?,
+                lum_cond: t.luminance_conditional.as_f32_slice()?,
+                rgb: t.rgb.as_f32_slice()?,
+            })
+        })();
+        // Validated tables are never empty; the chunks' loads rely on it.
+        let Some(f) = flat.filter(|f| {
+            [
+                f.phi_i,
+                f.theta_i,
+                f.ndf,
+                f.sigma,
+                f.vndf,
+                f.vndf_marg,
+                f.vndf_cond,
+                f.lum,
+                f.lum_marg,
+                f.lum_cond,
+                f.rgb,
+            ]
+            .iter()
+            .all(|t| !t.is_empty())
+        }) else {
+            return self.per_lane(op);
+        };
+        let counted = f.phi_i.len() <= COUNTED_NODES && f.theta_i.len() <= COUNTED_NODES;
+        let s = self.shape;
+        let ctx = Ctx {
+            f,
+            s,
+            jacobian: self.jacobian,
+            reduction: self.reduction,
+            isotropic: self.isotropic(),
+            counted,
+            stride: [
+                if s.n_phi > 1 { s.n_theta } else { 0 },
+                if s.n_theta > 1 { 1 } else { 0 },
+            ],
+        };
+        // Slices blend along φi only with more than one φi node.
+        if s.n_phi > 1 {
+            dispatch(Job::<true> { c: ctx, op });
+        } else {
+            dispatch(Job::<false> { c: ctx, op });
+        }
+    }
+
+    /// The scalar path, one lane at a time.
+    fn per_lane(&self, op: Op<'_>) {
+        match op {
+            Op::Eval { wi, wo, mut out } => {
+                for i in 0..wi.len() {
+                    let v = self
+                        .prepare(wi.at(i))
+                        .map_or([0.0; 3], |p| p.eval(wo.at(i)));
+                    set_rgb(&mut out, i, v);
+                }
+            }
+            Op::Pdf { wi, wo, pdf } => {
+                for (i, p) in pdf.iter_mut().enumerate() {
+                    *p = self
+                        .prepare(wi.at(i))
+                        .map_or(0.0, |prep| prep.pdf(wo.at(i)));
+                }
+            }
+            Op::Sample {
+                wi,
+                u,
+                mut out,
+                mut weight,
+            } => {
+                for i in 0..wi.len() {
+                    let s = self.prepare(wi.at(i)).and_then(|p| p.sample(u.at(i)));
+                    set_rgb(&mut weight, i, s.map_or([0.0; 3], |s| s.weight));
+                    out.set(i, s.map(sample_of));
+                }
+            }
+        }
+    }
+}
+
+/// The runtime's [`Sample`](crate::Sample) of a measured sample.
+fn sample_of(s: super::MeasuredSample) -> crate::Sample {
+    crate::Sample {
+        wo: s.wo,
+        pdf: s.pdf,
+        pdf_disk: s.pdf / s.wo.z,
     }
 }
 
@@ -91,4 +193,998 @@ fn check_rgb(out: &RgbMut<'_>, n: usize) -> Result<()> {
     check_len("r", out.r.len(), n)?;
     check_len("g", out.g.len(), n)?;
     check_len("b", out.b.len(), n)
+}
+
+#[inline(always)]
+fn set_rgb(out: &mut RgbMut<'_>, i: usize, v: [f32; 3]) {
+    out.r[i] = v[0];
+    out.g[i] = v[1];
+    out.b[i] = v[2];
+}
+
+/// A batched call, its lengths checked.
+enum Op<'a> {
+    Eval {
+        wi: Vec3s<'a>,
+        wo: Vec3s<'a>,
+        out: RgbMut<'a>,
+    },
+    Pdf {
+        wi: Vec3s<'a>,
+        wo: Vec3s<'a>,
+        pdf: &'a mut [f32],
+    },
+    Sample {
+        wi: Vec3s<'a>,
+        u: Vec2s<'a>,
+        out: SamplesMut<'a>,
+        weight: RgbMut<'a>,
+    },
+}
+
+/// Every table as an f32 slice.
+#[derive(Copy, Clone)]
+struct Flat<'a> {
+    phi_i: &'a [f32],
+    theta_i: &'a [f32],
+    ndf: &'a [f32],
+    sigma: &'a [f32],
+    vndf: &'a [f32],
+    vndf_marg: &'a [f32],
+    vndf_cond: &'a [f32],
+    lum: &'a [f32],
+    lum_marg: &'a [f32],
+    lum_cond: &'a [f32],
+    rgb: &'a [f32],
+}
+
+/// What the chunks read: the tables and the material's constants.
+#[derive(Copy, Clone)]
+struct Ctx<'a> {
+    f: Flat<'a>,
+    s: MeasuredShape,
+    jacobian: bool,
+    reduction: u32,
+    isotropic: bool,
+    /// Whether both node grids are searched by counting.
+    counted: bool,
+    /// The slice strides of [`SliceBlend`].
+    stride: [u32; 2],
+}
+
+/// Element `i` of `t` (not empty), the last one past the end: a load without a branch that
+/// depends on the data (indices are in range for validated tables).
+#[inline(always)]
+fn at(t: &[f32], i: u32) -> f32 {
+    t[(i as usize).min(t.len() - 1)]
+}
+
+/// One lane's slice blend ([`SliceBlend`] without its lane-independent strides).
+#[derive(Copy, Clone, Default)]
+struct Blend {
+    slice: u32,
+    w: [[f32; 2]; 2],
+}
+
+/// A table of slices of `w × h` values and its running integrals (a `Marginal2D`).
+#[derive(Copy, Clone)]
+struct Dist<'a> {
+    data: &'a [f32],
+    marg: &'a [f32],
+    cond: &'a [f32],
+    w: u32,
+    h: u32,
+}
+
+impl Ctx<'_> {
+    /// `SliceBlend::lookup`: the blended value of `t` at element `i` of the first slice
+    /// (slices of `n`). Without `φi` blending its weights are `(1, 0)`, so the first axis
+    /// reads one element (`a·1 + a·0 = a` for the finite values the tables hold).
+    #[inline(always)]
+    fn lookup<const A: bool>(&self, t: &[f32], n: u32, i: u32, b: &Blend) -> f32 {
+        let i1 = i + self.stride[1] * n;
+        let (a0, a1) = if A {
+            let j = self.stride[0] * n;
+            (
+                at(t, i) * b.w[0][0] + at(t, i + j) * b.w[0][1],
+                at(t, i1) * b.w[0][0] + at(t, i1 + j) * b.w[0][1],
+            )
+        } else {
+            (at(t, i), at(t, i1))
+        };
+        a0 * b.w[1][0] + a1 * b.w[1][1]
+    }
+
+    /// `Marginal2D::patch`.
+    #[inline(always)]
+    fn patch(w: u32, h: u32, pos: Vec2) -> (u32, u32, Vec2) {
+        let x = math::clamp(pos.x, 0.0, 1.0) * (w - 1) as f32;
+        let y = math::clamp(pos.y, 0.0, 1.0) * (h - 1) as f32;
+        let c = (x as u32).min(w - 2);
+        let r = (y as u32).min(h - 2);
+        (c, r, Vec2::new(x - c as f32, y - r as f32))
+    }
+
+    /// `Marginal2D::corners` of the blended slice.
+    #[inline(always)]
+    fn corners<const A: bool>(&self, d: &Dist<'_>, b: &Blend, c: u32, r: u32) -> [f32; 4] {
+        let n = d.w * d.h;
+        let i = b.slice * n + r * d.w + c;
+        [
+            self.lookup::<A>(d.data, n, i, b),
+            self.lookup::<A>(d.data, n, i + 1, b),
+            self.lookup::<A>(d.data, n, i + d.w, b),
+            self.lookup::<A>(d.data, n, i + d.w + 1, b),
+        ]
+    }
+
+    /// `Marginal2D::eval` of the blended slice.
+    #[inline(always)]
+    fn eval<const A: bool>(&self, d: &Dist<'_>, b: &Blend, pos: Vec2) -> f32 {
+        let (c, r, t) = Self::patch(d.w, d.h, pos);
+        let [v00, v10, v01, v11] = self.corners::<A>(d, b, c, r);
+        lerp(lerp(v00, v10, t.x), lerp(v01, v11, t.x), t.y)
+    }
+
+    /// `Marginal2D::eval` of a single-slice table (`SliceBlend::single(0)`: one read per
+    /// corner).
+    #[inline(always)]
+    fn eval_single(t: &[f32], w: u32, h: u32, pos: Vec2) -> f32 {
+        let (c, r, tt) = Self::patch(w, h, pos);
+        let i = r * w + c;
+        let (v00, v10, v01, v11) = (at(t, i), at(t, i + 1), at(t, i + w), at(t, i + w + 1));
+        lerp(lerp(v00, v10, tt.x), lerp(v01, v11, tt.x), tt.y)
+    }
+
+    /// `Marginal2D::invert` of the blended slice.
+    #[inline(always)]
+    fn invert<const A: bool>(&self, d: &Dist<'_>, b: &Blend, pos: Vec2) -> (Vec2, f32) {
+        let w = d.w;
+        let (n_marg, n_cond) = (d.h - 1, d.h * (w - 1));
+        let (c, r, t) = Self::patch(w, d.h, pos);
+        let [v00, v10, v01, v11] = self.corners::<A>(d, b, c, r);
+        let c0 = lerp(v00, v01, t.y);
+        let c1 = lerp(v10, v11, t.y);
+        let pdf = lerp(c0, c1, t.x);
+
+        let mut ux = invert_segment(t.x, 1.0 / (w - 1) as f32, c0, c1);
+        let off_cond = b.slice * n_cond + r * (w - 1);
+        // Column c − 1, read at column 0 where there is none (and then unused).
+        let cm = if c > 0 { c - 1 } else { 0 };
+        let v0 = self.lookup::<A>(d.cond, n_cond, off_cond + cm, b);
+        let v1 = self.lookup::<A>(d.cond, n_cond, off_cond + cm + (w - 1), b);
+        let plus = ux + lerp(v0, v1, t.y);
+        ux = if c > 0 { plus } else { ux };
+        let r0 = self.lookup::<A>(d.cond, n_cond, off_cond + (w - 1) - 1, b);
+        let r1 = self.lookup::<A>(d.cond, n_cond, off_cond + 2 * (w - 1) - 1, b);
+        ux /= lerp(r0, r1, t.y);
+
+        let mut uy = invert_segment(t.y, 1.0 / (d.h - 1) as f32, r0, r1);
+        let rm = if r > 0 { r - 1 } else { 0 };
+        let plus = uy + self.lookup::<A>(d.marg, n_marg, b.slice * n_marg + rm, b);
+        uy = if r > 0 { plus } else { uy };
+        (Vec2::new(ux, uy), pdf)
+    }
+
+    #[inline(always)]
+    fn vndf(&self) -> Dist<'_> {
+        Dist {
+            data: self.f.vndf,
+            marg: self.f.vndf_marg,
+            cond: self.f.vndf_cond,
+            w: self.s.vndf[0].max(2),
+            h: self.s.vndf[1].max(2),
+        }
+    }
+
+    #[inline(always)]
+    fn luminance(&self) -> Dist<'_> {
+        Dist {
+            data: self.f.lum,
+            marg: self.f.lum_marg,
+            cond: self.f.lum_cond,
+            w: self.s.rgb[0].max(2),
+            h: self.s.rgb[1].max(2),
+        }
+    }
+}
+
+/// One value per lane of a chunk.
+type Lanes = [f32; CHUNK];
+
+/// One chunk's prepared lanes (`MeasuredPrepared` in structure-of-arrays form).
+struct Prepared {
+    ok: [bool; CHUNK],
+    /// `wi`, folded into the stored azimuths.
+    wi: [Lanes; 3],
+    /// The signs that fold directions into the stored azimuths.
+    flip: [Lanes; 2],
+    phi_i: Lanes,
+    slice: [u32; CHUNK],
+    /// The blend weights `w[axis][node]`.
+    w: [[Lanes; 2]; 2],
+    inv_4sigma: Lanes,
+}
+
+impl Prepared {
+    /// Lane `l`'s blend.
+    #[inline(always)]
+    fn blend(&self, l: usize) -> Blend {
+        Blend {
+            slice: self.slice[l],
+            w: [
+                [self.w[0][0][l], self.w[0][1][l]],
+                [self.w[1][0][l], self.w[1][1][l]],
+            ],
+        }
+    }
+}
+
+/// Lanes `a .. a + m` of `v` in structure-of-arrays form (the rest of the chunk `+z`).
+#[inline(always)]
+fn load3(v: &Vec3s<'_>, a: usize, m: usize) -> [Lanes; 3] {
+    let mut out = [[0.0; CHUNK], [0.0; CHUNK], [1.0; CHUNK]];
+    out[0][..m].copy_from_slice(&v.x[a..a + m]);
+    out[1][..m].copy_from_slice(&v.y[a..a + m]);
+    out[2][..m].copy_from_slice(&v.z[a..a + m]);
+    out
+}
+
+/// `d / |d|` and whether `d` has a finite, non-zero length (`normalize`).
+#[inline(always)]
+fn normalize(d: Vec3) -> (Vec3, bool) {
+    let len2 = d.length_squared();
+    let ok = (len2 > 0.0) & math::is_finite(len2);
+    (d * (1.0 / math::sqrt(len2)), ok)
+}
+
+/// `SliceBlend::new`'s `locate` on each lane: the interval of `nodes` holding `p` and the
+/// weights across it, counting the interior nodes below `p` (ascending nodes: the binary
+/// search's answer).
+#[inline(always)]
+fn locate(nodes: &[f32], p: &Lanes, idx: &mut [u32; CHUNK], w: &mut [Lanes; 2]) {
+    *idx = [0; CHUNK];
+    *w = [[1.0; CHUNK], [0.0; CHUNK]];
+    let n = nodes.len();
+    if n < 2 {
+        return;
+    }
+    for &node in &nodes[1..n - 1] {
+        for l in 0..CHUNK {
+            idx[l] += u32::from(node < p[l]);
+        }
+    }
+    let mut p0 = [0.0; CHUNK];
+    let mut p1 = [0.0; CHUNK];
+    for l in 0..CHUNK {
+        p0[l] = at(nodes, idx[l]);
+        p1[l] = at(nodes, idx[l] + 1);
+    }
+    for l in 0..CHUNK {
+        let t = math::clamp((p[l] - p0[l]) / (p1[l] - p0[l]), 0.0, 1.0);
+        w[0][l] = 1.0 - t;
+        w[1][l] = t;
+    }
+}
+
+/// `search` (the first index in `0 ..= last` where `below` is false) on every lane: the
+/// scalar binary search's steps, each lane idle once it has its answer. A macro rather than a
+/// function of a closure, so that the predicate is compiled for `dispatch`'s instruction set.
+macro_rules! search {
+    ($last:expr, |$l:ident, $i:ident| $below:expr) => {{
+        let last: u32 = $last;
+        let mut lo = [0u32; CHUNK];
+        let mut hi = [last; CHUNK];
+        // The scalar search halves 0 ..= last each step: ⌈log₂(last + 1)⌉ steps.
+        for _ in 0..(u32::BITS - last.leading_zeros()) {
+            for $l in 0..CHUNK {
+                let $i = (lo[$l] + hi[$l]) / 2;
+                let active = lo[$l] < hi[$l];
+                let b = $below;
+                lo[$l] = if active & b { $i + 1 } else { lo[$l] };
+                hi[$l] = if active & !b { $i } else { hi[$l] };
+            }
+        }
+        lo
+    }};
+}
+
+/// A dispatched batched call.
+struct Job<'a, const A: bool> {
+    c: Ctx<'a>,
+    op: Op<'a>,
+}
+
+impl<const A: bool> Kernel for Job<'_, A> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        // No closures here: a closure is a function of its own, compiled without the
+        // instruction set `dispatch` chose unless it is inlined.
+        let c = &self.c;
+        match self.op {
+            Op::Eval { wi, wo, mut out } => {
+                let mut a = 0;
+                while a < wi.len() {
+                    let m = chunk_len(wi.len(), a);
+                    c.eval_chunk::<A>(&wi, &wo, &mut out, a, m);
+                    a += m;
+                }
+            }
+            Op::Pdf { wi, wo, pdf } => {
+                let mut a = 0;
+                while a < wi.len() {
+                    let m = chunk_len(wi.len(), a);
+                    c.pdf_chunk::<A>(&wi, &wo, &mut pdf[a..a + m], a);
+                    a += m;
+                }
+            }
+            Op::Sample {
+                wi,
+                u,
+                mut out,
+                mut weight,
+            } => {
+                let mut a = 0;
+                while a < wi.len() {
+                    let m = chunk_len(wi.len(), a);
+                    c.sample_chunk::<A>(&wi, &u, &mut out, &mut weight, a, m);
+                    a += m;
+                }
+            }
+        }
+    }
+}
+
+/// Lanes in the chunk that starts at `a` of `n`.
+#[inline(always)]
+fn chunk_len(n: usize, a: usize) -> usize {
+    if n - a > CHUNK {
+        CHUNK
+    } else {
+        n - a
+    }
+}
+
+impl Ctx<'_> {
+    /// `eval_batch` of lanes `a .. a + m`.
+    #[inline(always)]
+    fn eval_chunk<const A: bool>(
+        &self,
+        wi: &Vec3s<'_>,
+        wo: &Vec3s<'_>,
+        out: &mut RgbMut<'_>,
+        a: usize,
+        m: usize,
+    ) {
+        let mut p = self.empty();
+        self.prepare::<A>(wi, a, m, &mut p);
+        let wo = load3(wo, a, m);
+        // `eval` normalises wo, then `half` normalises it again.
+        let mut won = [[0.0; CHUNK]; 3];
+        let mut inv_cos = [0.0; CHUNK];
+        let mut ok = [false; CHUNK];
+        for l in 0..CHUNK {
+            let (w, ok_w) = normalize(Vec3::new(wo[0][l], wo[1][l], wo[2][l]));
+            inv_cos[l] = 1.0 / w.z;
+            ok[l] = ok_w & (w.z > 0.0);
+            [won[0][l], won[1][l], won[2][l]] = [w.x, w.y, w.z];
+        }
+        let h = self.half(&p, &won);
+        let mut sample = [Vec2::ZERO; CHUNK];
+        for l in 0..CHUNK {
+            sample[l] = self.invert::<A>(&self.vndf(), &p.blend(l), h.u_m[l]).0;
+        }
+        let f = self.rgb::<A>(&p, &sample, &h.u_m);
+        for l in 0..m {
+            let keep = p.ok[l] & ok[l] & h.ok[l];
+            let mut v = [0.0; 3];
+            for c in 0..3 {
+                v[c] = if keep {
+                    math::finite_density(f[c][l] * inv_cos[l])
+                } else {
+                    0.0
+                };
+            }
+            set_rgb(out, a + l, v);
+        }
+    }
+
+    /// `pdf_batch` of lanes `a .. a + pdf.len()`.
+    #[inline(always)]
+    fn pdf_chunk<const A: bool>(&self, wi: &Vec3s<'_>, wo: &Vec3s<'_>, pdf: &mut [f32], a: usize) {
+        let m = pdf.len();
+        let mut p = self.empty();
+        self.prepare::<A>(wi, a, m, &mut p);
+        let h = self.half(&p, &load3(wo, a, m));
+        let mut vndf_pdf = [0.0; CHUNK];
+        let mut lum_pdf = [0.0; CHUNK];
+        for l in 0..CHUNK {
+            let b = p.blend(l);
+            let (sample, v) = self.invert::<A>(&self.vndf(), &b, h.u_m[l]);
+            vndf_pdf[l] = v;
+            lum_pdf[l] = self.eval::<A>(&self.luminance(), &b, sample);
+        }
+        let mut d = [0.0; CHUNK];
+        for l in 0..CHUNK {
+            let [mx, my, mz] = [h.m[0][l], h.m[1][l], h.m[2][l]];
+            let sin_theta_m = math::sqrt(mx * mx + my * my);
+            let wi = Vec3::new(p.wi[0][l], p.wi[1][l], p.wi[2][l]);
+            let jac = jacobian(h.u_m[l].x, sin_theta_m, wi.dot(Vec3::new(mx, my, mz)));
+            let v = math::finite_density(vndf_pdf[l] * lum_pdf[l] / jac);
+            d[l] = if p.ok[l] & h.ok[l] { v } else { 0.0 };
+        }
+        pdf.copy_from_slice(&d[..m]);
+    }
+
+    /// `sample_batch` of lanes `a .. a + m`.
+    #[inline(always)]
+    fn sample_chunk<const A: bool>(
+        &self,
+        wi: &Vec3s<'_>,
+        u: &Vec2s<'_>,
+        out: &mut SamplesMut<'_>,
+        weight: &mut RgbMut<'_>,
+        a: usize,
+        m: usize,
+    ) {
+        let mut p = self.empty();
+        self.prepare::<A>(wi, a, m, &mut p);
+        let mut uu = [Vec2::ZERO; CHUNK];
+        for (l, o) in uu.iter_mut().enumerate().take(m) {
+            *o = u.at(a + l);
+        }
+        self.sample_lanes::<A>(&p, &uu, out, weight, a, m);
+    }
+
+    /// A chunk's prepared lanes, before [`Ctx::prepare`] fills them.
+    #[inline(always)]
+    fn empty(&self) -> Prepared {
+        Prepared {
+            ok: [false; CHUNK],
+            wi: [[0.0; CHUNK]; 3],
+            flip: [[1.0; CHUNK]; 2],
+            phi_i: [0.0; CHUNK],
+            slice: [0; CHUNK],
+            w: [[[0.0; CHUNK]; 2]; 2],
+            inv_4sigma: [0.0; CHUNK],
+        }
+    }
+
+    /// `MeasuredMaterial::prepare` of lanes `a .. a + m` of `wi`, into `p`.
+    #[inline(always)]
+    fn prepare<const A: bool>(&self, wi: &Vec3s<'_>, a: usize, m: usize, p: &mut Prepared) {
+        let wi = load3(wi, a, m);
+        let mut theta_i = [0.0; CHUNK];
+        for l in 0..CHUNK {
+            let (w, ok) = normalize(Vec3::new(wi[0][l], wi[1][l], wi[2][l]));
+            p.ok[l] = ok & (w.z > 0.0) & (l < m);
+            let (mut fx, mut fy) = (1.0, 1.0);
+            if self.reduction >= 2 {
+                fy = fold_sign(w.y);
+                fx = if self.reduction == 4 {
+                    fold_sign(w.x)
+                } else {
+                    fy
+                };
+            }
+            let w = Vec3::new(w.x * fx, w.y * fy, w.z);
+            [p.wi[0][l], p.wi[1][l], p.wi[2][l]] = [w.x, w.y, w.z];
+            [p.flip[0][l], p.flip[1][l]] = [fx, fy];
+            theta_i[l] = elevation(w);
+            p.phi_i[l] = math::atan2(w.y, w.x);
+        }
+        let t = &self.f;
+        if self.counted {
+            let mut i0 = [0; CHUNK];
+            let mut i1 = [0; CHUNK];
+            locate(t.phi_i, &p.phi_i, &mut i0, &mut p.w[0]);
+            locate(t.theta_i, &theta_i, &mut i1, &mut p.w[1]);
+            let n1 = t.theta_i.len() as u32;
+            for l in 0..CHUNK {
+                p.slice[l] = i0[l] * n1 + i1[l];
+            }
+        } else {
+            for l in 0..CHUNK {
+                let b = SliceBlend::new(t.phi_i, t.theta_i, [p.phi_i[l], theta_i[l]]);
+                p.slice[l] = b.slice;
+                [[p.w[0][0][l], p.w[0][1][l]], [p.w[1][0][l], p.w[1][1][l]]] = b.weight;
+            }
+        }
+        let mut u_wi = [Vec2::ZERO; CHUNK];
+        for l in 0..CHUNK {
+            u_wi[l] = Vec2::new(theta2u(theta_i[l]), phi2u(p.phi_i[l]));
+        }
+        let [sw, sh] = [self.s.sigma[0].max(2), self.s.sigma[1].max(2)];
+        let mut sigma = [0.0; CHUNK];
+        for l in 0..CHUNK {
+            sigma[l] = Self::eval_single(t.sigma, sw, sh, u_wi[l]);
+        }
+        for l in 0..CHUNK {
+            p.inv_4sigma[l] = if sigma[l] > 0.0 { 0.25 / sigma[l] } else { 0.0 };
+        }
+    }
+
+    /// `MeasuredPrepared::half` of every lane: the half vectors, their table coordinates,
+    /// and whether they exist.
+    #[inline(always)]
+    fn half(&self, p: &Prepared, wo: &[Lanes; 3]) -> Half {
+        let mut h = Half {
+            m: [[0.0; CHUNK]; 3],
+            u_m: [Vec2::ZERO; CHUNK],
+            ok: [false; CHUNK],
+        };
+        for l in 0..CHUNK {
+            let (w, ok) = normalize(Vec3::new(wo[0][l], wo[1][l], wo[2][l]));
+            let ok = ok & (w.z > 0.0);
+            let w = Vec3::new(w.x * p.flip[0][l], w.y * p.flip[1][l], w.z);
+            let wi = Vec3::new(p.wi[0][l], p.wi[1][l], p.wi[2][l]);
+            let (m, ok_m) = normalize(wi + w);
+            let theta_m = elevation(m);
+            let phi_m = math::atan2(m.y, m.x);
+            let rel = if self.isotropic {
+                phi_m - p.phi_i[l]
+            } else {
+                phi_m
+            };
+            let uy = phi2u(rel);
+            let uy = uy - math::floor(uy);
+            [h.m[0][l], h.m[1][l], h.m[2][l]] = [m.x, m.y, m.z];
+            h.u_m[l] = Vec2::new(theta2u(theta_m), uy);
+            h.ok[l] = ok & ok_m;
+        }
+        h
+    }
+
+    /// `MeasuredPrepared::rgb` of every lane: `f · cos θo` at `sample` of the VNDF's sample
+    /// space, per channel.
+    #[inline(always)]
+    fn rgb<const A: bool>(
+        &self,
+        p: &Prepared,
+        sample: &[Vec2; CHUNK],
+        u_m: &[Vec2; CHUNK],
+    ) -> [Lanes; 3] {
+        let [w, h] = [self.s.rgb[0].max(2), self.s.rgb[1].max(2)];
+        let mut scale = [1.0; CHUNK];
+        if self.jacobian {
+            let [nw, nh] = [self.s.ndf[0].max(2), self.s.ndf[1].max(2)];
+            for l in 0..CHUNK {
+                scale[l] = Self::eval_single(self.f.ndf, nw, nh, u_m[l]) * p.inv_4sigma[l];
+            }
+        }
+        // The channel is the innermost slice index: the blend's slices and strides times 3.
+        let c3 = Ctx {
+            stride: [self.stride[0] * 3, self.stride[1] * 3],
+            ..*self
+        };
+        let d = Dist {
+            data: self.f.rgb,
+            marg: self.f.rgb,
+            cond: self.f.rgb,
+            w,
+            h,
+        };
+        let mut out = [[0.0; CHUNK]; 3];
+        for l in 0..CHUNK {
+            let b = p.blend(l);
+            for (c, o) in out.iter_mut().enumerate() {
+                let bc = Blend {
+                    slice: b.slice * 3 + c as u32,
+                    w: b.w,
+                };
+                o[l] = c3.eval::<A>(&d, &bc, sample[l]);
+            }
+        }
+        for o in &mut out {
+            for l in 0..CHUNK {
+                o[l] = math::finite_density(o[l] * scale[l]);
+            }
+        }
+        out
+    }
+
+    /// Element `i` of the blended marginal integral of `d`.
+    #[inline(always)]
+    fn marg<const A: bool>(&self, d: &Dist<'_>, b: &Blend, i: u32) -> f32 {
+        let n_marg = d.h - 1;
+        self.lookup::<A>(d.marg, n_marg, b.slice * n_marg + i, b)
+    }
+
+    /// The blended conditional integral of `d` at element `i` (row offset + column) of its
+    /// row pair, interpolated at `uy` between the rows.
+    #[inline(always)]
+    fn cond<const A: bool>(&self, d: &Dist<'_>, b: &Blend, i: u32, uy: f32) -> f32 {
+        let n_cond = d.h * (d.w - 1);
+        let v0 = self.lookup::<A>(d.cond, n_cond, i, b);
+        let v1 = self.lookup::<A>(d.cond, n_cond, i + (d.w - 1), b);
+        lerp(v0, v1, uy)
+    }
+
+    /// `Marginal2D::sample` of the blended slices on every lane.
+    #[inline(always)]
+    fn sample_dist<const A: bool>(
+        &self,
+        d: &Dist<'_>,
+        p: &Prepared,
+        u: &[Vec2; CHUNK],
+    ) -> ([Vec2; CHUNK], Lanes) {
+        let (w, h) = (d.w, d.h);
+        let n_cond = h * (w - 1);
+        let eps = f32::EPSILON / 2.0;
+        let mut ux = [0.0; CHUNK];
+        let mut uy = [0.0; CHUNK];
+        for l in 0..CHUNK {
+            ux[l] = math::clamp(u[l].x, eps, math::ONE_MINUS_EPSILON);
+            uy[l] = math::clamp(u[l].y, eps, math::ONE_MINUS_EPSILON);
+        }
+        let row = search!(h - 2, |l, i| self.marg::<A>(d, &p.blend(l), i) < uy[l]);
+        let mut r0 = [0.0; CHUNK];
+        let mut r1 = [0.0; CHUNK];
+        let mut off = [0u32; CHUNK];
+        for l in 0..CHUNK {
+            let b = p.blend(l);
+            let rm = if row[l] > 0 { row[l] - 1 } else { 0 };
+            let minus = uy[l] - self.marg::<A>(d, &b, rm);
+            uy[l] = if row[l] > 0 { minus } else { uy[l] };
+            off[l] = b.slice * n_cond + row[l] * (w - 1);
+            r0[l] = self.lookup::<A>(d.cond, n_cond, off[l] + (w - 1) - 1, &b);
+            r1[l] = self.lookup::<A>(d.cond, n_cond, off[l] + 2 * (w - 1) - 1, &b);
+        }
+        for l in 0..CHUNK {
+            uy[l] = sample_segment(uy[l], (h - 1) as f32, r0[l], r1[l]);
+            ux[l] *= lerp(r0[l], r1[l], uy[l]);
+        }
+        let col = search!(w - 2, |l, i| {
+            self.cond::<A>(d, &p.blend(l), off[l] + i, uy[l]) < ux[l]
+        });
+        let mut corners = [[0.0; 4]; CHUNK];
+        for l in 0..CHUNK {
+            let b = p.blend(l);
+            let cm = if col[l] > 0 { col[l] - 1 } else { 0 };
+            let minus = ux[l] - self.cond::<A>(d, &b, off[l] + cm, uy[l]);
+            ux[l] = if col[l] > 0 { minus } else { ux[l] };
+            corners[l] = self.corners::<A>(d, &b, col[l], row[l]);
+        }
+        let mut pos = [Vec2::ZERO; CHUNK];
+        let mut pdf = [0.0; CHUNK];
+        for l in 0..CHUNK {
+            let [v00, v10, v01, v11] = corners[l];
+            let c0 = lerp(v00, v01, uy[l]);
+            let c1 = lerp(v10, v11, uy[l]);
+            let x = sample_segment(ux[l], (w - 1) as f32, c0, c1);
+            pos[l] = Vec2::new(
+                (col[l] as f32 + x) * (1.0 / (w - 1) as f32),
+                (row[l] as f32 + uy[l]) * (1.0 / (h - 1) as f32),
+            );
+            pdf[l] = lerp(c0, c1, x);
+        }
+        (pos, pdf)
+    }
+
+    /// `MeasuredPrepared::sample` on every lane, written for lanes `a .. a + m` (zero where
+    /// refused).
+    #[inline(always)]
+    fn sample_lanes<const A: bool>(
+        &self,
+        p: &Prepared,
+        u: &[Vec2; CHUNK],
+        out: &mut SamplesMut<'_>,
+        weight: &mut RgbMut<'_>,
+        a: usize,
+        m: usize,
+    ) {
+        // As the scalar path: u's components swapped, refused outside [0, 1].
+        let mut ok = [false; CHUNK];
+        let mut us = [Vec2::ZERO; CHUNK];
+        for l in 0..CHUNK {
+            let (x, y) = (u[l].y, u[l].x);
+            ok[l] = p.ok[l] & (x >= 0.0) & (x <= 1.0) & (y >= 0.0) & (y <= 1.0);
+            us[l] = Vec2::new(
+                if x < math::ONE_MINUS_EPSILON {
+                    x
+                } else {
+                    math::ONE_MINUS_EPSILON
+                },
+                if y < math::ONE_MINUS_EPSILON {
+                    y
+                } else {
+                    math::ONE_MINUS_EPSILON
+                },
+            );
+        }
+        let (sample, lum_pdf) = self.sample_dist::<A>(&self.luminance(), p, &us);
+        let (u_m, vndf_pdf) = self.sample_dist::<A>(&self.vndf(), p, &sample);
+        let mut phi_m = [0.0; CHUNK];
+        let mut theta_m = [0.0; CHUNK];
+        let add = if self.isotropic {
+            p.phi_i
+        } else {
+            [0.0; CHUNK]
+        };
+        for l in 0..CHUNK {
+            // u2phi is never −0, so adding +0 where the data is anisotropic changes nothing.
+            phi_m[l] = u2phi(u_m[l].y) + add[l];
+            theta_m[l] = u2theta(u_m[l].x);
+        }
+        let mut sc = [[0.0; CHUNK]; 2];
+        let mut st = [[0.0; CHUNK]; 2];
+        for l in 0..CHUNK {
+            (sc[0][l], sc[1][l]) = math::sin_cos_fast(phi_m[l]);
+            (st[0][l], st[1][l]) = math::sin_cos_fast(theta_m[l]);
+        }
+        for l in 0..CHUNK {
+            if !math::sin_cos_fast_covers(phi_m[l]) {
+                (sc[0][l], sc[1][l]) = math::sin_cos(phi_m[l]);
+            }
+            if !math::sin_cos_fast_covers(theta_m[l]) {
+                (st[0][l], st[1][l]) = math::sin_cos(theta_m[l]);
+            }
+        }
+        let mut wo = [[0.0; CHUNK]; 3];
+        let mut pdf = [0.0; CHUNK];
+        for l in 0..CHUNK {
+            let (sin_phi, cos_phi) = (sc[0][l], sc[1][l]);
+            let (sin_theta, cos_theta) = (st[0][l], st[1][l]);
+            let mv = Vec3::new(cos_phi * sin_theta, sin_phi * sin_theta, cos_theta);
+            let wi = Vec3::new(p.wi[0][l], p.wi[1][l], p.wi[2][l]);
+            let dot = mv.dot(wi);
+            pdf[l] = vndf_pdf[l] * lum_pdf[l] / jacobian(u_m[l].x, sin_theta, dot);
+            let w = mv * (2.0 * dot) - wi;
+            [wo[0][l], wo[1][l], wo[2][l]] = [w.x * p.flip[0][l], w.y * p.flip[1][l], w.z];
+            ok[l] &= (wo[2][l] > 0.0) & (pdf[l] > 0.0) & math::is_finite(pdf[l]);
+        }
+        let rgb = self.rgb::<A>(p, &sample, &u_m);
+        for l in 0..m {
+            let inv_pdf = 1.0 / pdf[l];
+            let (w, d, f) = if ok[l] {
+                (
+                    Vec3::new(wo[0][l], wo[1][l], wo[2][l]),
+                    pdf[l],
+                    [
+                        math::finite_density(rgb[0][l] * inv_pdf),
+                        math::finite_density(rgb[1][l] * inv_pdf),
+                        math::finite_density(rgb[2][l] * inv_pdf),
+                    ],
+                )
+            } else {
+                (Vec3::ZERO, 0.0, [0.0; 3])
+            };
+            set_rgb(weight, a + l, f);
+            out.wo.set(a + l, w);
+            out.pdf[a + l] = d;
+        }
+    }
+}
+
+/// The half vectors of a chunk ([`Ctx::half`]).
+struct Half {
+    m: [Lanes; 3],
+    u_m: [Vec2; CHUNK],
+    ok: [bool; CHUNK],
+}
+
+#[cfg(test)]
+mod tests {
+    //! The batched path against the scalar one, bit for bit, on random isotropic and
+    //! anisotropic materials with adversarial lanes (the committed RGL files are checked the
+    //! same way in `bindings/owned/tests/measured.rs`).
+
+    extern crate std;
+
+    use std::vec::Vec;
+
+    use glam::{Vec2, Vec3};
+
+    use super::super::{MeasuredMaterial, MeasuredShape, MeasuredTables};
+    use crate::distrib::marginal2d::build;
+    use crate::wavefront::{RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
+
+    /// A small deterministic generator (xorshift).
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> f32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+
+        fn values(&mut self, n: usize) -> Vec<f32> {
+            (0..n).map(|_| self.next() * self.next() + 0.01).collect()
+        }
+    }
+
+    /// A random material with `phi` nodes spanning `[0, span]` (`span` = 2π/reduction).
+    fn material(n_phi: u32, span: f32, seed: u64) -> MeasuredMaterial<Vec<f32>> {
+        let mut r = Rng(seed);
+        let n_theta = 5;
+        let shape = MeasuredShape {
+            n_phi,
+            n_theta,
+            ndf: [17, 9],
+            sigma: [13, 7],
+            vndf: [19, 11],
+            rgb: [9, 12],
+        };
+        let s = (n_phi * n_theta) as usize;
+        let phi_i = (0..n_phi)
+            .map(|i| {
+                if n_phi == 1 {
+                    0.0
+                } else {
+                    span * i as f32 / (n_phi - 1) as f32
+                }
+            })
+            .collect();
+        let theta_i = (0..n_theta)
+            .map(|i| 1.5 * (i as f32 / (n_theta - 1) as f32).powi(2))
+            .collect();
+        let (vndf, vndf_marginal, vndf_conditional) = build(&r.values(s * 19 * 11), 19, 11, true);
+        let (luminance, luminance_marginal, luminance_conditional) =
+            build(&r.values(s * 9 * 12), 9, 12, true);
+        let tables = MeasuredTables {
+            phi_i,
+            theta_i,
+            ndf: r.values(17 * 9),
+            sigma: r.values(13 * 7),
+            vndf,
+            vndf_marginal,
+            vndf_conditional,
+            luminance,
+            luminance_marginal,
+            luminance_conditional,
+            rgb: r.values(s * 3 * 9 * 12).iter().map(|v| v - 0.02).collect(),
+        };
+        MeasuredMaterial::new(shape, tables, true).unwrap()
+    }
+
+    /// Random directions over the sphere (a third below the horizon) with bad ones mixed in.
+    fn directions(r: &mut Rng, n: usize) -> Vec<Vec3> {
+        let bad = [
+            Vec3::ZERO,
+            Vec3::new(f32::NAN, 0.0, 1.0),
+            Vec3::new(0.0, f32::INFINITY, 1.0),
+            Vec3::new(0.3, 0.2, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(-0.0, -0.0, 3.0),
+            Vec3::new(1e-30, 0.0, 1e-30),
+            Vec3::new(1e30, 1e30, 1e30),
+        ];
+        (0..n)
+            .map(|i| {
+                if i % 11 == 5 {
+                    return bad[(i / 11) % bad.len()];
+                }
+                let z = 1.5 * r.next() - 0.5;
+                let phi = core::f32::consts::TAU * r.next();
+                let s = (1.0 - z * z).max(0.0).sqrt();
+                Vec3::new(s * phi.cos(), s * phi.sin(), z) * (0.5 + r.next())
+            })
+            .collect()
+    }
+
+    fn soa(v: &[Vec3]) -> [Vec<f32>; 3] {
+        [
+            v.iter().map(|d| d.x).collect(),
+            v.iter().map(|d| d.y).collect(),
+            v.iter().map(|d| d.z).collect(),
+        ]
+    }
+
+    fn same(a: f32, b: f32) -> bool {
+        a.to_bits() == b.to_bits()
+    }
+
+    fn check(m: &MeasuredMaterial<Vec<f32>>, seed: u64) {
+        let mut r = Rng(seed);
+        let n = 1000;
+        let wi = directions(&mut r, n);
+        let wo = directions(&mut r, n);
+        let u: Vec<Vec2> = (0..n)
+            .map(|i| match i % 13 {
+                3 => Vec2::new(f32::NAN, 0.5),
+                4 => Vec2::new(1.0, 1.0),
+                5 => Vec2::new(0.0, 0.0),
+                6 => Vec2::new(-0.5, 0.5),
+                _ => Vec2::new(r.next(), r.next()),
+            })
+            .collect();
+        let [ix, iy, iz] = soa(&wi);
+        let [ox, oy, oz] = soa(&wo);
+        let ux: Vec<f32> = u.iter().map(|v| v.x).collect();
+        let uy: Vec<f32> = u.iter().map(|v| v.y).collect();
+        let wis = Vec3s {
+            x: &ix,
+            y: &iy,
+            z: &iz,
+        };
+        let wos = Vec3s {
+            x: &ox,
+            y: &oy,
+            z: &oz,
+        };
+        let mut rgb = [vec![9.0; n], vec![9.0; n], vec![9.0; n]];
+        let [r0, g0, b0] = &mut rgb;
+        m.eval_batch(
+            wis,
+            wos,
+            RgbMut {
+                r: r0,
+                g: g0,
+                b: b0,
+            },
+        )
+        .unwrap();
+        let mut pdf = vec![9.0; n];
+        m.pdf_batch(wis, wos, &mut pdf).unwrap();
+        let mut s = [vec![9.0; n], vec![9.0; n], vec![9.0; n], vec![9.0; n]];
+        let mut w = [vec![9.0; n], vec![9.0; n], vec![9.0; n]];
+        {
+            let [sx, sy, sz, sp] = &mut s;
+            let [wr, wg, wb] = &mut w;
+            m.sample_batch(
+                wis,
+                Vec2s { x: &ux, y: &uy },
+                SamplesMut {
+                    wo: Vec3sMut {
+                        x: sx,
+                        y: sy,
+                        z: sz,
+                    },
+                    pdf: sp,
+                },
+                RgbMut {
+                    r: wr,
+                    g: wg,
+                    b: wb,
+                },
+            )
+            .unwrap();
+        }
+        let mut sampled = 0;
+        for i in 0..n {
+            let p = m.prepare(wi[i]);
+            let f = p.as_ref().map_or([0.0; 3], |p| p.eval(wo[i]));
+            let d = p.as_ref().map_or(0.0, |p| p.pdf(wo[i]));
+            let smp = p.as_ref().and_then(|p| p.sample(u[i]));
+            for c in 0..3 {
+                assert!(
+                    same(rgb[c][i], f[c]),
+                    "lane {i} eval {c}: {} vs {}",
+                    rgb[c][i],
+                    f[c]
+                );
+            }
+            assert!(same(pdf[i], d), "lane {i} pdf: {} vs {d}", pdf[i]);
+            let (wo_s, pdf_s, w_s) = smp.map_or((Vec3::ZERO, 0.0, [0.0; 3]), |s| {
+                sampled += 1;
+                (s.wo, s.pdf, s.weight)
+            });
+            let got = [
+                s[0][i], s[1][i], s[2][i], s[3][i], w[0][i], w[1][i], w[2][i],
+            ];
+            let want = [wo_s.x, wo_s.y, wo_s.z, pdf_s, w_s[0], w_s[1], w_s[2]];
+            for k in 0..7 {
+                assert!(
+                    same(got[k], want[k]),
+                    "lane {i} sample {k}: {got:?} vs {want:?}"
+                );
+            }
+        }
+        assert!(sampled > n / 4, "only {sampled} samples");
+    }
+
+    #[test]
+    fn batched_is_scalar_bit_for_bit() {
+        let pi = core::f32::consts::PI;
+        check(&material(1, 0.0, 7), 1);
+        // Two φi nodes: isotropic data blending two slices.
+        check(&material(2, pi, 8), 2);
+        // Anisotropic halves and quarters (folded azimuths).
+        check(&material(3, pi, 9), 3);
+        check(&material(4, pi / 2.0, 10), 4);
+    }
 }

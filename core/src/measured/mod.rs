@@ -476,6 +476,9 @@ impl<W: Weights> MeasuredPrepared<'_, W> {
         let Some(wo) = normalize(wo) else {
             return [0.0; 3];
         };
+        if !(wo.z > 0.0) {
+            return [0.0; 3];
+        }
         let inv_cos = 1.0 / wo.z;
         self.eval_cos(wo).map(|v| math::finite_density(v * inv_cos))
     }

@@ -15,7 +15,7 @@ use std::hint::black_box;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use neusample::wavefront::{self, BatchSampler, Isa};
+use neusample::wavefront::{self, BatchSampler, Isa, RgbMut};
 use neusample::{Blob, NeuralMaterial, Sampler, Tensor, TensorRole, Vec3, Weights};
 use serde::{Deserialize, Serialize};
 
@@ -106,8 +106,8 @@ pub struct MaterialCost {
     pub eval_batch_portable_ns: Vec<(usize, f64)>,
 }
 
-/// A measured material's figures (scalar: it has no batched path), ns per shading point,
-/// each with its own `prepare(wi)`.
+/// A measured material's figures, ns per shading point, each with its own `prepare(wi)`:
+/// the scalar path, and the batched one per batch size.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct MeasuredCost {
     /// The `.bsdf` file.
@@ -119,6 +119,23 @@ pub struct MeasuredCost {
     /// `prepare` + `pdf(wo)` of the data's sampler.
     pub pdf_ns: f64,
     /// `prepare` + `sample(u)` (direction, pdf and weight).
+    pub sample_ns: f64,
+    /// The batched path per batch size (N = 64, 1024), `(N, eval, pdf, sample)` in ns per
+    /// lane, each with its prepare; empty in reports written before it existed.
+    #[serde(default)]
+    pub batched: Vec<MeasuredBatched>,
+}
+
+/// The measured material's batched calls at one batch size, ns per lane.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct MeasuredBatched {
+    /// Lanes per call.
+    pub n: usize,
+    /// `eval_batch`.
+    pub eval_ns: f64,
+    /// `pdf_batch`.
+    pub pdf_ns: f64,
+    /// `sample_batch` (directions, densities and weights).
     pub sample_ns: f64,
 }
 
@@ -676,13 +693,74 @@ fn measured_cost(path: &Path, inp: &Inputs, passes: usize) -> Result<MeasuredCos
             black_box(m.prepare(*wi).and_then(|p| p.sample(*u)));
         }
     });
+    let rows = Rows::new(inp);
+    let batched = [64, 1024]
+        .into_iter()
+        .map(|b| measured_batched(m, &rows, b, passes))
+        .collect();
     Ok(MeasuredCost {
         file: path.display().to_string(),
         prepare_ns,
         eval_ns,
         pdf_ns,
         sample_ns,
+        batched,
     })
+}
+
+/// The measured material's batched eval, pdf and sample at `n` lanes per call.
+fn measured_batched(
+    m: &neusample::MeasuredMaterial<Vec<f32>>,
+    rows: &Rows,
+    n: usize,
+    passes: usize,
+) -> MeasuredBatched {
+    let total = rows.len();
+    let starts: Vec<usize> = (0..total).step_by(n).collect();
+    let eval_ns = cost::eval_batch_ns(
+        |_, wi, wo, out| m.eval_batch(wi, wo, out).expect("lengths agree"),
+        rows,
+        n,
+        passes,
+    );
+    let mut pdf = vec![0.0f32; total];
+    let pdf_ns = time_per(passes, total, || {
+        for &a in &starts {
+            let b = (a + n).min(total);
+            m.pdf_batch(rows.wi(a, b), rows.wo(a, b), &mut pdf[a..b])
+                .expect("lengths agree");
+        }
+    });
+    let mut out = vec![0.0f32; 7 * total];
+    let sample_ns = time_per(passes, total, || {
+        let mut cols = out.chunks_exact_mut(total);
+        let mut col = || cols.next().expect("seven columns");
+        let (x, y, z, p, r, g, bl) = (col(), col(), col(), col(), col(), col(), col());
+        for &a in &starts {
+            let b = (a + n).min(total);
+            let samples = neusample::wavefront::SamplesMut {
+                wo: neusample::wavefront::Vec3sMut {
+                    x: &mut x[a..b],
+                    y: &mut y[a..b],
+                    z: &mut z[a..b],
+                },
+                pdf: &mut p[a..b],
+            };
+            let weight = RgbMut {
+                r: &mut r[a..b],
+                g: &mut g[a..b],
+                b: &mut bl[a..b],
+            };
+            m.sample_batch(rows.wi(a, b), rows.u(a, b), samples, weight)
+                .expect("lengths agree");
+        }
+    });
+    MeasuredBatched {
+        n,
+        eval_ns,
+        pdf_ns,
+        sample_ns,
+    }
 }
 
 /// The `--methods` name of the neural material in a profiling run ([`profile`]).
@@ -840,6 +918,13 @@ pub fn text(r: &BenchReport) -> String {
             "\nmeasured material {} (scalar, each with its prepare): prepare {:.0} ns, eval {:.0} ns, data's sampler pdf {:.0} ns, sample {:.0} ns",
             mc.file, mc.prepare_ns, mc.eval_ns, mc.pdf_ns, mc.sample_ns
         );
+        for b in &mc.batched {
+            let _ = writeln!(
+                s,
+                "  batched N={}: eval {:.0} ns, pdf {:.0} ns, sample {:.0} ns",
+                b.n, b.eval_ns, b.pdf_ns, b.sample_ns
+            );
+        }
     }
     let d = &r.dense;
     let _ = writeln!(
