@@ -19,7 +19,8 @@ use crate::math;
 use crate::weights::Weights;
 
 use super::{
-    elevation, fold_sign, jacobian, phi2u, theta2u, u2phi, u2theta, MeasuredMaterial, MeasuredShape,
+    azimuth, elevation, fold_sign, jacobian, phi2u, theta2u, u2phi, u2theta, MeasuredMaterial,
+    MeasuredShape,
 };
 
 /// Lanes per chunk: one AVX2 register (wider chunks measured slower: their lane arrays
@@ -673,7 +674,7 @@ impl Ctx<'_> {
             [p.wi[0][l], p.wi[1][l], p.wi[2][l]] = [w.x, w.y, w.z];
             [p.flip[0][l], p.flip[1][l]] = [fx, fy];
             theta_i[l] = elevation(w);
-            p.phi_i[l] = math::atan2(w.y, w.x);
+            p.phi_i[l] = azimuth(w);
         }
         let t = &self.f;
         if self.counted {
@@ -722,7 +723,7 @@ impl Ctx<'_> {
             let wi = Vec3::new(p.wi[0][l], p.wi[1][l], p.wi[2][l]);
             let (m, ok_m) = normalize(wi + w);
             let theta_m = elevation(m);
-            let phi_m = math::atan2(m.y, m.x);
+            let phi_m = azimuth(m);
             let rel = if self.isotropic {
                 phi_m - p.phi_i[l]
             } else {

@@ -299,7 +299,7 @@ impl<W: Weights> MeasuredMaterial<W> {
         }
         let wi = Vec3::new(wi.x * flip.x, wi.y * flip.y, wi.z);
         let theta_i = elevation(wi);
-        let phi_i = math::atan2(wi.y, wi.x);
+        let phi_i = azimuth(wi);
         let t = &self.tables;
         let blend = SliceBlend::new(&t.phi_i, &t.theta_i, [phi_i, theta_i]);
         let u_wi = Vec2::new(theta2u(theta_i), phi2u(phi_i));
@@ -340,6 +340,18 @@ fn normalize(d: Vec3) -> Option<Vec3> {
         return None;
     }
     Some(d * (1.0 / math::sqrt(len2)))
+}
+
+/// The azimuth of `d` in (−π, π], 0 on the pole (where `atan2` is undefined on GPUs and
+/// depends on the zeros' signs elsewhere).
+#[inline]
+fn azimuth(d: Vec3) -> f32 {
+    let phi = math::atan2(d.y, d.x);
+    if d.x == 0.0 && d.y == 0.0 {
+        0.0
+    } else {
+        phi
+    }
 }
 
 /// The polar angle of a unit vector, accurate near the pole: `2 asin(|d − z|/2)`.
@@ -447,7 +459,7 @@ impl<W: Weights> MeasuredPrepared<'_, W> {
         let wo = Vec3::new(wo.x * self.flip.x, wo.y * self.flip.y, wo.z);
         let m = normalize(self.wi + wo)?;
         let theta_m = elevation(m);
-        let phi_m = math::atan2(m.y, m.x);
+        let phi_m = azimuth(m);
         let rel = if self.m.isotropic() {
             phi_m - self.phi_i
         } else {
