@@ -5,9 +5,12 @@ Dr.Jit thread on 2^20-lane arrays (eval, pdf, sample; the kernel compiled in a w
 each timed call a fresh kernel launch on new inputs) and neusample's `MeasuredMaterial`
 (the Rust runtime's scalar code per lane, through the numpy API, `threads=1`) on the same
 arrays; ns per lane, the median of --repeats interleaved runs. Ours includes the numpy
-round trip, so it is an upper bound on the runtime's own cost.
+round trip, so it is an upper bound on the runtime's own cost. With --bench, each repeat also
+runs `neusample bench --json --measured FILE` (the Rust batched calls at 64 lanes per call,
+one thread, no Python) and reports its figures beside Mitsuba's.
 
-    python tools/measured_cost.py [--lanes 1048576] [--repeats 5] [--out docs/measured/cost.md]
+    python tools/measured_cost.py [--lanes 1048576] [--repeats 5] [--bench target/release/neusample]
+                                  [--out docs/measured/cost.md]
 
 Needs mitsuba==3.9.1 (and a working LLVM for llvm_ad_rgb: Debian libllvm19) and the
 neusample Python package (`pip install ./bindings/python`).
@@ -16,8 +19,10 @@ neusample Python package (`pip install ./bindings/python`).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -41,7 +46,10 @@ def main() -> int:
     ap.add_argument("--lanes", type=int, default=1 << 20)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", type=Path, help="write the Markdown table here (atomically)")
+    ap.add_argument("--bench", type=Path, help="the neusample binary: also time its batched calls (N = 64)")
     a = ap.parse_args()
+    if a.bench is not None and not a.bench.is_file():
+        ap.error(f"--bench {a.bench}: no such file")
     if a.lanes <= 0 or a.repeats <= 0:
         ap.error("--lanes and --repeats must be positive")
 
@@ -63,7 +71,10 @@ def main() -> int:
     for path in files:
         ours = neusample.MeasuredMaterial(str(path))
         theirs = mi.load_dict({"type": "measured", "filename": str(path)})
-        times = {k: [] for k in ("mi eval", "mi pdf", "mi sample", "ns eval", "ns pdf", "ns sample")}
+        keys = ["mi eval", "mi pdf", "mi sample", "ns eval", "ns pdf", "ns sample"]
+        if a.bench:
+            keys += ["b64 eval", "b64 pdf", "b64 sample"]
+        times = {k: [] for k in keys}
         for r in range(a.repeats + 1):  # the first: Dr.Jit compiles its kernels
             wi, wo = directions(rng, n), directions(rng, n)
             u = rng.random((2, n)).astype(np.float32)
@@ -94,6 +105,16 @@ def main() -> int:
             t = time.perf_counter()
             ours.sample(wi, u, threads=1)
             times["ns sample"].append(time.perf_counter() - t)
+            if a.bench and r > 0:
+                out = subprocess.run([str(a.bench), "bench", "--json", "--methods", "cosine",
+                                      "--measured", str(path)], check=True, capture_output=True,
+                                     text=True).stdout
+                b = next(x for x in json.loads(out)["measured"]["batched"] if x["n"] == 64)
+                for k in ("eval", "pdf", "sample"):
+                    times[f"b64 {k}"].append(b[f"{k}_ns"] * n * 1e-9)
+            elif a.bench:
+                for k in ("eval", "pdf", "sample"):
+                    times[f"b64 {k}"].append(0.0)
         med = {k: statistics.median(v[1:]) / n * 1e9 for k, v in times.items()}
         rng_ = {k: (min(v[1:]) / n * 1e9, max(v[1:]) / n * 1e9) for k, v in times.items()}
         rows.append((path.name, med, rng_))
@@ -121,8 +142,23 @@ def main() -> int:
         lines.append(f"| {name} | {cell(med, rng_, 'mi eval')} | {cell(med, rng_, 'ns eval')} | "
                      f"{cell(med, rng_, 'mi pdf')} | {cell(med, rng_, 'ns pdf')} | "
                      f"{cell(med, rng_, 'mi sample')} | {cell(med, rng_, 'ns sample')} | {ratio} |")
+    if a.bench:
+        lines += [
+            "",
+            "The Rust runtime's batched calls (`neusample bench --json --measured FILE`, 64 lanes "
+            "per call, one thread, each call with its prepare; run between Mitsuba's timings of "
+            "the same repeat). ns per lane, median [min–max]:",
+            "",
+            "| file | ours eval | ours pdf | ours sample | ours ÷ Mitsuba (eval, pdf, sample) |",
+            "|---|---:|---:|---:|---:|",
+        ]
+        for name, med, rng_ in rows:
+            ratio = ", ".join(f"{med['b64 ' + k] / med['mi ' + k]:.2f}" for k in ("eval", "pdf", "sample"))
+            lines.append(f"| {name} | {cell(med, rng_, 'b64 eval')} | {cell(med, rng_, 'b64 pdf')} | "
+                         f"{cell(med, rng_, 'b64 sample')} | {ratio} |")
     lines += ["", "Reproduce:", "", "```sh",
               f"python tools/measured_cost.py --lanes {n} --repeats {a.repeats}" +
+              (f" --bench {a.bench}" if a.bench else "") +
               (f" --out {a.out}" if a.out else ""), "```", ""]
     text = "\n".join(lines)
     print(text)
