@@ -495,6 +495,8 @@ impl<'a> Tensor<'a> {
     /// Elements `start .. start + len` as a tensor of the same storage, without copying
     /// (aligned f32 stays [`Tensor::F32`]), or `None` when the range is not inside the tensor.
     /// How one stored tensor is split into several tables (a measured material's).
+    // rust-gpu: sub-slices are not supported there; shaders read flat buffers instead.
+    #[cfg(not(target_arch = "spirv"))]
     #[must_use]
     pub fn range(&self, start: u32, len: u32) -> Option<Tensor<'a>> {
         let end = start.checked_add(len)?;

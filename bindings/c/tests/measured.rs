@@ -55,7 +55,6 @@ fn lane(i: usize) -> (Vec3, Vec3, Vec2) {
 }
 
 #[test]
-#[allow(clippy::needless_range_loop)] // lanes index several parallel arrays
 fn measured_blob_through_the_c_abi() {
     let owned = fixture();
     let m = owned.material();
@@ -207,30 +206,66 @@ fn measured_blob_through_the_c_abi() {
             NsStatus::NS_OK
         );
     }
-    for i in 0..N {
-        let (wi, wo, u) = lane(i);
-        let p = m.prepare(wi);
-        let f = p.as_ref().map_or([0.0; 3], |p| p.eval(wo));
-        assert_eq!(
-            [out[0][i], out[1][i], out[2][i]].map(f32::to_bits),
-            f.map(f32::to_bits)
-        );
-        assert_eq!(
-            out[3][i].to_bits(),
-            p.as_ref().map_or(0.0, |p| p.pdf(wo)).to_bits()
-        );
-        let s = p.and_then(|p| p.sample(u));
-        assert_eq!(
-            out[7][i].to_bits(),
-            s.map_or(0.0, |s| s.pdf).to_bits(),
-            "lane {i}"
-        );
-        let w = s.map_or([0.0; 3], |s| s.weight);
-        assert_eq!(
-            [out[8][i], out[9][i], out[10][i]].map(f32::to_bits),
-            w.map(f32::to_bits)
-        );
+    // The runtime's batched calls on the same lanes (the ABI adds nothing to them).
+    let mut want: [Vec<f32>; 11] = std::array::from_fn(|_| vec![0.0; N]);
+    {
+        use neusample::wavefront::{RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
+        let wi = Vec3s {
+            x: &cols[0],
+            y: &cols[1],
+            z: &cols[2],
+        };
+        let wo = Vec3s {
+            x: &cols[3],
+            y: &cols[4],
+            z: &cols[5],
+        };
+        let [fr, fg, fb, pdf, sx, sy, sz, sp, wr, wg, wb] = &mut want;
+        m.eval_batch(
+            wi,
+            wo,
+            RgbMut {
+                r: fr,
+                g: fg,
+                b: fb,
+            },
+        )
+        .unwrap();
+        m.pdf_batch(wi, wo, pdf).unwrap();
+        let dst = SamplesMut {
+            wo: Vec3sMut {
+                x: sx,
+                y: sy,
+                z: sz,
+            },
+            pdf: sp,
+        };
+        let u = Vec2s {
+            x: &cols[6],
+            y: &uy,
+        };
+        m.sample_batch(
+            wi,
+            u,
+            dst,
+            RgbMut {
+                r: wr,
+                g: wg,
+                b: wb,
+            },
+        )
+        .unwrap();
     }
+    let bits = |a: &[Vec<f32>; 11]| -> Vec<Vec<u32>> {
+        a.iter()
+            .map(|v| v.iter().map(|x| x.to_bits()).collect())
+            .collect()
+    };
+    assert!(
+        bits(&out) == bits(&want),
+        "batched calls differ from the runtime's"
+    );
+    assert!(out[7].iter().filter(|p| **p > 0.0).count() > N / 2);
 
     // Bad scalar input.
     let up = NsVec3 {
