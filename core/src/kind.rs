@@ -31,11 +31,15 @@ pub enum SamplerKind {
     /// Disk flow: the paper's spline couplings on a uniform base with every mass inside the
     /// disk (`core/ARCHITECTURES.md` §9).
     DiskFlow,
+    /// Not a sampler: a measured material of the RGL database ([`crate::measured`]), with its
+    /// own VNDF sampler. Opened with [`Blob::measured`](crate::Blob::measured);
+    /// [`Blob::sampler`](crate::Blob::sampler) refuses it. Not in [`SamplerKind::ALL`].
+    Measured,
 }
 
 impl SamplerKind {
-    /// Every sampler kind, in a stable order ([`SamplerKind::NeuralMaterial`], which is not a
-    /// sampler, is not listed).
+    /// Every sampler kind, in a stable order (the materials, [`SamplerKind::NeuralMaterial`]
+    /// and [`SamplerKind::Measured`], which are not samplers, are not listed).
     pub const ALL: [SamplerKind; 9] = [
         SamplerKind::Cosine,
         SamplerKind::ImprovedBaseline,
@@ -62,6 +66,7 @@ impl SamplerKind {
             SamplerKind::HistogramMixture => "histogram-mixture",
             SamplerKind::NeuralMaterial => "neural-material",
             SamplerKind::Reparam => "reparam",
+            SamplerKind::Measured => "measured",
         }
     }
 
@@ -73,17 +78,21 @@ impl SamplerKind {
         !matches!(self, SamplerKind::Reparam)
     }
 
-    /// Whether the kind is a sampler (every kind but [`SamplerKind::NeuralMaterial`]).
+    /// Whether the kind is a sampler (every kind but the materials,
+    /// [`SamplerKind::NeuralMaterial`] and [`SamplerKind::Measured`]).
     #[must_use]
     pub const fn is_sampler(self) -> bool {
-        !matches!(self, SamplerKind::NeuralMaterial)
+        !matches!(self, SamplerKind::NeuralMaterial | SamplerKind::Measured)
     }
 
-    /// The kind with the given [`SamplerKind::name`] (the neural material included).
+    /// The kind with the given [`SamplerKind::name`] (the materials included).
     #[must_use]
     pub fn from_name(name: &str) -> Option<SamplerKind> {
         if name.as_bytes() == SamplerKind::NeuralMaterial.name().as_bytes() {
             return Some(SamplerKind::NeuralMaterial);
+        }
+        if name.as_bytes() == SamplerKind::Measured.name().as_bytes() {
+            return Some(SamplerKind::Measured);
         }
         let mut i = 0;
         while i < Self::ALL.len() {

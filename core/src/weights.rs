@@ -492,6 +492,26 @@ impl<'a> Tensor<'a> {
         }
     }
 
+    /// Elements `start .. start + len` as a tensor of the same storage, without copying
+    /// (aligned f32 stays [`Tensor::F32`]), or `None` when the range is not inside the tensor.
+    /// How one stored tensor is split into several tables (a measured material's).
+    // rust-gpu: sub-slices are not supported there; shaders read flat buffers instead.
+    #[cfg(not(target_arch = "spirv"))]
+    #[must_use]
+    pub fn range(&self, start: u32, len: u32) -> Option<Tensor<'a>> {
+        let end = start.checked_add(len)?;
+        if end > Weights::len(self) {
+            return None;
+        }
+        let (start, end) = (start as usize, end as usize);
+        Some(match *self {
+            Tensor::F32(f) => Tensor::F32(f.get(start..end)?),
+            Tensor::F32Bytes(b) => Tensor::F32Bytes(b.get(4 * start..4 * end)?),
+            Tensor::F16Bytes(b) => Tensor::F16Bytes(b.get(2 * start..2 * end)?),
+            Tensor::U16Bytes(b) => Tensor::U16Bytes(b.get(2 * start..2 * end)?),
+        })
+    }
+
     /// Storage type of the elements.
     #[must_use]
     pub fn dtype(&self) -> DType {
@@ -692,6 +712,29 @@ mod tests {
         check::<3, 1>();
         check::<2, 3>();
         check::<1, 36>();
+    }
+
+    #[test]
+    fn range_views_without_copying() {
+        let v: [f32; 6] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0];
+        let t = Tensor::from_f32(&v);
+        let r = t.range(2, 3).unwrap();
+        assert!(matches!(r, Tensor::F32(_)));
+        assert_eq!((r.len(), r.at(0), r.at(2), r.at(3)), (3, 2.0, 4.0, 0.0));
+        assert_eq!(t.range(6, 0).map(|r| r.len()), Some(0));
+        assert!(t.range(4, 3).is_none());
+        assert!(t.range(u32::MAX, 2).is_none());
+        let mut bytes = [0u8; 25];
+        for (i, x) in v.iter().enumerate() {
+            bytes[1 + 4 * i..5 + 4 * i].copy_from_slice(&x.to_le_bytes());
+        }
+        let unaligned = Tensor::F32Bytes(&bytes[1..]);
+        let r = unaligned.range(1, 4).unwrap();
+        assert!(matches!(r, Tensor::F32Bytes(_)));
+        assert_eq!((r.len(), r.at(0), r.at(3)), (4, 1.0, 4.0));
+        let h = Tensor::F16Bytes(&bytes[1..]);
+        assert_eq!(h.range(10, 2).map(|r| r.len()), Some(2));
+        assert!(h.range(11, 2).is_none());
     }
 
     #[test]

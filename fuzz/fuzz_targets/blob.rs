@@ -1,6 +1,7 @@
 //! Opens arbitrary bytes as a blob; when one opens, prepares, samples and evaluates pdfs on
 //! inputs taken from the tail of the fuzz input (a neural-material blob: looks up features
-//! and evaluates the decoder instead). Any panic, or a NaN/negative/infinite pdf,
+//! and evaluates the decoder instead; a measured material: evaluates, samples and evaluates
+//! pdfs with the data's own sampler). Any panic, or a NaN/negative/infinite pdf,
 //! is a finding.
 #![no_main]
 
@@ -53,6 +54,26 @@ fuzz_target!(|data: &[u8]| {
             let wo = Vec3::new(f32_at(query, 20 + 3 * j), f32_at(query, 21 + 3 * j), f32_at(query, 22 + 3 * j));
             for v in m.eval(&phi, wi, wo) {
                 assert!(v.is_finite() && v >= 0.0, "neural eval {v}");
+            }
+        }
+        return;
+    }
+    // A measured material: eval, the data's sampler and its pdf must be finite and
+    // non-negative (never NaN), whatever tables passed validation.
+    if let Ok(m) = blob.measured() {
+        for j in 0..4 {
+            let wi = Vec3::new(f32_at(query, 3 * j), f32_at(query, 1 + 3 * j), f32_at(query, 2 + 3 * j));
+            let wo = Vec3::new(f32_at(query, 20 + 3 * j), f32_at(query, 21 + 3 * j), f32_at(query, 22 + 3 * j));
+            let Some(p) = m.prepare(wi) else {
+                continue;
+            };
+            for v in p.eval(wo) {
+                assert!(v.is_finite() && v >= 0.0, "measured eval {v}");
+            }
+            let pdf = p.pdf(wo);
+            assert!(pdf.is_finite() && pdf >= 0.0, "measured pdf {pdf}");
+            if let Some(s) = p.sample(Vec2::new(f32_at(query, 12 + 2 * j), f32_at(query, 13 + 2 * j))) {
+                assert!(s.pdf.is_finite() && s.pdf > 0.0, "measured sample pdf {}", s.pdf);
             }
         }
         return;

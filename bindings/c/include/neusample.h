@@ -52,7 +52,7 @@ typedef enum NsStatus {
   NS_ERR_HEADER_INVALID = 15,
   // Blob: a different kind than asked for (e.g. a sampler blob as a material).
   NS_ERR_WRONG_KIND = 16,
-  // Blob: a neural material where a sampler was asked for.
+  // Blob: a material (neural or measured) where a sampler was asked for.
   NS_ERR_NOT_A_SAMPLER = 17,
   // Blob: an architecture dimension differs from this build's.
   NS_ERR_DIMENSION_MISMATCH = 18,
@@ -98,6 +98,9 @@ typedef enum NsKind {
   NS_KIND_REPARAM = 8,
   // Disk flow: spline couplings on chords, uniform base, every mass inside the disk.
   NS_KIND_DISK_FLOW = 9,
+  // A measured (RGL) material with its own VNDF sampler (not a sampler kind: open it with
+  // `ns_measured_new`).
+  NS_KIND_MEASURED = 10,
 } NsKind;
 
 // A validated blob that owns a copy of its bytes. Opaque.
@@ -105,6 +108,10 @@ typedef struct NsBlob NsBlob;
 
 // A neural material (feature texture + decoder). Opaque; immutable; thread-safe.
 typedef struct NsMaterial NsMaterial;
+
+// A measured material (RGL data) with its own sampler, read in place from a measured blob
+// (shares the blob's bytes). Opaque; immutable; thread-safe.
+typedef struct NsMeasured NsMeasured;
 
 // The prepared state of one shading point (the sampler's networks evaluated for `(φ, wi)`),
 // reusable: allocate one per thread with `ns_prepared_new`, fill it with `ns_prepare` at
@@ -238,6 +245,17 @@ typedef struct NsRgbMut {
   // Blue.
   float *b;
 } NsRgbMut;
+
+// A direction drawn by a measured material's own sampler: its density with respect to
+// solid angle and the RGB weight `f · cos θo / pdf`. A refused sample is all zeros.
+typedef struct NsMeasuredSample {
+  // The direction (local shading frame, unit length, `wo.z > 0`).
+  struct NsVec3 wo;
+  // Its solid-angle density.
+  float pdf;
+  // `f(wi, wo) · cos θo / pdf` per RGB channel.
+  struct NsRgb weight;
+} NsMeasuredSample;
 
 #ifdef __cplusplus
 extern "C" {
@@ -473,6 +491,89 @@ enum NsStatus ns_material_eval_batch(const struct NsMaterial *material,
                                      struct NsVec3s wi,
                                      struct NsVec3s wo,
                                      struct NsRgbMut out);
+
+// Builds the measured material of a measured blob (kind `NS_KIND_MEASURED`, written by
+// `neusample measured-blob`) and stores a new handle in `*out` (free it with
+// `ns_measured_free`). `NS_ERR_WRONG_KIND` for any other blob.
+//
+// # Safety
+// `blob` is NULL or a live handle; `out` is NULL or writable.
+enum NsStatus ns_measured_new(const struct NsBlob *blob, struct NsMeasured **out);
+
+// Frees a measured-material handle (NULL is ignored).
+//
+// # Safety
+// `measured` is NULL or a handle from `ns_measured_new`, freed once.
+void ns_measured_free(struct NsMeasured *measured);
+
+// The measured BRDF `f(wi, wo)` in linear RGB, **without** the cosine (0 where either
+// direction is at or below the horizon). `NS_ERR_NOT_FINITE` for NaN/∞ inputs.
+//
+// # Safety
+// `measured` is NULL or a live handle; `out` NULL or writable.
+enum NsStatus ns_measured_eval(const struct NsMeasured *measured,
+                               struct NsVec3 wi,
+                               struct NsVec3 wo,
+                               struct NsRgb *out);
+
+// The density with which `ns_measured_sample` draws `wo` at `wi`, with respect to solid
+// angle, in `*out` (0 for `wo` at or below the horizon). `NS_REFUSED` (with `*out = 0`)
+// when `wi` is at or below the horizon; `NS_ERR_NOT_FINITE` for NaN/∞ inputs.
+//
+// # Safety
+// `measured` is NULL or a live handle; `out` NULL or writable.
+enum NsStatus ns_measured_pdf(const struct NsMeasured *measured,
+                              struct NsVec3 wi,
+                              struct NsVec3 wo,
+                              float *out);
+
+// Draws one direction at `wi` from `u ∈ [0,1)²` with the data's own sampler (Mitsuba's
+// `measured` sampler: the same direction for the same `u`) into `*out`: the direction, its
+// solid-angle pdf and the RGB weight `f · cos θo / pdf`. `NS_REFUSED` (with `*out` zeroed)
+// when `wi` is at or below the horizon, `u` is outside [0, 1] or the sample has no density;
+// `NS_ERR_NOT_FINITE` for NaN/∞ inputs.
+//
+// # Safety
+// `measured` is NULL or a live handle; `out` NULL or writable.
+enum NsStatus ns_measured_sample(const struct NsMeasured *measured,
+                                 struct NsVec3 wi,
+                                 struct NsVec2 u,
+                                 struct NsMeasuredSample *out);
+
+// `ns_measured_eval` of `n` direction pairs (RGB, no cosine; a refused or non-finite lane
+// gives 0).
+//
+// # Safety
+// As `ns_sample_batch`.
+enum NsStatus ns_measured_eval_batch(const struct NsMeasured *measured,
+                                     size_t n,
+                                     struct NsVec3s wi,
+                                     struct NsVec3s wo,
+                                     struct NsRgbMut out);
+
+// `ns_measured_pdf` of `n` lanes: `pdf[i]` is the solid-angle density of `wo[i]` at
+// `wi[i]` (0 for a refused or non-finite lane).
+//
+// # Safety
+// As `ns_sample_batch`.
+enum NsStatus ns_measured_pdf_batch(const struct NsMeasured *measured,
+                                    size_t n,
+                                    struct NsVec3s wi,
+                                    struct NsVec3s wo,
+                                    float *pdf);
+
+// `ns_measured_sample` of `n` lanes: lane `i` draws from `u[i]` at `wi[i]` and writes
+// `out.{x,y,z,pdf}[i]` (solid-angle pdf) and `weight.{r,g,b}[i]` (`f · cos θo / pdf`); a
+// refused lane gets `wo = 0`, `pdf = 0` and a zero weight.
+//
+// # Safety
+// As `ns_sample_batch`.
+enum NsStatus ns_measured_sample_batch(const struct NsMeasured *measured,
+                                       size_t n,
+                                       struct NsVec3s wi,
+                                       struct NsVec2s u,
+                                       struct NsSamplesMut out,
+                                       struct NsRgbMut weight);
 
 #ifdef __cplusplus
 }  // extern "C"

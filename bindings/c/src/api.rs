@@ -7,7 +7,9 @@ use neusample::wavefront::{
 use neusample::{Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
 
 use crate::error::CallError;
-use crate::types::{NsPhi, NsPrepared, NsRgb, NsSample, NsSampler, NsVec2, NsVec3};
+use crate::types::{
+    NsMeasured, NsMeasuredSample, NsPhi, NsPrepared, NsRgb, NsSample, NsSampler, NsVec2, NsVec3,
+};
 
 pub(crate) fn vec3(v: NsVec3, what: &'static str) -> Result<Vec3, CallError> {
     let w = Vec3::new(v.x, v.y, v.z);
@@ -217,4 +219,71 @@ pub(crate) fn eval_batch(
     out: RgbMut<'_>,
 ) -> Result<(), CallError> {
     Ok(m.0.get().eval_batch(phi, wi, wo, out)?)
+}
+
+/// The measured BRDF without the cosine; 0 where `wi` or `wo` is at or below the horizon.
+pub(crate) fn measured_eval(m: &NsMeasured, wi: Vec3, wo: Vec3) -> NsRgb {
+    let [r, g, b] = m.0.get().prepare(wi).map_or([0.0; 3], |p| p.eval(wo));
+    NsRgb { r, g, b }
+}
+
+/// The measured sampler's solid-angle density of `wo` at `wi` (refused: `wi` at or below the
+/// horizon).
+pub(crate) fn measured_pdf(
+    m: &NsMeasured,
+    wi: Vec3,
+    wo: Vec3,
+    out: &mut f32,
+) -> Result<(), CallError> {
+    *out = 0.0;
+    let p = m.0.get().prepare(wi).ok_or(CallError::Refused)?;
+    *out = p.pdf(wo);
+    Ok(())
+}
+
+/// One direction from the measured material's own sampler.
+pub(crate) fn measured_sample(
+    m: &NsMeasured,
+    wi: Vec3,
+    u: Vec2,
+    out: &mut NsMeasuredSample,
+) -> Result<(), CallError> {
+    *out = NsMeasuredSample::default();
+    let p = m.0.get().prepare(wi).ok_or(CallError::Refused)?;
+    let s = p.sample(u).ok_or(CallError::Refused)?;
+    let [r, g, b] = s.weight;
+    *out = NsMeasuredSample {
+        wo: ns_vec3(s.wo),
+        pdf: s.pdf,
+        weight: NsRgb { r, g, b },
+    };
+    Ok(())
+}
+
+pub(crate) fn measured_eval_batch(
+    m: &NsMeasured,
+    wi: Vec3s<'_>,
+    wo: Vec3s<'_>,
+    out: RgbMut<'_>,
+) -> Result<(), CallError> {
+    Ok(m.0.get().eval_batch(wi, wo, out)?)
+}
+
+pub(crate) fn measured_pdf_batch(
+    m: &NsMeasured,
+    wi: Vec3s<'_>,
+    wo: Vec3s<'_>,
+    pdf: &mut [f32],
+) -> Result<(), CallError> {
+    Ok(m.0.get().pdf_batch(wi, wo, pdf)?)
+}
+
+pub(crate) fn measured_sample_batch(
+    m: &NsMeasured,
+    wi: Vec3s<'_>,
+    u: Vec2s<'_>,
+    out: SamplesMut<'_>,
+    weight: RgbMut<'_>,
+) -> Result<(), CallError> {
+    Ok(m.0.get().sample_batch(wi, u, out, weight)?)
 }

@@ -18,7 +18,7 @@ use std::path::Path;
 use neusample::wavefront::AnyLane;
 use neusample::wavefront::{Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
 use neusample::FEATURE_DIM;
-use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedSampler};
+use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedMeasuredBlob, OwnedSampler};
 
 use crate::api;
 use crate::error::{guard, guard_void, open_error, status_name, with_last_error, CallError};
@@ -782,5 +782,224 @@ pub unsafe extern "C" fn ns_material_eval_batch(
             }
         };
         api::eval_batch(m, phi, wi, wo, dst)
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Measured materials (RGL data in a measured blob): eval, the data's own sampler and its
+// density, each with respect to solid angle.
+
+/// Builds the measured material of a measured blob (kind `NS_KIND_MEASURED`, written by
+/// `neusample measured-blob`) and stores a new handle in `*out` (free it with
+/// `ns_measured_free`). `NS_ERR_WRONG_KIND` for any other blob.
+///
+/// # Safety
+/// `blob` is NULL or a live handle; `out` is NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ns_measured_new(
+    blob: *const NsBlob,
+    out: *mut *mut NsMeasured,
+) -> NsStatus {
+    guard(|| {
+        // SAFETY: live handle or NULL (contract).
+        let blob = unsafe { get(blob, "blob") }?;
+        // SAFETY: writable or NULL (contract).
+        let out = unsafe { get_mut(out, "out") }?;
+        put(out, NsMeasured(OwnedMeasuredBlob::new(&blob.0)?));
+        Ok(())
+    })
+}
+
+/// Frees a measured-material handle (NULL is ignored).
+///
+/// # Safety
+/// `measured` is NULL or a handle from `ns_measured_new`, freed once.
+#[no_mangle]
+pub unsafe extern "C" fn ns_measured_free(measured: *mut NsMeasured) {
+    // SAFETY: caller's contract.
+    guard_void(|| unsafe { free(measured) })
+}
+
+/// The measured BRDF `f(wi, wo)` in linear RGB, **without** the cosine (0 where either
+/// direction is at or below the horizon). `NS_ERR_NOT_FINITE` for NaN/∞ inputs.
+///
+/// # Safety
+/// `measured` is NULL or a live handle; `out` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ns_measured_eval(
+    measured: *const NsMeasured,
+    wi: NsVec3,
+    wo: NsVec3,
+    out: *mut NsRgb,
+) -> NsStatus {
+    guard(|| {
+        // SAFETY: live handle or NULL (contract).
+        let m = unsafe { get(measured, "measured") }?;
+        // SAFETY: writable or NULL (contract).
+        let out = unsafe { get_mut(out, "out") }?;
+        let (wi, wo) = (api::vec3(wi, "wi")?, api::vec3(wo, "wo")?);
+        *out = api::measured_eval(m, wi, wo);
+        Ok(())
+    })
+}
+
+/// The density with which `ns_measured_sample` draws `wo` at `wi`, with respect to solid
+/// angle, in `*out` (0 for `wo` at or below the horizon). `NS_REFUSED` (with `*out = 0`)
+/// when `wi` is at or below the horizon; `NS_ERR_NOT_FINITE` for NaN/∞ inputs.
+///
+/// # Safety
+/// `measured` is NULL or a live handle; `out` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ns_measured_pdf(
+    measured: *const NsMeasured,
+    wi: NsVec3,
+    wo: NsVec3,
+    out: *mut f32,
+) -> NsStatus {
+    guard(|| {
+        // SAFETY: live handle or NULL (contract).
+        let m = unsafe { get(measured, "measured") }?;
+        // SAFETY: writable or NULL (contract).
+        let out = unsafe { get_mut(out, "out") }?;
+        let (wi, wo) = (api::vec3(wi, "wi")?, api::vec3(wo, "wo")?);
+        api::measured_pdf(m, wi, wo, out)
+    })
+}
+
+/// Draws one direction at `wi` from `u ∈ [0,1)²` with the data's own sampler (Mitsuba's
+/// `measured` sampler: the same direction for the same `u`) into `*out`: the direction, its
+/// solid-angle pdf and the RGB weight `f · cos θo / pdf`. `NS_REFUSED` (with `*out` zeroed)
+/// when `wi` is at or below the horizon, `u` is outside [0, 1] or the sample has no density;
+/// `NS_ERR_NOT_FINITE` for NaN/∞ inputs.
+///
+/// # Safety
+/// `measured` is NULL or a live handle; `out` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ns_measured_sample(
+    measured: *const NsMeasured,
+    wi: NsVec3,
+    u: NsVec2,
+    out: *mut NsMeasuredSample,
+) -> NsStatus {
+    guard(|| {
+        // SAFETY: live handle or NULL (contract).
+        let m = unsafe { get(measured, "measured") }?;
+        // SAFETY: writable or NULL (contract).
+        let out = unsafe { get_mut(out, "out") }?;
+        let (wi, u) = (api::vec3(wi, "wi")?, api::vec2(u, "u")?);
+        api::measured_sample(m, wi, u, out)
+    })
+}
+
+/// `ns_measured_eval` of `n` direction pairs (RGB, no cosine; a refused or non-finite lane
+/// gives 0).
+///
+/// # Safety
+/// As `ns_sample_batch`.
+#[no_mangle]
+pub unsafe extern "C" fn ns_measured_eval_batch(
+    measured: *const NsMeasured,
+    n: usize,
+    wi: NsVec3s,
+    wo: NsVec3s,
+    out: NsRgbMut,
+) -> NsStatus {
+    guard(|| {
+        // SAFETY: live handle or NULL (contract).
+        let m = unsafe { get(measured, "measured") }?;
+        let mut arr = Arrays::new(n);
+        let wi = vec3s(&mut arr, &wi, "wi")?;
+        let wo = vec3s(&mut arr, &wo, "wo")?;
+        arr.output(out.r, "out.r")?;
+        arr.output(out.g, "out.g")?;
+        arr.output(out.b, "out.b")?;
+        arr.check_overlap()?;
+        // SAFETY: checked for `n` floats each and overlapping nothing else.
+        let dst = unsafe {
+            RgbMut {
+                r: slice_mut(out.r, n),
+                g: slice_mut(out.g, n),
+                b: slice_mut(out.b, n),
+            }
+        };
+        api::measured_eval_batch(m, wi, wo, dst)
+    })
+}
+
+/// `ns_measured_pdf` of `n` lanes: `pdf[i]` is the solid-angle density of `wo[i]` at
+/// `wi[i]` (0 for a refused or non-finite lane).
+///
+/// # Safety
+/// As `ns_sample_batch`.
+#[no_mangle]
+pub unsafe extern "C" fn ns_measured_pdf_batch(
+    measured: *const NsMeasured,
+    n: usize,
+    wi: NsVec3s,
+    wo: NsVec3s,
+    pdf: *mut f32,
+) -> NsStatus {
+    guard(|| {
+        // SAFETY: live handle or NULL (contract).
+        let m = unsafe { get(measured, "measured") }?;
+        let mut arr = Arrays::new(n);
+        let wi = vec3s(&mut arr, &wi, "wi")?;
+        let wo = vec3s(&mut arr, &wo, "wo")?;
+        arr.output(pdf, "pdf")?;
+        arr.check_overlap()?;
+        // SAFETY: checked for `n` floats and overlapping nothing else.
+        let pdf = unsafe { slice_mut(pdf, n) };
+        api::measured_pdf_batch(m, wi, wo, pdf)
+    })
+}
+
+/// `ns_measured_sample` of `n` lanes: lane `i` draws from `u[i]` at `wi[i]` and writes
+/// `out.{x,y,z,pdf}[i]` (solid-angle pdf) and `weight.{r,g,b}[i]` (`f · cos θo / pdf`); a
+/// refused lane gets `wo = 0`, `pdf = 0` and a zero weight.
+///
+/// # Safety
+/// As `ns_sample_batch`.
+#[no_mangle]
+pub unsafe extern "C" fn ns_measured_sample_batch(
+    measured: *const NsMeasured,
+    n: usize,
+    wi: NsVec3s,
+    u: NsVec2s,
+    out: NsSamplesMut,
+    weight: NsRgbMut,
+) -> NsStatus {
+    guard(|| {
+        // SAFETY: live handle or NULL (contract).
+        let m = unsafe { get(measured, "measured") }?;
+        let mut arr = Arrays::new(n);
+        let wi = vec3s(&mut arr, &wi, "wi")?;
+        let u = vec2s(&mut arr, &u, "u")?;
+        arr.output(out.x, "out.x")?;
+        arr.output(out.y, "out.y")?;
+        arr.output(out.z, "out.z")?;
+        arr.output(out.pdf, "out.pdf")?;
+        arr.output(weight.r, "weight.r")?;
+        arr.output(weight.g, "weight.g")?;
+        arr.output(weight.b, "weight.b")?;
+        arr.check_overlap()?;
+        // SAFETY: checked for `n` floats each and overlapping nothing else.
+        let (dst, w) = unsafe {
+            (
+                SamplesMut {
+                    wo: Vec3sMut {
+                        x: slice_mut(out.x, n),
+                        y: slice_mut(out.y, n),
+                        z: slice_mut(out.z, n),
+                    },
+                    pdf: slice_mut(out.pdf, n),
+                },
+                RgbMut {
+                    r: slice_mut(weight.r, n),
+                    g: slice_mut(weight.g, n),
+                    b: slice_mut(weight.b, n),
+                },
+            )
+        };
+        api::measured_sample_batch(m, wi, u, dst, w)
     })
 }

@@ -3,7 +3,7 @@
 
 use neusample::wavefront::AnyLane;
 use neusample::{DType, Interpolation, SamplerKind, FEATURE_DIM};
-use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedSampler};
+use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedMeasuredBlob, OwnedSampler};
 
 /// The result of every call. `NS_OK` is 0; errors are positive; `NS_REFUSED` (a scalar call
 /// whose condition or sample the sampler refused, with zeroed outputs) is not an error.
@@ -43,7 +43,7 @@ pub enum NsStatus {
     NS_ERR_HEADER_INVALID = 15,
     /// Blob: a different kind than asked for (e.g. a sampler blob as a material).
     NS_ERR_WRONG_KIND = 16,
-    /// Blob: a neural material where a sampler was asked for.
+    /// Blob: a material (neural or measured) where a sampler was asked for.
     NS_ERR_NOT_A_SAMPLER = 17,
     /// Blob: an architecture dimension differs from this build's.
     NS_ERR_DIMENSION_MISMATCH = 18,
@@ -92,6 +92,9 @@ pub enum NsKind {
     NS_KIND_REPARAM = 8,
     /// Disk flow: spline couplings on chords, uniform base, every mass inside the disk.
     NS_KIND_DISK_FLOW = 9,
+    /// A measured (RGL) material with its own VNDF sampler (not a sampler kind: open it with
+    /// `ns_measured_new`).
+    NS_KIND_MEASURED = 10,
 }
 
 impl From<SamplerKind> for NsKind {
@@ -107,6 +110,7 @@ impl From<SamplerKind> for NsKind {
             SamplerKind::NeuralMaterial => NsKind::NS_KIND_NEURAL_MATERIAL,
             SamplerKind::Reparam => NsKind::NS_KIND_REPARAM,
             SamplerKind::DiskFlow => NsKind::NS_KIND_DISK_FLOW,
+            SamplerKind::Measured => NsKind::NS_KIND_MEASURED,
         }
     }
 }
@@ -168,6 +172,19 @@ pub struct NsSample {
     pub wo: NsVec3,
     /// Its solid-angle density.
     pub pdf: f32,
+}
+
+/// A direction drawn by a measured material's own sampler: its density with respect to
+/// solid angle and the RGB weight `f · cos θo / pdf`. A refused sample is all zeros.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq)]
+pub struct NsMeasuredSample {
+    /// The direction (local shading frame, unit length, `wo.z > 0`).
+    pub wo: NsVec3,
+    /// Its solid-angle density.
+    pub pdf: f32,
+    /// `f(wi, wo) · cos θo / pdf` per RGB channel.
+    pub weight: NsRgb,
 }
 
 /// A blob's header (`neusample::blob::Header` without the label: see `ns_blob_label`).
@@ -296,6 +313,10 @@ pub struct NsSampler(pub(crate) OwnedSampler);
 
 /// A neural material (feature texture + decoder). Opaque; immutable; thread-safe.
 pub struct NsMaterial(pub(crate) OwnedMaterial);
+
+/// A measured material (RGL data) with its own sampler, read in place from a measured blob
+/// (shares the blob's bytes). Opaque; immutable; thread-safe.
+pub struct NsMeasured(pub(crate) OwnedMeasuredBlob);
 
 /// The prepared state of one shading point (the sampler's networks evaluated for `(φ, wi)`),
 /// reusable: allocate one per thread with `ns_prepared_new`, fill it with `ns_prepare` at

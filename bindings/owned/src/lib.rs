@@ -12,6 +12,8 @@
 //! - [`OwnedMaterial`]: the neural material of a neural-material blob.
 //! - [`measured::OwnedMeasured`]: a measured (RGL `.bsdf`) material read from its file, with
 //!   the data's own sampler.
+//! - [`OwnedMeasuredBlob`]: the measured material of a measured-material blob (the same
+//!   material, its tables read in place from the blob).
 //!
 //! Each is `Send + Sync` and immutable: one handle serves any number of threads. The
 //! self-references are built with `self_cell` (no `unsafe` here). [`error_kind`] gives every
@@ -22,7 +24,7 @@ pub mod measured;
 use std::path::Path;
 use std::sync::Arc;
 
-use neusample::{Blob, BlobSampler, Error, NeuralMaterial, SamplerKind, Tensor};
+use neusample::{Blob, BlobSampler, Error, MeasuredMaterial, NeuralMaterial, SamplerKind, Tensor};
 
 /// The blob's bytes in 16-byte aligned storage (the format aligns tensors to 16 bytes
 /// relative to the blob's start, so f32 tensors become aligned slices).
@@ -223,6 +225,79 @@ impl OwnedMaterial {
     pub fn blob(&self) -> OwnedBlob {
         OwnedBlob(self.0.borrow_owner().clone())
     }
+}
+
+type MeasuredOf<'a> = MeasuredMaterial<Tensor<'a>>;
+
+self_cell::self_cell!(
+    struct MeasuredCell {
+        owner: Arc<BlobCell>,
+        #[covariant]
+        dependent: MeasuredOf,
+    }
+);
+
+/// The measured material of a measured-material blob (kind `measured`), owning (a share of)
+/// the blob; its tables are read in place.
+pub struct OwnedMeasuredBlob(MeasuredCell);
+
+impl std::fmt::Debug for OwnedMeasuredBlob {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OwnedMeasuredBlob")
+            .field("shape", self.get().shape())
+            .field("jacobian", &self.get().jacobian())
+            .finish()
+    }
+}
+
+impl OwnedMeasuredBlob {
+    /// The measured material of `blob`; [`Error::WrongKind`] for any other kind.
+    pub fn new(blob: &OwnedBlob) -> Result<Self, Error> {
+        MeasuredCell::try_new(blob.0.clone(), |b| b.borrow_dependent().measured())
+            .map(OwnedMeasuredBlob)
+    }
+
+    /// Copies `bytes`, validates them and opens their measured material.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self, Error> {
+        Self::new(&OwnedBlob::from_bytes(bytes)?)
+    }
+
+    /// The material.
+    #[must_use]
+    pub fn get(&self) -> &MeasuredMaterial<Tensor<'_>> {
+        self.0.borrow_dependent()
+    }
+
+    /// The blob it was built from.
+    #[must_use]
+    pub fn blob(&self) -> OwnedBlob {
+        OwnedBlob(self.0.borrow_owner().clone())
+    }
+
+    /// The blob's label (`neusample measured-blob` writes `name=… source=… description: …`).
+    #[must_use]
+    pub fn label(&self) -> &str {
+        self.0.borrow_owner().borrow_dependent().header().label
+    }
+}
+
+/// The label of a measured blob: `name=… source=… description: …`, cut at a character
+/// boundary to [`MAX_LABEL_LEN`](neusample::blob::MAX_LABEL_LEN) bytes.
+#[must_use]
+pub fn measured_label(name: &str, source: &str, description: &str) -> String {
+    let mut l = format!(
+        "name={name} source={source} description: {}",
+        description.trim()
+    );
+    let max = neusample::blob::MAX_LABEL_LEN;
+    if l.len() > max {
+        let mut end = max;
+        while !l.is_char_boundary(end) {
+            end -= 1;
+        }
+        l.truncate(end);
+    }
+    l
 }
 
 /// The stable name of an error's kind, as both bindings report it (C: the `NsStatus` of the

@@ -19,7 +19,7 @@ use neusample::wavefront::{
 use neusample::{
     Prepared, Sampler as _, SamplerKind, TensorRole, Vec2, Vec3, Weights, FEATURE_DIM,
 };
-use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedSampler};
+use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedMeasuredBlob, OwnedSampler};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
@@ -43,8 +43,8 @@ fn open_blob(py: Python<'_>, path: &std::path::Path) -> PyResult<OwnedBlob> {
         .map_err(|e| open_error(py, e, &path_str(path)))
 }
 
-/// A validated neusample blob (a sampler of any kind, or a neural material), owning a copy
-/// of its bytes. Opening checks everything once (checksum, header, every tensor); a bad
+/// A validated neusample blob (a sampler of any kind, a neural or a measured material), owning a
+/// copy of its bytes. Opening checks everything once (checksum, header, every tensor); a bad
 /// file raises `BlobError` (with `kind`), a missing one `FileNotFoundError`.
 #[pyclass(frozen, module = "neusample")]
 struct Blob {
@@ -102,8 +102,16 @@ impl Blob {
             .map_err(|e| blob_error(py, &e, self.path.as_deref()))
     }
 
+    /// The measured material it holds (`BlobError` with kind `"wrong_kind"` for any other
+    /// kind).
+    fn measured(&self, py: Python<'_>) -> PyResult<measured::MeasuredMaterial> {
+        OwnedMeasuredBlob::new(&self.inner)
+            .map(|m| measured::MeasuredMaterial::of_blob(m, self.path.clone()))
+            .map_err(|e| blob_error(py, &e, self.path.as_deref()))
+    }
+
     /// The values of the tensor with role `role` (`"params"`, `"mass"`, `"table"`,
-    /// `"marginal"`, `"conditional"` or `"features"`) as a float32 array, exactly as the
+    /// `"marginal"`, `"conditional"`, `"features"`, `"shape"` or `"tables"`) as a float32 array, exactly as the
     /// runtime reads them (f16 widened, u16 CDF integers as floats); None when the blob has
     /// no such tensor. `ValueError` for an unknown role.
     fn tensor<'py>(

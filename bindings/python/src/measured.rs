@@ -1,20 +1,24 @@
 //! `neusample.MeasuredMaterial`: a measured BRDF of the RGL material database (an RGB
-//! `.bsdf` file, Mitsuba's `measured` format) with the data's own sampler, batched over numpy
-//! arrays like the other classes.
+//! `.bsdf` file, Mitsuba's `measured` format, or a measured blob written from one) with the
+//! data's own sampler, batched over numpy arrays like the other classes.
 //!
-//! Each lane is prepared at its `wi` and evaluated, sampled or queried at its `wo` / `u`
-//! independently: a lane with a bad input (non-finite, zero-length, at or below the horizon)
-//! gives 0 and never disturbs the others.
+//! The array methods call the runtime's batched calls (`MeasuredMaterial::eval_batch`,
+//! `pdf_batch`, `sample_batch`) on chunks of lanes. Each lane is prepared at its `wi` and
+//! evaluated, sampled or queried at its `wo` / `u` independently: a lane with a bad input
+//! (non-finite, zero-length, at or below the horizon) gives 0 and never disturbs the others.
 
 use std::path::PathBuf;
 
-use neusample::{MeasuredMaterial as Material, Vec2, Vec3};
+use neusample::wavefront::{RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
+use neusample::{BlobWriter, Error, MeasuredMaterial as Material, Weights};
 use neusample_owned::measured::OwnedMeasured;
+use neusample_owned::{measured_label, OwnedMeasuredBlob};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
+use pyo3::types::PyBytes;
 
 use crate::arrays::{output, output1, plan, rows_mut, run, same_n, split, split_mut, Rows};
-use crate::errors::{measured_error, open_io_error};
+use crate::errors::{blob_error, measured_error, open_io_error};
 
 /// `(wo, pdf, weight)` of [`MeasuredMaterial::sample`].
 type MeasuredSampleArrays<'py> = (
@@ -24,28 +28,84 @@ type MeasuredSampleArrays<'py> = (
 );
 
 /// A measured material from the RGL database (Dupuy & Jakob 2018): an RGB `.bsdf` file in
-/// Mitsuba's `measured` format, evaluated and sampled as Mitsuba 3's `measured` BSDF does
-/// (the data's visible-normal sampler, warped through its luminance).
+/// Mitsuba's `measured` format, or a measured blob (`neusample measured-blob`), evaluated and
+/// sampled as Mitsuba 3's `measured` BSDF does (the data's visible-normal sampler, warped
+/// through its luminance).
 ///
-/// `MeasuredMaterial(path)` reads and checks the whole file; a bad file raises
+/// `MeasuredMaterial(path)` reads and checks the whole `.bsdf` file; a bad file raises
 /// `MeasuredFileError` (with `field` and `path`), a missing one `FileNotFoundError`.
+/// `MeasuredMaterial.from_blob(path_or_bytes)` opens a blob (bad bytes raise `BlobError`).
 /// Directions are in the local shading frame (z = normal, both pointing away from the
 /// surface; normalised here); every pdf is a density with respect to **solid angle** of `wo`.
 #[pyclass(frozen, module = "neusample")]
 pub(crate) struct MeasuredMaterial {
-    inner: OwnedMeasured,
-    path: String,
+    inner: Source,
+    path: Option<String>,
 }
 
-impl MeasuredMaterial {
-    fn material(&self) -> &Material<Vec<f32>> {
-        self.inner.material()
+/// Where the tables are: read from a `.bsdf` file, or in place in a blob. One per Python
+/// object, built once: the size difference between the variants does not matter.
+#[allow(clippy::large_enum_variant)]
+enum Source {
+    File(OwnedMeasured),
+    Blob(OwnedMeasuredBlob),
+}
+
+/// The batched calls of a material over any table storage, behind one face.
+trait Lanes: Sync {
+    fn eval(&self, wi: Vec3s<'_>, wo: Vec3s<'_>, out: RgbMut<'_>) -> Result<(), Error>;
+    fn pdf(&self, wi: Vec3s<'_>, wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<(), Error>;
+    fn sample(
+        &self,
+        wi: Vec3s<'_>,
+        u: Vec2s<'_>,
+        out: SamplesMut<'_>,
+        weight: RgbMut<'_>,
+    ) -> Result<(), Error>;
+    fn isotropic(&self) -> bool;
+}
+
+impl<W: Weights + Sync> Lanes for Material<W> {
+    fn eval(&self, wi: Vec3s<'_>, wo: Vec3s<'_>, out: RgbMut<'_>) -> Result<(), Error> {
+        self.eval_batch(wi, wo, out)
+    }
+    fn pdf(&self, wi: Vec3s<'_>, wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<(), Error> {
+        self.pdf_batch(wi, wo, pdf)
+    }
+    fn sample(
+        &self,
+        wi: Vec3s<'_>,
+        u: Vec2s<'_>,
+        out: SamplesMut<'_>,
+        weight: RgbMut<'_>,
+    ) -> Result<(), Error> {
+        self.sample_batch(wi, u, out, weight)
+    }
+    fn isotropic(&self) -> bool {
+        Material::isotropic(self)
     }
 }
 
-#[inline]
-fn lane3(rows: &[&[f32]; 3], i: usize) -> Vec3 {
-    Vec3::new(rows[0][i], rows[1][i], rows[2][i])
+impl MeasuredMaterial {
+    fn material(&self) -> &dyn Lanes {
+        match &self.inner {
+            Source::File(m) => m.material(),
+            Source::Blob(m) => m.get(),
+        }
+    }
+
+    /// The material of an opened measured blob.
+    pub(crate) fn of_blob(inner: OwnedMeasuredBlob, path: Option<String>) -> Self {
+        MeasuredMaterial {
+            inner: Source::Blob(inner),
+            path,
+        }
+    }
+}
+
+fn vec3s<'a>(rows: [&'a [f32]; 3]) -> Vec3s<'a> {
+    let [x, y, z] = rows;
+    Vec3s { x, y, z }
 }
 
 #[pymethods]
@@ -64,13 +124,80 @@ impl MeasuredMaterial {
                 e.file = Some(path.display().to_string());
                 measured_error(py, &e, &shown)
             })?;
-        Ok(MeasuredMaterial { inner, path: shown })
+        Ok(MeasuredMaterial {
+            inner: Source::File(inner),
+            path: Some(shown),
+        })
     }
 
-    /// The file's description of the material.
+    /// Opens a measured blob (kind `"measured"`, written by `neusample measured-blob`) from a
+    /// file path or from `bytes`. A bad blob raises `BlobError` (kind `"wrong_kind"` for a
+    /// blob of another kind), a missing file `FileNotFoundError`.
+    #[staticmethod]
+    fn from_blob(py: Python<'_>, source: &Bound<'_, PyAny>) -> PyResult<Self> {
+        if let Ok(b) = source.cast::<PyBytes>() {
+            let inner = OwnedMeasuredBlob::from_bytes(b.as_bytes())
+                .map_err(|e| blob_error(py, &e, None))?;
+            return Ok(MeasuredMaterial::of_blob(inner, None));
+        }
+        let path: PathBuf = source.extract()?;
+        let shown = path.to_string_lossy().into_owned();
+        let read = path.clone();
+        let bytes = py
+            .detach(move || std::fs::read(&read))
+            .map_err(|e| open_io_error(&e, &shown))?;
+        let inner = py
+            .detach(|| OwnedMeasuredBlob::from_bytes(&bytes))
+            .map_err(|e| blob_error(py, &e, Some(&shown)))?;
+        Ok(MeasuredMaterial::of_blob(inner, Some(shown)))
+    }
+
+    /// The description of the material: the file's, or for a blob the description in its
+    /// label (the whole label when it has none).
     #[getter]
     fn description(&self) -> &str {
-        self.inner.description()
+        match &self.inner {
+            Source::File(m) => m.description(),
+            Source::Blob(m) => {
+                let l = m.label();
+                l.split_once("description: ").map_or(l, |(_, d)| d)
+            }
+        }
+    }
+
+    /// The material as the bytes of a measured blob (what `neusample measured-blob` writes;
+    /// `from_blob` opens them). `name` is the label's `name=` field (default: the file's stem);
+    /// a blob-opened material returns its blob's bytes unchanged.
+    #[pyo3(signature = (*, name = None))]
+    fn to_blob<'py>(&self, py: Python<'py>, name: Option<&str>) -> PyResult<Bound<'py, PyBytes>> {
+        match &self.inner {
+            Source::Blob(m) => Ok(PyBytes::new(py, m.blob().bytes())),
+            Source::File(m) => {
+                let path = std::path::Path::new(self.path.as_deref().unwrap_or(""));
+                let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+                let name = name.map(str::to_string).or(stem).unwrap_or_default();
+                if name.is_empty() || name.chars().any(char::is_whitespace) {
+                    return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                        "name must be a non-empty word without spaces, got {name:?}"
+                    )));
+                }
+                let source = path
+                    .file_name()
+                    .map_or_else(String::new, |f| f.to_string_lossy().into_owned());
+                let label = measured_label(&name, &source, m.description());
+                let bytes = py.detach(|| BlobWriter::measured(m.material(), &label).to_bytes());
+                Ok(PyBytes::new(py, &bytes))
+            }
+        }
+    }
+
+    /// The blob's label (None for a material read from a `.bsdf` file).
+    #[getter]
+    fn label(&self) -> Option<&str> {
+        match &self.inner {
+            Source::File(_) => None,
+            Source::Blob(m) => Some(m.label()),
+        }
     }
 
     /// Whether the data is isotropic (at most two `φi` nodes).
@@ -79,10 +206,10 @@ impl MeasuredMaterial {
         self.material().isotropic()
     }
 
-    /// The file it was read from.
+    /// The file it was read from (None for a blob from bytes).
     #[getter]
-    fn path(&self) -> &str {
-        &self.path
+    fn path(&self) -> Option<&str> {
+        self.path.as_deref()
     }
 
     /// The measured BRDF `f(wi, wo)` in linear RGB, **without** the cosine (Mitsuba's
@@ -115,12 +242,7 @@ impl MeasuredMaterial {
                 .collect();
             py.detach(|| {
                 run(jobs, parallel, |((wi, wo), [r, g, b])| {
-                    for i in 0..r.len() {
-                        if let Some(p) = m.prepare(lane3(&wi, i)) {
-                            [r[i], g[i], b[i]] = p.eval(lane3(&wo, i));
-                        }
-                    }
-                    Ok(())
+                    m.eval(vec3s(wi), vec3s(wo), RgbMut { r, g, b })
                 })
             })
             .map_err(crate::errors::batch_error)?;
@@ -158,12 +280,7 @@ impl MeasuredMaterial {
                 .collect();
             py.detach(|| {
                 run(jobs, parallel, |((wi, wo), [pdf])| {
-                    for (i, p_out) in pdf.iter_mut().enumerate() {
-                        if let Some(p) = m.prepare(lane3(&wi, i)) {
-                            *p_out = p.pdf(lane3(&wo, i));
-                        }
-                    }
-                    Ok(())
+                    m.pdf(vec3s(wi), vec3s(wo), pdf)
                 })
             })
             .map_err(crate::errors::batch_error)?;
@@ -214,18 +331,16 @@ impl MeasuredMaterial {
                 run(
                     jobs,
                     parallel,
-                    |((((wi, u), [x, y, z]), [pdf]), [r, g, b])| {
-                        for i in 0..pdf.len() {
-                            let s = m
-                                .prepare(lane3(&wi, i))
-                                .and_then(|p| p.sample(Vec2::new(u[0][i], u[1][i])));
-                            if let Some(s) = s {
-                                (x[i], y[i], z[i]) = (s.wo.x, s.wo.y, s.wo.z);
-                                pdf[i] = s.pdf;
-                                [r[i], g[i], b[i]] = s.weight;
-                            }
-                        }
-                        Ok(())
+                    |((((wi, [ux, uy]), [x, y, z]), [pdf]), [r, g, b])| {
+                        m.sample(
+                            vec3s(wi),
+                            Vec2s { x: ux, y: uy },
+                            SamplesMut {
+                                wo: Vec3sMut { x, y, z },
+                                pdf,
+                            },
+                            RgbMut { r, g, b },
+                        )
                     },
                 )
             })
@@ -236,10 +351,11 @@ impl MeasuredMaterial {
 
     fn __repr__(&self) -> String {
         format!(
-            "neusample.MeasuredMaterial(path={:?}, description={:?}, isotropic={})",
+            "neusample.MeasuredMaterial(path={:?}, description={:?}, isotropic={}, blob={})",
             self.path,
-            self.inner.description(),
-            self.isotropic()
+            self.description(),
+            self.isotropic(),
+            matches!(self.inner, Source::Blob(_))
         )
     }
 }

@@ -24,8 +24,12 @@ pub const MAX_TENSORS: usize = 8;
 /// Longest label accepted, in bytes.
 pub const MAX_LABEL_LEN: usize = 4096;
 
+/// Elements of a measured material's [`TensorRole::Shape`] tensor: `n_phi, n_theta`, the
+/// `[width, height]` of the ndf, sigma, vndf and rgb tables, and the jacobian flag (0 or 1).
+pub const MEASURED_SHAPE_LEN: usize = 11;
+
 /// Number of tensor roles.
-pub(crate) const ROLES: usize = 6;
+pub(crate) const ROLES: usize = 8;
 
 /// What a tensor holds.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -42,6 +46,12 @@ pub enum TensorRole {
     Conditional,
     /// Neural material: the feature texture, H × W × 8 (texel-major, channels last).
     Features,
+    /// Measured material: its table sizes, 11 f32 holding exact integers
+    /// ([`MEASURED_SHAPE_LEN`]; layout in `core/BLOB.md`).
+    Shape,
+    /// Measured material: its 11 tables concatenated in the order of
+    /// [`MeasuredShape::lens`](crate::MeasuredShape::lens), f32 only.
+    Tables,
 }
 
 impl TensorRole {
@@ -55,6 +65,8 @@ impl TensorRole {
             TensorRole::Marginal => "marginal",
             TensorRole::Conditional => "conditional",
             TensorRole::Features => "features",
+            TensorRole::Shape => "shape",
+            TensorRole::Tables => "tables",
         }
     }
 
@@ -66,6 +78,8 @@ impl TensorRole {
             TensorRole::Marginal => 3,
             TensorRole::Conditional => 4,
             TensorRole::Features => 5,
+            TensorRole::Shape => 6,
+            TensorRole::Tables => 7,
         }
     }
 
@@ -77,6 +91,8 @@ impl TensorRole {
         TensorRole::Marginal,
         TensorRole::Conditional,
         TensorRole::Features,
+        TensorRole::Shape,
+        TensorRole::Tables,
     ];
 }
 

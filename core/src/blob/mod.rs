@@ -1,6 +1,6 @@
-//! The blob container: one versioned, checksummed file format for every sampler, and for
-//! the neural materials they sample ([`SamplerKind::NeuralMaterial`](crate::SamplerKind),
-//! [`Blob::neural_material`]).
+//! The blob container: one versioned, checksummed file format for every sampler, for the
+//! neural materials they sample ([`SamplerKind::NeuralMaterial`](crate::SamplerKind),
+//! [`Blob::neural_material`]) and for measured materials ([`Blob::measured`]).
 //!
 //! The byte layout is specified in `core/BLOB.md`. In short:
 //!
@@ -21,6 +21,9 @@
 //! layout and `write` (the `alloc` feature) builds blobs.
 
 mod format;
+// The measured material is not yet built for SPIR-V (see `crate::measured`).
+#[cfg(not(target_arch = "spirv"))]
+mod measured;
 mod read;
 mod validate;
 #[cfg(feature = "alloc")]
@@ -28,7 +31,7 @@ mod write;
 
 pub use format::{
     Extension, Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION, MAGIC,
-    MAX_LABEL_LEN, MAX_TENSORS, MIN_FORMAT_VERSION, PREAMBLE_LEN,
+    MAX_LABEL_LEN, MAX_TENSORS, MEASURED_SHAPE_LEN, MIN_FORMAT_VERSION, PREAMBLE_LEN,
 };
 pub use read::Blob;
 #[cfg(feature = "alloc")]

@@ -15,7 +15,7 @@ use super::format::{
     u32_at, Extension, Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, FORMAT_VERSION,
     MAGIC, MAX_LABEL_LEN, MIN_FORMAT_VERSION, PREAMBLE_LEN, ROLES,
 };
-use super::validate::{check_dims, check_finite, required};
+use super::validate::{check_dims, check_finite, required, COUNT_FROM_SHAPE};
 
 /// A validated blob, borrowing its bytes.
 #[derive(Copy, Clone, Debug)]
@@ -31,8 +31,11 @@ impl<'a> Blob<'a> {
     ///
     /// Checks, in order: preamble (length, magic, version, total length), CRC-32, header,
     /// dimensions against this build's architectures, the tensor directory (roles, counts,
-    /// types, alignment, bounds), finiteness of every value, and for the histogram mixture
-    /// the normalisation of every table slice and its CDFs.
+    /// types, alignment, bounds), finiteness of every value, for the histogram mixture the
+    /// normalisation of every table slice and its CDFs, and for a measured material its
+    /// shape (exact integers in range), its tables' lengths, everything
+    /// [`MeasuredMaterial::new`](crate::MeasuredMaterial::new) checks and the running
+    /// integrals of its VNDF and luminance slices.
     pub fn open(bytes: &'a [u8]) -> Result<Blob<'a>> {
         let got = bytes.len() as u64;
         let min = (PREAMBLE_LEN + CHECKSUM_LEN) as u64;
@@ -129,7 +132,7 @@ impl<'a> Blob<'a> {
                     found: e.dtype,
                 });
             }
-            if e.count as u64 != expected {
+            if expected != COUNT_FROM_SHAPE && e.count as u64 != expected {
                 return Err(Error::TensorShape {
                     role,
                     expected: expected.min(u32::MAX as u64) as u32,
@@ -173,6 +176,8 @@ impl<'a> Blob<'a> {
                 header.t_levels,
                 header.resolution,
             )?;
+        } else if header.kind == SamplerKind::Measured {
+            blob.check_measured()?;
         } else if header.kind == SamplerKind::HistogramMixture {
             histogram_mixture::validate_tables(
                 &blob.tensor_or_empty(TensorRole::Mass),
@@ -376,9 +381,35 @@ impl<'a> Blob<'a> {
         .ok_or(Error::HeaderInvalid)
     }
 
+    /// The measured material ([`crate::measured`]: an RGL BRDF and its own VNDF sampler, whose
+    /// densities are with respect to solid angle), reading the blob's tables in place, or
+    /// [`Error::WrongKind`]. [`Blob::open`] has checked everything; this re-runs
+    /// [`MeasuredMaterial::new`](crate::MeasuredMaterial::new)'s linear scan of the tables,
+    /// so call it once per material.
+    #[cfg(not(target_arch = "spirv"))]
+    pub fn measured(&self) -> Result<crate::measured::MeasuredMaterial<Tensor<'a>>> {
+        self.expect(SamplerKind::Measured)?;
+        super::measured::material(
+            &self.tensor_or_empty(TensorRole::Shape),
+            &self.tensor_or_empty(TensorRole::Tables),
+        )
+    }
+
+    /// A measured blob's shape, tables and running integrals ([`Blob::open`]'s last step).
+    fn check_measured(&self) -> Result<()> {
+        #[cfg(not(target_arch = "spirv"))]
+        return super::measured::check_integrals(&self.measured()?);
+        // The measured material is not built for SPIR-V yet: no blob of it opens there.
+        #[cfg(target_arch = "spirv")]
+        Err(Error::WrongKind {
+            expected: SamplerKind::Cosine,
+            found: SamplerKind::Measured,
+        })
+    }
+
     /// Whichever sampler the blob holds, with the blob's defensive weight α
     /// ([`Blob::defensive`]; 0, a plain pass-through, for version-1 blobs). A neural-material
-    /// blob holds no sampler: [`Error::NotASampler`].
+    /// or measured-material blob holds no sampler: [`Error::NotASampler`].
     pub fn sampler(&self) -> Result<crate::samplers::BlobSampler<'a>> {
         let any = match self.header.kind {
             SamplerKind::Cosine => AnySampler::Cosine(CosineSampler),
@@ -398,9 +429,9 @@ impl<'a> Blob<'a> {
                 AnySampler::HistogramMixture(self.histogram_mixture_part()?)
             }
             SamplerKind::Reparam => AnySampler::Reparam(*self.reparam()?.inner()),
-            SamplerKind::NeuralMaterial => {
+            SamplerKind::NeuralMaterial | SamplerKind::Measured => {
                 return Err(Error::NotASampler {
-                    found: SamplerKind::NeuralMaterial,
+                    found: self.header.kind,
                 })
             }
         };

@@ -10,10 +10,14 @@ use crate::nn::FEATURE_DIM;
 use crate::samplers::{direct_histogram, histogram_mixture};
 use crate::weights::{Tensor, Weights};
 
-use super::format::{Header, TensorRole, ROLES};
+use super::format::{Header, TensorRole, MEASURED_SHAPE_LEN, ROLES};
 
 /// A required tensor: role, element count, dtype (`None`: the header's dtype).
 pub(crate) type Requirement = Option<(TensorRole, u64, Option<DType>)>;
+
+/// The element count of a [`Requirement`] whose count the header cannot tell: a measured
+/// material's tables, whose length follows from its shape tensor and is checked with it.
+pub(crate) const COUNT_FROM_SHAPE: u64 = u64::MAX;
 
 /// The tensors a header's kind requires (indexed by role) and how many there are.
 pub(crate) fn required(h: &Header<'_>) -> ([Requirement; ROLES], usize) {
@@ -45,6 +49,15 @@ pub(crate) fn required(h: &Header<'_>) -> ([Requirement; ROLES], usize) {
                 neural_material::texture_len(h.resolution, h.t_levels) as u64,
                 None,
             ));
+            2
+        }
+        SamplerKind::Measured => {
+            r[6] = Some((
+                TensorRole::Shape,
+                MEASURED_SHAPE_LEN as u64,
+                Some(DType::F32),
+            ));
+            r[7] = Some((TensorRole::Tables, COUNT_FROM_SHAPE, Some(DType::F32)));
             2
         }
         _ => {
@@ -114,6 +127,18 @@ pub(crate) fn check_dims(h: &Header<'_>) -> Result<()> {
             check_dim("basis", h.basis, 0)?;
             check_range("width", h.resolution, 1, neural_material::MAX_TEXTURE_SIZE)?;
             check_range("height", h.t_levels, 1, neural_material::MAX_TEXTURE_SIZE)?;
+        }
+        SamplerKind::Measured => {
+            // Sampling tables (CDFs) must stay exact: f32 only.
+            if h.dtype != DType::F32 {
+                return Err(Error::TensorDType {
+                    role: "tables",
+                    found: h.dtype,
+                });
+            }
+            check_dim("basis", h.basis, 0)?;
+            check_dim("t_levels", h.t_levels, 0)?;
+            check_dim("resolution", h.resolution, 0)?;
         }
         _ => {
             check_dim("basis", h.basis, 0)?;

@@ -69,6 +69,44 @@ impl<'l> BlobWriter<'l> {
         }
     }
 
+    /// A writer holding a measured material ([`SamplerKind::Measured`]): its `shape` tensor
+    /// (the sizes and the jacobian flag, as exact integers) and its 11 tables concatenated
+    /// in the order of [`MeasuredShape::lens`](crate::MeasuredShape::lens), all f32.
+    #[cfg(not(target_arch = "spirv"))]
+    #[must_use]
+    pub fn measured<W: crate::Weights>(
+        material: &crate::MeasuredMaterial<W>,
+        label: &'l str,
+    ) -> Self {
+        let shape = *material.shape();
+        let t = material.tables();
+        let parts = [
+            &t.phi_i,
+            &t.theta_i,
+            &t.ndf,
+            &t.sigma,
+            &t.vndf,
+            &t.vndf_marginal,
+            &t.vndf_conditional,
+            &t.luminance,
+            &t.luminance_marginal,
+            &t.luminance_conditional,
+            &t.rgb,
+        ];
+        let total: usize = parts.iter().map(|p| p.len() as usize).sum();
+        let mut tables = alloc::vec::Vec::with_capacity(total);
+        for p in parts {
+            tables.extend((0..p.len()).map(|i| p.at(i)));
+        }
+        let mut w = BlobWriter::new(SamplerKind::Measured, DType::F32, label);
+        w.tensor(
+            TensorRole::Shape,
+            &super::measured::shape_values(&shape, material.jacobian()),
+        );
+        w.tensor(TensorRole::Tables, &tables);
+        w
+    }
+
     /// Sets the histogram mixture's table dimensions and latent-code lookup.
     #[must_use]
     pub fn histogram_dims(
@@ -111,12 +149,19 @@ impl<'l> BlobWriter<'l> {
     }
 
     /// The element type a role is stored with: the blob's `dtype` for parameters, the
-    /// histogram table and the neural material's features, f32 for masses and CDFs.
+    /// histogram table, the neural material's features and the measured material's tables
+    /// (which [`Blob::open`](crate::Blob::open) accepts as f32 only), f32 for masses, CDFs
+    /// and the measured material's shape.
     #[must_use]
     pub fn dtype_of(&self, role: TensorRole) -> DType {
         match role {
-            TensorRole::Params | TensorRole::Table | TensorRole::Features => self.header.dtype,
-            TensorRole::Mass | TensorRole::Marginal | TensorRole::Conditional => DType::F32,
+            TensorRole::Params | TensorRole::Table | TensorRole::Features | TensorRole::Tables => {
+                self.header.dtype
+            }
+            TensorRole::Mass
+            | TensorRole::Marginal
+            | TensorRole::Conditional
+            | TensorRole::Shape => DType::F32,
         }
     }
 

@@ -29,6 +29,8 @@ impl SamplerKind {
             SamplerKind::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
             SamplerKind::NeuralMaterial => NeuralMaterial::<&[f32]>::PARAM_COUNT,
             SamplerKind::Reparam => ReparamSampler::<&[f32]>::PARAM_COUNT,
+            // Tables, no network.
+            SamplerKind::Measured => 0,
         }
     }
 }

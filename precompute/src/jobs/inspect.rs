@@ -45,6 +45,32 @@ pub struct Inspection {
     pub checksum: String,
     /// The tensors in role order.
     pub tensors: Vec<TensorInfo>,
+    /// A measured material's table sizes (absent for every other kind).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub measured: Option<MeasuredInfo>,
+}
+
+/// The table sizes of a measured-material blob (its `shape` tensor, read).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct MeasuredInfo {
+    /// Number of `φi` nodes (1 or 2 for isotropic data).
+    pub n_phi: u32,
+    /// Number of `θi` nodes.
+    pub n_theta: u32,
+    /// Whether the data is isotropic.
+    pub isotropic: bool,
+    /// Whether the RGB values are multiplied by `D / (4σ)`.
+    pub jacobian: bool,
+    /// `[width, height]` of the NDF table.
+    pub ndf: [u32; 2],
+    /// `[width, height]` of the projected-area table.
+    pub sigma: [u32; 2],
+    /// `[width, height]` of each VNDF slice.
+    pub vndf: [u32; 2],
+    /// `[width, height]` of each luminance and RGB slice.
+    pub rgb: [u32; 2],
+    /// The element count of each of the 11 tables inside the `tables` tensor, in order.
+    pub tables: Vec<(String, u32)>,
 }
 
 /// One tensor of an [`Inspection`].
@@ -94,6 +120,29 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             });
         }
     }
+    let measured = if h.kind == SamplerKind::Measured {
+        let m = blob
+            .measured()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let sh = m.shape();
+        Some(MeasuredInfo {
+            n_phi: sh.n_phi,
+            n_theta: sh.n_theta,
+            isotropic: m.isotropic(),
+            jacobian: m.jacobian(),
+            ndf: sh.ndf,
+            sigma: sh.sigma,
+            vndf: sh.vndf,
+            rgb: sh.rgb,
+            tables: sh
+                .lens()
+                .iter()
+                .map(|&(name, n)| (name.to_string(), n))
+                .collect(),
+        })
+    } else {
+        None
+    };
     Ok(Inspection {
         file: path.display().to_string(),
         bytes: bytes.len(),
@@ -110,6 +159,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         label: h.label.to_string(),
         checksum: "ok".to_string(),
         tensors,
+        measured,
     })
 }
 
@@ -139,14 +189,43 @@ impl Inspection {
                 self.defensive
             );
         }
-        let _ = writeln!(
-            s,
-            "  storage {}, φ dim {}, {} params",
-            self.dtype.to_uppercase(),
-            self.feature_dim,
-            self.param_count
-        );
-        if kind == Some(SamplerKind::NeuralMaterial) {
+        if self.measured.is_none() {
+            let _ = writeln!(
+                s,
+                "  storage {}, φ dim {}, {} params",
+                self.dtype.to_uppercase(),
+                self.feature_dim,
+                self.param_count
+            );
+        }
+        if let Some(m) = &self.measured {
+            let _ = writeln!(
+                s,
+                "  measured material: {}×{} incident nodes (φi × θi, {}), jacobian {}",
+                m.n_phi,
+                m.n_theta,
+                if m.isotropic {
+                    "isotropic"
+                } else {
+                    "anisotropic"
+                },
+                if m.jacobian { "yes" } else { "no" }
+            );
+            let _ = writeln!(
+                s,
+                "  table sizes (w×h): ndf {}×{}, sigma {}×{}, vndf {}×{}, rgb {}×{}",
+                m.ndf[0],
+                m.ndf[1],
+                m.sigma[0],
+                m.sigma[1],
+                m.vndf[0],
+                m.vndf[1],
+                m.rgb[0],
+                m.rgb[1]
+            );
+            let parts: Vec<String> = m.tables.iter().map(|(n, c)| format!("{n} {c}")).collect();
+            let _ = writeln!(s, "  tables tensor: {}", parts.join(", "));
+        } else if kind == Some(SamplerKind::NeuralMaterial) {
             let _ = writeln!(
                 s,
                 "  neural material: feature texture {}×{}×8 (NEURAL.md)",

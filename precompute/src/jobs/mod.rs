@@ -6,9 +6,11 @@
 //! * [`material`] — fit a neural material to a material, import one from safetensors, measure
 //!   a material's cost;
 //! * [`inspect`] — describe a blob (`inspect --json`);
+//! * [`measured`] — an RGL measured material (`.bsdf`) as a blob (`measured-blob`);
 //! * [`bench`](mod@bench) — the runtime's cost per shading point, scalar and batched (`bench --json`).
 
 pub mod bench;
 pub mod inspect;
 pub mod material;
+pub mod measured;
 pub mod sampler;

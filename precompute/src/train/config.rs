@@ -368,7 +368,7 @@ impl TrainConfig {
             SamplerKind::DirectHistogram => Some(&mut self.direct_histogram.schedule),
             SamplerKind::HistogramMixture => Some(&mut self.histogram_mixture.schedule),
             SamplerKind::Reparam => Some(&mut self.reparam.schedule),
-            SamplerKind::Cosine | SamplerKind::NeuralMaterial => None,
+            SamplerKind::Cosine | SamplerKind::NeuralMaterial | SamplerKind::Measured => None,
         }
     }
 

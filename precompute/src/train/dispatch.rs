@@ -111,7 +111,7 @@ pub fn train_with(
                 })?;
                 reparam::train(&mut pool, c, &cfg.reparam, integrand).map(plain)?
             }
-            SamplerKind::Cosine | SamplerKind::NeuralMaterial => {
+            SamplerKind::Cosine | SamplerKind::NeuralMaterial | SamplerKind::Measured => {
                 unreachable!("schedule() is None for the kinds that are not trained")
             }
         };
@@ -150,7 +150,7 @@ pub fn model_pdf_disk(trained: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: 
             None => 0.0,
         },
         SamplerKind::Reparam => reparam::pdf_f64(w, phi, wi, p),
-        SamplerKind::Cosine | SamplerKind::NeuralMaterial => 0.0,
+        SamplerKind::Cosine | SamplerKind::NeuralMaterial | SamplerKind::Measured => 0.0,
     };
     if v.is_finite() && v > 0.0 {
         v as f32
@@ -187,6 +187,7 @@ pub fn graph_log_pdf(
         SamplerKind::HistogramMixture
         | SamplerKind::Cosine
         | SamplerKind::NeuralMaterial
+        | SamplerKind::Measured
         | SamplerKind::Reparam => return None,
     };
     Some(to_host(lp))

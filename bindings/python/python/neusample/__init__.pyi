@@ -37,7 +37,8 @@ class BlobError(ValueError):
     path: Optional[str]
 
 class Blob:
-    """A validated blob (a sampler of any kind, or a neural material) owning its bytes.
+    """A validated blob (a sampler of any kind, a neural or a measured material) owning its
+    bytes.
     Raises FileNotFoundError / OSError for a missing file, BlobError for bad bytes."""
 
     def __init__(self, path: StrPath) -> None: ...
@@ -53,9 +54,11 @@ class Blob:
         """The sampler it holds (BlobError "not_a_sampler" for a material)."""
     def neural_material(self) -> "NeuralMaterial":
         """The material it holds (BlobError "wrong_kind" for a sampler)."""
+    def measured(self) -> "MeasuredMaterial":
+        """The measured material it holds (BlobError "wrong_kind" for any other kind)."""
     def tensor(self, role: str) -> Optional[F32]:
         """The tensor `role` ("params", "mass", "table", "marginal", "conditional",
-        "features") as float32 values, as the runtime reads them; None when absent."""
+        "features", "shape", "tables") as float32 values, as the runtime reads them; None when absent."""
     def __len__(self) -> int: ...
 
 class Sampler:
@@ -112,22 +115,36 @@ class MeasuredFileError(ValueError):
 
 class MeasuredMaterial:
     """A measured BRDF of the RGL material database (Dupuy & Jakob 2018) read from an RGB
-    ``.bsdf`` file (Mitsuba's ``measured`` format), evaluated and sampled as Mitsuba 3's
-    ``measured`` BSDF does (the data's visible-normal sampler warped through its luminance).
-    Raises FileNotFoundError / OSError for a missing file, MeasuredFileError for a bad one.
+    ``.bsdf`` file (Mitsuba's ``measured`` format) or from a measured blob (``from_blob``;
+    written by ``to_blob`` or ``neusample measured-blob``: the same values bit for bit),
+    evaluated and sampled as Mitsuba 3's ``measured`` BSDF does (the data's visible-normal
+    sampler warped through its luminance). Raises FileNotFoundError / OSError for a missing
+    file, MeasuredFileError for a bad ``.bsdf`` file, BlobError for a bad blob.
 
-    Directions are normalised here; a lane whose input is not finite, of zero length or at or
-    below the horizon gives 0 (never NaN) and does not affect the other lanes."""
+    The array methods run the runtime's batched calls. Directions are normalised here; a lane
+    whose input is not finite, of zero length or at or below the horizon gives 0 (never NaN)
+    and does not affect the other lanes."""
 
     def __init__(self, path: StrPath) -> None: ...
+    @staticmethod
+    def from_blob(source: Union[StrPath, bytes]) -> "MeasuredMaterial":
+        """Opens a measured blob (kind "measured") from a file or from bytes; BlobError
+        ("wrong_kind" for a blob of another kind, "checksum_mismatch", …) for bad bytes."""
+    def to_blob(self, *, name: Optional[str] = None) -> bytes:
+        """The material as a measured blob (label ``name=… source=… description: …``;
+        ``name`` defaults to the file's stem). A blob-opened material returns its bytes."""
     @property
     def description(self) -> str:
-        """The file's description of the material."""
+        """The file's description of the material (for a blob: the one in its label)."""
+    @property
+    def label(self) -> Optional[str]:
+        """The blob's label; None for a material read from a ``.bsdf`` file."""
     @property
     def isotropic(self) -> bool:
         """Whether the data is isotropic (at most two φi nodes)."""
     @property
-    def path(self) -> str: ...
+    def path(self) -> Optional[str]:
+        """The file it was read from; None for a blob from bytes."""
     def eval(self, wi: F32, wo: F32, *, threads: int = 1) -> F32:
         """wi, wo (3, N) → the BRDF f(wi, wo) (3, N) in linear RGB, **without** the cosine
         (Mitsuba's ``eval`` / cos θo); 0 below the horizon or for non-finite input."""

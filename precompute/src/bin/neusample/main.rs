@@ -7,6 +7,7 @@ mod defend;
 mod demo;
 mod inverse;
 mod material;
+mod measured;
 mod output;
 mod scene;
 mod train;
@@ -54,6 +55,9 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Convert a measured material of the RGL database (`.bsdf`) into a blob (kind
+    /// `measured`), checked to open and to hold the file's tables bit for bit.
+    MeasuredBlob(measured::MeasuredBlobArgs),
     /// Regenerate the committed fixture blobs (deterministic).
     Fixtures(demo::FixturesArgs),
     /// The main job: evaluate every method on the default materials (committed pretrained
@@ -101,6 +105,7 @@ fn run(cli: Cli) -> Result<()> {
                 Ok(())
             }
         }
+        Command::MeasuredBlob(a) => measured::run(&a),
         Command::Fixtures(a) => demo::fixtures(&a),
         Command::Demo(a) => neusample_precompute::demo::run(&a.into()),
         Command::Table(a) => neusample_precompute::demo::table::run(&a.into()),
