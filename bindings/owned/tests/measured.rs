@@ -3,22 +3,14 @@
 //! one, sample and pdf agree, the weight is f·cos/pdf), a constructed anisotropic file, and
 //! bad files.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use neusample::{Vec2, Vec3};
 use neusample_owned::measured::{OwnedMeasured, MAGIC};
 
-fn fixtures() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/measured")
-}
+mod common;
 
-const FILES: [&str; 5] = [
-    "acrylic_felt_green_rgb.bsdf",
-    "cc_ibiza_sunset_rgb.bsdf",
-    "chm_mint_rgb.bsdf",
-    "ilm_l3_37_metallic_rgb.bsdf",
-    "paper_white_rgb.bsdf",
-];
+use common::{fixtures, FILES};
 
 fn v3(v: &serde_json::Value) -> Vec3 {
     let a: Vec<f32> = serde_json::from_value(v.clone()).unwrap();

@@ -5,8 +5,6 @@
 //!
 //! The blobs are built here from `fixtures/measured/*.bsdf` (none is committed).
 
-use std::path::{Path, PathBuf};
-
 use neusample::blob::MEASURED_SHAPE_LEN;
 use neusample::wavefront::{RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
 use neusample::{
@@ -20,17 +18,9 @@ use rand::{RngExt, SeedableRng};
 
 type Rng = rand_pcg::Pcg64Mcg;
 
-fn fixtures() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/measured")
-}
+mod common;
 
-const FILES: [&str; 5] = [
-    "acrylic_felt_green_rgb.bsdf",
-    "cc_ibiza_sunset_rgb.bsdf",
-    "chm_mint_rgb.bsdf",
-    "ilm_l3_37_metallic_rgb.bsdf",
-    "paper_white_rgb.bsdf",
-];
+use common::{fixtures, FILES};
 
 /// Directions per file and check.
 const LANES: usize = 3000;

@@ -37,21 +37,12 @@ const LIMITS: [(&str, u32, u32); MEASURED_SHAPE_LEN - 1] = [
 #[cfg(feature = "alloc")]
 #[must_use]
 pub(crate) fn shape_values(shape: &MeasuredShape, jacobian: bool) -> [f32; MEASURED_SHAPE_LEN] {
-    let s = shape;
-    [
-        s.n_phi,
-        s.n_theta,
-        s.ndf[0],
-        s.ndf[1],
-        s.sigma[0],
-        s.sigma[1],
-        s.vndf[0],
-        s.vndf[1],
-        s.rgb[0],
-        s.rgb[1],
-        u32::from(jacobian),
-    ]
-    .map(|v| v as f32)
+    let mut out = [0.0; MEASURED_SHAPE_LEN];
+    for (o, v) in out.iter_mut().zip(shape.values()) {
+        *o = v as f32;
+    }
+    out[MEASURED_SHAPE_LEN - 1] = f32::from(u8::from(jacobian));
+    out
 }
 
 /// The shape tensor as sizes and the jacobian flag, with every size in its range and the
@@ -155,22 +146,7 @@ pub(crate) fn material<'a>(
             .ok_or(Error::TensorBounds { role })?;
         at += len;
     }
-    let [phi_i, theta_i, ndf, sigma, vndf, vndf_marginal, vndf_conditional, luminance, luminance_marginal, luminance_conditional, rgb] =
-        parts;
-    let tables = MeasuredTables {
-        phi_i,
-        theta_i,
-        ndf,
-        sigma,
-        vndf,
-        vndf_marginal,
-        vndf_conditional,
-        luminance,
-        luminance_marginal,
-        luminance_conditional,
-        rgb,
-    };
-    MeasuredMaterial::new(shape, tables, jacobian)
+    MeasuredMaterial::new(shape, MeasuredTables::from_array(parts), jacobian)
 }
 
 /// The running integrals of the VNDF and luminance slices against their values

@@ -79,20 +79,7 @@ impl<'l> BlobWriter<'l> {
         label: &'l str,
     ) -> Self {
         let shape = *material.shape();
-        let t = material.tables();
-        let parts = [
-            &t.phi_i,
-            &t.theta_i,
-            &t.ndf,
-            &t.sigma,
-            &t.vndf,
-            &t.vndf_marginal,
-            &t.vndf_conditional,
-            &t.luminance,
-            &t.luminance_marginal,
-            &t.luminance_conditional,
-            &t.rgb,
-        ];
+        let parts = material.tables().as_array();
         let total: usize = parts.iter().map(|p| p.len() as usize).sum();
         let mut tables = alloc::vec::Vec::with_capacity(total);
         for p in parts {

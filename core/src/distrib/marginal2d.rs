@@ -152,12 +152,7 @@ impl<'a, W: Weights + ?Sized> Marginal2D<'a, W> {
 
     /// The patch holding `pos` (clamped to the square) and `pos` within it.
     fn patch(&self, pos: Vec2) -> (u32, u32, Vec2) {
-        let x = math::clamp(pos.x, 0.0, 1.0) * (self.width - 1) as f32;
-        let y = math::clamp(pos.y, 0.0, 1.0) * (self.height - 1) as f32;
-        // NaN clamps to NaN and converts to 0.
-        let c = (x as u32).min(self.width - 2);
-        let r = (y as u32).min(self.height - 2);
-        (c, r, Vec2::new(x - c as f32, y - r as f32))
+        patch(self.width, self.height, pos)
     }
 
     /// The four corner values of patch `(c, r)` of the blended slice.
@@ -253,6 +248,18 @@ impl<'a, W: Weights + ?Sized> Marginal2D<'a, W> {
         }
         (Vec2::new(ux, uy), pdf)
     }
+}
+
+/// The patch `(column, row)` of a `width × height` grid (both ≥ 2) holding `pos` (clamped to
+/// the square) and `pos` within it.
+#[inline(always)]
+pub(crate) fn patch(width: u32, height: u32, pos: Vec2) -> (u32, u32, Vec2) {
+    let x = math::clamp(pos.x, 0.0, 1.0) * (width - 1) as f32;
+    let y = math::clamp(pos.y, 0.0, 1.0) * (height - 1) as f32;
+    // NaN clamps to NaN and converts to 0.
+    let c = (x as u32).min(width - 2);
+    let r = (y as u32).min(height - 2);
+    (c, r, Vec2::new(x - c as f32, y - r as f32))
 }
 
 /// The first index in `0 ..= last` where `below` is false (`last` when it is true

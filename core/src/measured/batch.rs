@@ -13,14 +13,14 @@ use glam::{Vec2, Vec3};
 use crate::batch::check_len;
 use crate::batch::simd::{dispatch, Kernel};
 use crate::batch::{RgbMut, SamplesMut, Vec2s, Vec3s};
-use crate::distrib::marginal2d::{invert_segment, lerp, sample_segment, SliceBlend};
+use crate::distrib::marginal2d::{invert_segment, lerp, patch, sample_segment, SliceBlend};
 use crate::error::Result;
 use crate::math;
 use crate::weights::Weights;
 
 use super::{
-    azimuth, elevation, fold_sign, jacobian, phi2u, theta2u, u2phi, u2theta, MeasuredMaterial,
-    MeasuredShape,
+    azimuth, elevation, fold_sign, jacobian, normalize_lane, phi2u, theta2u, u2phi, u2theta,
+    MeasuredMaterial, MeasuredShape,
 };
 
 /// Lanes per chunk: one AVX2 register (wider chunks measured slower: their lane arrays
@@ -296,16 +296,6 @@ impl Ctx<'_> {
         a0 * b.w[1][0] + a1 * b.w[1][1]
     }
 
-    /// `Marginal2D::patch`.
-    #[inline(always)]
-    fn patch(w: u32, h: u32, pos: Vec2) -> (u32, u32, Vec2) {
-        let x = math::clamp(pos.x, 0.0, 1.0) * (w - 1) as f32;
-        let y = math::clamp(pos.y, 0.0, 1.0) * (h - 1) as f32;
-        let c = (x as u32).min(w - 2);
-        let r = (y as u32).min(h - 2);
-        (c, r, Vec2::new(x - c as f32, y - r as f32))
-    }
-
     /// `Marginal2D::corners` of the blended slice.
     #[inline(always)]
     fn corners<const A: bool>(&self, d: &Dist<'_>, b: &Blend, c: u32, r: u32) -> [f32; 4] {
@@ -322,7 +312,7 @@ impl Ctx<'_> {
     /// `Marginal2D::eval` of the blended slice.
     #[inline(always)]
     fn eval<const A: bool>(&self, d: &Dist<'_>, b: &Blend, pos: Vec2) -> f32 {
-        let (c, r, t) = Self::patch(d.w, d.h, pos);
+        let (c, r, t) = patch(d.w, d.h, pos);
         let [v00, v10, v01, v11] = self.corners::<A>(d, b, c, r);
         lerp(lerp(v00, v10, t.x), lerp(v01, v11, t.x), t.y)
     }
@@ -331,7 +321,7 @@ impl Ctx<'_> {
     /// corner).
     #[inline(always)]
     fn eval_single(t: &[f32], w: u32, h: u32, pos: Vec2) -> f32 {
-        let (c, r, tt) = Self::patch(w, h, pos);
+        let (c, r, tt) = patch(w, h, pos);
         let i = r * w + c;
         let (v00, v10, v01, v11) = (at(t, i), at(t, i + 1), at(t, i + w), at(t, i + w + 1));
         lerp(lerp(v00, v10, tt.x), lerp(v01, v11, tt.x), tt.y)
@@ -342,7 +332,7 @@ impl Ctx<'_> {
     fn invert<const A: bool>(&self, d: &Dist<'_>, b: &Blend, pos: Vec2) -> (Vec2, f32) {
         let w = d.w;
         let (n_marg, n_cond) = (d.h - 1, d.h * (w - 1));
-        let (c, r, t) = Self::patch(w, d.h, pos);
+        let (c, r, t) = patch(w, d.h, pos);
         let [v00, v10, v01, v11] = self.corners::<A>(d, b, c, r);
         let c0 = lerp(v00, v01, t.y);
         let c1 = lerp(v10, v11, t.y);
@@ -429,14 +419,6 @@ fn load3(v: &Vec3s<'_>, a: usize, m: usize) -> [Lanes; 3] {
     out[1][..m].copy_from_slice(&v.y[a..a + m]);
     out[2][..m].copy_from_slice(&v.z[a..a + m]);
     out
-}
-
-/// `d / |d|` and whether `d` has a finite, non-zero length (`normalize`).
-#[inline(always)]
-fn normalize(d: Vec3) -> (Vec3, bool) {
-    let len2 = d.length_squared();
-    let ok = (len2 > 0.0) & math::is_finite(len2);
-    (d * (1.0 / math::sqrt(len2)), ok)
 }
 
 /// `SliceBlend::new`'s `locate` on each lane: the interval of `nodes` holding `p` and the
@@ -567,7 +549,7 @@ impl Ctx<'_> {
         let mut inv_cos = [0.0; CHUNK];
         let mut ok = [false; CHUNK];
         for l in 0..CHUNK {
-            let (w, ok_w) = normalize(Vec3::new(wo[0][l], wo[1][l], wo[2][l]));
+            let (w, ok_w) = normalize_lane(Vec3::new(wo[0][l], wo[1][l], wo[2][l]));
             inv_cos[l] = 1.0 / w.z;
             ok[l] = ok_w & (w.z > 0.0);
             [won[0][l], won[1][l], won[2][l]] = [w.x, w.y, w.z];
@@ -659,7 +641,7 @@ impl Ctx<'_> {
         let wi = load3(wi, a, m);
         let mut theta_i = [0.0; CHUNK];
         for l in 0..CHUNK {
-            let (w, ok) = normalize(Vec3::new(wi[0][l], wi[1][l], wi[2][l]));
+            let (w, ok) = normalize_lane(Vec3::new(wi[0][l], wi[1][l], wi[2][l]));
             p.ok[l] = ok & (w.z > 0.0) & (l < m);
             let (mut fx, mut fy) = (1.0, 1.0);
             if self.reduction >= 2 {
@@ -717,11 +699,11 @@ impl Ctx<'_> {
             ok: [false; CHUNK],
         };
         for l in 0..CHUNK {
-            let (w, ok) = normalize(Vec3::new(wo[0][l], wo[1][l], wo[2][l]));
+            let (w, ok) = normalize_lane(Vec3::new(wo[0][l], wo[1][l], wo[2][l]));
             let ok = ok & (w.z > 0.0);
             let w = Vec3::new(w.x * p.flip[0][l], w.y * p.flip[1][l], w.z);
             let wi = Vec3::new(p.wi[0][l], p.wi[1][l], p.wi[2][l]);
-            let (m, ok_m) = normalize(wi + w);
+            let (m, ok_m) = normalize_lane(wi + w);
             let theta_m = elevation(m);
             let phi_m = azimuth(m);
             let rel = if self.isotropic {

@@ -68,6 +68,24 @@ impl MeasuredShape {
         self.n_phi * self.n_theta
     }
 
+    /// The sizes as `[n_phi, n_theta, ndf w, ndf h, sigma w, sigma h, vndf w, vndf h, rgb w,
+    /// rgb h]`.
+    #[must_use]
+    pub const fn values(&self) -> [u32; 10] {
+        [
+            self.n_phi,
+            self.n_theta,
+            self.ndf[0],
+            self.ndf[1],
+            self.sigma[0],
+            self.sigma[1],
+            self.vndf[0],
+            self.vndf[1],
+            self.rgb[0],
+            self.rgb[1],
+        ]
+    }
+
     /// The element count of every table, in the order of [`MeasuredTables`]' fields.
     #[must_use]
     pub const fn lens(&self) -> [(&'static str, u32); 11] {
@@ -119,8 +137,10 @@ pub struct MeasuredTables<W> {
     pub rgb: W,
 }
 
-impl<W: Weights> MeasuredTables<W> {
-    fn all(&self) -> [&W; 11] {
+impl<W> MeasuredTables<W> {
+    /// The tables in field order (that of [`MeasuredShape::lens`]).
+    #[must_use]
+    pub fn as_array(&self) -> [&W; 11] {
         [
             &self.phi_i,
             &self.theta_i,
@@ -134,6 +154,26 @@ impl<W: Weights> MeasuredTables<W> {
             &self.luminance_conditional,
             &self.rgb,
         ]
+    }
+
+    /// The tables from an array in field order (that of [`MeasuredShape::lens`]).
+    #[must_use]
+    pub fn from_array(tables: [W; 11]) -> Self {
+        let [phi_i, theta_i, ndf, sigma, vndf, vndf_marginal, vndf_conditional, luminance, luminance_marginal, luminance_conditional, rgb] =
+            tables;
+        MeasuredTables {
+            phi_i,
+            theta_i,
+            ndf,
+            sigma,
+            vndf,
+            vndf_marginal,
+            vndf_conditional,
+            luminance,
+            luminance_marginal,
+            luminance_conditional,
+            rgb,
+        }
     }
 }
 
@@ -179,10 +219,10 @@ impl<W: Weights> MeasuredMaterial<W> {
                 });
             }
         }
-        if u64::from(shape.slices()) * 3 * u64::from(shape.rgb[0] * shape.rgb[1])
-            > u64::from(u32::MAX)
-            || u64::from(shape.slices()) * u64::from(shape.vndf[0] * shape.vndf[1])
-                > u64::from(u32::MAX)
+        // In u64: n_phi · n_theta alone may pass u32's range.
+        let slices = u64::from(shape.n_phi) * u64::from(shape.n_theta);
+        if slices * 3 * u64::from(shape.rgb[0] * shape.rgb[1]) > u64::from(u32::MAX)
+            || slices * u64::from(shape.vndf[0] * shape.vndf[1]) > u64::from(u32::MAX)
         {
             return Err(Error::DimensionMismatch {
                 what: "table elements",
@@ -190,7 +230,7 @@ impl<W: Weights> MeasuredMaterial<W> {
                 found: u32::MAX,
             });
         }
-        for ((role, expected), table) in shape.lens().into_iter().zip(tables.all()) {
+        for ((role, expected), table) in shape.lens().into_iter().zip(tables.as_array()) {
             if table.len() != expected {
                 return Err(Error::TensorShape {
                     role,
@@ -335,11 +375,21 @@ fn fold_sign(s: f32) -> f32 {
 /// `d / |d|`, or `None` for a zero-length or non-finite `d`.
 #[inline]
 fn normalize(d: Vec3) -> Option<Vec3> {
-    let len2 = d.length_squared();
-    if !(len2 > 0.0) || !math::is_finite(len2) {
-        return None;
+    let (v, ok) = normalize_lane(d);
+    if ok {
+        Some(v)
+    } else {
+        None
     }
-    Some(d * (1.0 / math::sqrt(len2)))
+}
+
+/// `d / |d|` and whether `d` has a finite, non-zero length (the direction is meaningless
+/// where it has not): [`normalize`] without a branch, for loops over lanes.
+#[inline(always)]
+fn normalize_lane(d: Vec3) -> (Vec3, bool) {
+    let len2 = d.length_squared();
+    let ok = (len2 > 0.0) & math::is_finite(len2);
+    (d * (1.0 / math::sqrt(len2)), ok)
 }
 
 /// The azimuth of `d` in (−π, π], 0 on the pole (where `atan2` is undefined on GPUs and
@@ -592,5 +642,36 @@ impl<W: Weights> crate::Prepared for MeasuredPrepared<'_, W> {
     #[inline]
     fn pdf(&self, wo: Vec3) -> f32 {
         MeasuredPrepared::pdf(self, wo)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+
+    use std::vec::Vec;
+
+    use super::{MeasuredMaterial, MeasuredShape, MeasuredTables};
+    use crate::Error;
+
+    /// Node counts whose product passes u32's range are an error, not an overflow.
+    #[test]
+    fn huge_node_grids_are_refused() {
+        let shape = MeasuredShape {
+            n_phi: 1 << 16,
+            n_theta: 1 << 16,
+            ndf: [2, 2],
+            sigma: [2, 2],
+            vndf: [2, 2],
+            rgb: [2, 2],
+        };
+        let tables = MeasuredTables::from_array(core::array::from_fn(|_| Vec::<f32>::new()));
+        assert!(matches!(
+            MeasuredMaterial::new(shape, tables, false),
+            Err(Error::DimensionMismatch {
+                what: "table elements",
+                ..
+            })
+        ));
     }
 }

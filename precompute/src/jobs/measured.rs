@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use neusample::{Blob, BlobWriter, MeasuredMaterial, MeasuredTables, Weights};
+use neusample::{Blob, BlobWriter, MeasuredMaterial, Weights};
 use neusample_owned::measured::OwnedMeasured;
 use neusample_owned::measured_label;
 use serde::{Deserialize, Serialize};
@@ -82,19 +82,11 @@ pub fn measured_blob(job: &MeasuredBlobJob) -> Result<MeasuredBlobReport> {
         out: job.out.display().to_string(),
         bytes: bytes.len(),
         label,
-        shape: vec![
-            s.n_phi,
-            s.n_theta,
-            s.ndf[0],
-            s.ndf[1],
-            s.sigma[0],
-            s.sigma[1],
-            s.vndf[0],
-            s.vndf[1],
-            s.rgb[0],
-            s.rgb[1],
-            u32::from(data.material().jacobian()),
-        ],
+        shape: s
+            .values()
+            .into_iter()
+            .chain([u32::from(data.material().jacobian())])
+            .collect(),
     })
 }
 
@@ -115,10 +107,12 @@ pub fn measured_blob_bytes<W: Weights>(
     if back.shape() != material.shape() || back.jacobian() != material.jacobian() {
         bail!("the written blob's shape differs from the material's");
     }
-    let pairs = tables(back.tables())
+    let pairs = back
+        .tables()
+        .as_array()
         .into_iter()
-        .zip(tables(material.tables()));
-    for (name, (a, b)) in TABLE_NAMES.iter().zip(pairs) {
+        .zip(material.tables().as_array());
+    for ((name, _), (a, b)) in material.shape().lens().into_iter().zip(pairs) {
         let same =
             a.len() == b.len() && (0..a.len()).all(|i| a.at(i).to_bits() == b.at(i).to_bits());
         if !same {
@@ -131,35 +125,4 @@ pub fn measured_blob_bytes<W: Weights>(
 fn stem(path: &Path) -> String {
     path.file_stem()
         .map_or_else(String::new, |s| s.to_string_lossy().into_owned())
-}
-
-/// The tables' names, in the order of [`tables`] (and of `MeasuredShape::lens`).
-const TABLE_NAMES: [&str; 11] = [
-    "phi_i",
-    "theta_i",
-    "ndf",
-    "sigma",
-    "vndf",
-    "vndf_marginal",
-    "vndf_conditional",
-    "luminance",
-    "luminance_marginal",
-    "luminance_conditional",
-    "rgb",
-];
-
-fn tables<W>(t: &MeasuredTables<W>) -> [&W; 11] {
-    [
-        &t.phi_i,
-        &t.theta_i,
-        &t.ndf,
-        &t.sigma,
-        &t.vndf,
-        &t.vndf_marginal,
-        &t.vndf_conditional,
-        &t.luminance,
-        &t.luminance_marginal,
-        &t.luminance_conditional,
-        &t.rgb,
-    ]
 }
