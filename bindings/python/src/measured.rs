@@ -108,16 +108,23 @@ fn vec3s<'a>(rows: [&'a [f32]; 3]) -> Vec3s<'a> {
     Vec3s { x, y, z }
 }
 
+/// The bytes of the file at `path` (read without the GIL) and the path as shown in errors;
+/// a missing or unreadable file raises the matching `OSError`.
+fn read_file(py: Python<'_>, path: &std::path::Path) -> PyResult<(Vec<u8>, String)> {
+    let shown = path.to_string_lossy().into_owned();
+    let read = path.to_path_buf();
+    let bytes = py
+        .detach(move || std::fs::read(&read))
+        .map_err(|e| open_io_error(&e, &shown))?;
+    Ok((bytes, shown))
+}
+
 #[pymethods]
 impl MeasuredMaterial {
     /// Reads the measured material at `path` (an RGB `.bsdf` file).
     #[new]
     fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
-        let shown = path.to_string_lossy().into_owned();
-        let read = path.clone();
-        let bytes = py
-            .detach(move || std::fs::read(&read))
-            .map_err(|e| open_io_error(&e, &shown))?;
+        let (bytes, shown) = read_file(py, &path)?;
         let inner = py
             .detach(|| OwnedMeasured::from_bytes(&bytes))
             .map_err(|mut e| {
@@ -141,11 +148,7 @@ impl MeasuredMaterial {
             return Ok(MeasuredMaterial::of_blob(inner, None));
         }
         let path: PathBuf = source.extract()?;
-        let shown = path.to_string_lossy().into_owned();
-        let read = path.clone();
-        let bytes = py
-            .detach(move || std::fs::read(&read))
-            .map_err(|e| open_io_error(&e, &shown))?;
+        let (bytes, shown) = read_file(py, &path)?;
         let inner = py
             .detach(|| OwnedMeasuredBlob::from_bytes(&bytes))
             .map_err(|e| blob_error(py, &e, Some(&shown)))?;
