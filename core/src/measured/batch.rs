@@ -415,9 +415,14 @@ impl Prepared {
 #[inline(always)]
 fn load3(v: &Vec3s<'_>, a: usize, m: usize) -> [Lanes; 3] {
     let mut out = [[0.0; CHUNK], [0.0; CHUNK], [1.0; CHUNK]];
-    out[0][..m].copy_from_slice(&v.x[a..a + m]);
-    out[1][..m].copy_from_slice(&v.y[a..a + m]);
-    out[2][..m].copy_from_slice(&v.z[a..a + m]);
+    for (o, x) in out.iter_mut().zip([v.x, v.y, v.z]) {
+        // A full chunk copies a constant length (inline moves, not a `memcpy` call).
+        if m == CHUNK {
+            o.copy_from_slice(&x[a..a + CHUNK]);
+        } else {
+            o[..m].copy_from_slice(&x[a..a + m]);
+        }
+    }
     out
 }
 
@@ -598,7 +603,11 @@ impl Ctx<'_> {
             let v = math::finite_density(vndf_pdf[l] * lum_pdf[l] / jac);
             d[l] = if p.ok[l] & h.ok[l] { v } else { 0.0 };
         }
-        pdf.copy_from_slice(&d[..m]);
+        if m == CHUNK {
+            pdf.copy_from_slice(&d);
+        } else {
+            pdf.copy_from_slice(&d[..m]);
+        }
     }
 
     /// `sample_batch` of lanes `a .. a + m`.
