@@ -3,7 +3,7 @@
 For each RGL file of fixtures/measured: Mitsuba 3.9.1's `measured` in `llvm_ad_rgb` with one
 Dr.Jit thread on 2^20-lane arrays (eval, pdf, sample; the kernel compiled in a warm-up call,
 each timed call a fresh kernel launch on new inputs) and neusample's `MeasuredMaterial`
-(the Rust runtime's scalar code per lane, through the numpy API, `threads=1`) on the same
+(the Rust runtime's batched calls through the numpy API, `threads=1`) on the same
 arrays; ns per lane, the median of --repeats interleaved runs. Ours includes the numpy
 round trip, so it is an upper bound on the runtime's own cost. With --bench, each repeat also
 runs `neusample bench --json --measured FILE` (the Rust batched calls at 64 lanes per call,
@@ -129,8 +129,8 @@ def main() -> int:
         "",
         f"{n} lanes per call, one thread each: Mitsuba 3.9.1 `llvm_ad_rgb` "
         f"(`dr.set_thread_count(1)`, kernels compiled in a warm-up call) and neusample's "
-        f"`MeasuredMaterial` (Rust, scalar per lane, numpy API, `threads=1`; the numpy round trip "
-        f"included). ns per lane, median of {a.repeats} interleaved runs [min–max]. "
+        f"`MeasuredMaterial` array methods (Rust batched calls, numpy API, `threads=1`; the numpy "
+        f"round trip included). ns per lane, median of {a.repeats} interleaved runs [min–max]. "
         f"{cpu_model()}, {os.cpu_count()} cores. `sample` is Mitsuba's `sample` (direction, pdf "
         f"and weight f·cos/pdf); ours returns the same three.",
         "",
