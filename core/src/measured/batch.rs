@@ -547,7 +547,7 @@ impl Ctx<'_> {
         m: usize,
     ) {
         let mut p = self.empty();
-        self.prepare::<A>(wi, a, m, &mut p);
+        self.prepare::<A, true>(wi, a, m, &mut p);
         let wo = load3(wo, a, m);
         // `eval` normalises wo, then `half` normalises it again.
         let mut won = [[0.0; CHUNK]; 3];
@@ -584,7 +584,7 @@ impl Ctx<'_> {
     fn pdf_chunk<const A: bool>(&self, wi: &Vec3s<'_>, wo: &Vec3s<'_>, pdf: &mut [f32], a: usize) {
         let m = pdf.len();
         let mut p = self.empty();
-        self.prepare::<A>(wi, a, m, &mut p);
+        self.prepare::<A, false>(wi, a, m, &mut p);
         let h = self.half(&p, &load3(wo, a, m));
         let mut vndf_pdf = [0.0; CHUNK];
         let mut lum_pdf = [0.0; CHUNK];
@@ -622,7 +622,7 @@ impl Ctx<'_> {
         m: usize,
     ) {
         let mut p = self.empty();
-        self.prepare::<A>(wi, a, m, &mut p);
+        self.prepare::<A, true>(wi, a, m, &mut p);
         let mut uu = [Vec2::ZERO; CHUNK];
         for (l, o) in uu.iter_mut().enumerate().take(m) {
             *o = u.at(a + l);
@@ -644,9 +644,16 @@ impl Ctx<'_> {
         }
     }
 
-    /// `MeasuredMaterial::prepare` of lanes `a .. a + m` of `wi`, into `p`.
+    /// `MeasuredMaterial::prepare` of lanes `a .. a + m` of `wi`, into `p`; the `sigma`
+    /// table (the scale of `f`) is read only when `SIGMA` (the density does not need it).
     #[inline(always)]
-    fn prepare<const A: bool>(&self, wi: &Vec3s<'_>, a: usize, m: usize, p: &mut Prepared) {
+    fn prepare<const A: bool, const SIGMA: bool>(
+        &self,
+        wi: &Vec3s<'_>,
+        a: usize,
+        m: usize,
+        p: &mut Prepared,
+    ) {
         let wi = load3(wi, a, m);
         let mut theta_i = [0.0; CHUNK];
         for l in 0..CHUNK {
@@ -683,6 +690,9 @@ impl Ctx<'_> {
                 p.slice[l] = b.slice;
                 [[p.w[0][0][l], p.w[0][1][l]], [p.w[1][0][l], p.w[1][1][l]]] = b.weight;
             }
+        }
+        if !SIGMA {
+            return;
         }
         let mut u_wi = [Vec2::ZERO; CHUNK];
         for l in 0..CHUNK {
