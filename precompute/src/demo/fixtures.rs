@@ -16,7 +16,7 @@ use crate::jobs::material::{train_material, TrainMaterialJob};
 use crate::materials::neural::NeuralMaterialModel;
 use crate::materials::{self, Material};
 use crate::train::neural_material::NeuralTrainConfig;
-use crate::train::{self, needs_integrand, TrainConfig, METHODS};
+use crate::train::{self, has_integrand, needs_integrand, TrainConfig, METHODS};
 use crate::util::io;
 use crate::util::progress::stages_bar;
 
@@ -199,7 +199,8 @@ fn write_conditions(out: &Path, m: &dyn Material) -> Result<()> {
 }
 
 /// The methods `methods` trained on `m` into `<out>/<m.name()>/`, plus the conditions file
-/// (the reparameterization sampler only on a neural material: it trains on the integrand).
+/// (the reparameterization sampler only on a neural or measured material: it trains on the
+/// integrand).
 fn fixture_samplers(
     out: &Path,
     m: &dyn Material,
@@ -210,7 +211,7 @@ fn fixture_samplers(
     let methods: Vec<SamplerKind> = methods
         .iter()
         .copied()
-        .filter(|&k| !needs_integrand(k) || m.neural().is_some())
+        .filter(|&k| !needs_integrand(k) || has_integrand(m))
         .collect();
     let pb = stages_bar(methods.len() as u64, &format!("fixtures {name}"));
     write_conditions(out, m)?;

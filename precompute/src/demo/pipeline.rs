@@ -31,7 +31,7 @@ use crate::eval::{self, Fit, OracleSampler};
 use crate::groundtruth::{self, TargetPdf};
 use crate::materials::Material;
 use crate::train::neural_material::NeuralTrainConfig;
-use crate::train::{self, needs_integrand, TrainConfig};
+use crate::train::{self, has_integrand, needs_integrand, TrainConfig};
 use crate::util::io::{self, slug};
 use crate::util::progress::stages_bar;
 
@@ -127,8 +127,8 @@ pub fn run(a: &DemoConfig) -> Result<()> {
 
         for &method in &method_list {
             let method_name = method.name();
-            if needs_integrand(method) && m.neural().is_none() {
-                // Trained on the integrand itself: only neural materials have one.
+            if needs_integrand(method) && !has_integrand(m.as_ref()) {
+                // Trained on the integrand itself: neural and measured materials have one.
                 pb.inc(if a.no_render { 1 } else { 4 });
                 continue;
             }

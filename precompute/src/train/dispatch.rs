@@ -106,7 +106,7 @@ pub fn train_with(
                 let integrand = source.integrand().ok_or_else(|| {
                     anyhow::anyhow!(
                         "the reparameterization sampler trains on the integrand itself: it \
-                         needs a neural material (or the synthetic target)"
+                         needs a neural or measured material (or the synthetic target)"
                     )
                 })?;
                 reparam::train(&mut pool, c, &cfg.reparam, integrand).map(plain)?

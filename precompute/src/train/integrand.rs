@@ -1,14 +1,17 @@
-//! The integrands the reparameterization sampler trains on ([`Integrand`]) and a neural
-//! material's luminance through its decoder, frozen ([`NeuralIntegrand`]); the synthetic
-//! target's is beside it ([`crate::train::SyntheticIntegrand`]).
+//! The integrands the reparameterization sampler trains on ([`Integrand`]): a neural
+//! material's luminance through its decoder, frozen ([`NeuralIntegrand`]), and a measured
+//! material's through its tables with a host-side gradient ([`MeasuredIntegrand`]); the
+//! synthetic target's is beside it ([`crate::train::SyntheticIntegrand`]).
 
 use burn::tensor::{Device, Tensor};
 use glam::Vec3;
 use neusample::neural_material::{DECODER_HIDDEN, DECODER_INPUTS, DECODER_OUTPUTS};
-use neusample::{NeuralMaterial, FEATURE_DIM};
+use neusample::neural_material::{LOG_F_MAX, LOG_F_MIN};
+use neusample::{MeasuredMaterial, NeuralMaterial, FEATURE_DIM};
+use rayon::prelude::*;
 
 use crate::materials::luminance;
-use crate::nn::{log_sum_exp_last, tensor2};
+use crate::nn::{log_sum_exp_last, tensor2, to_host};
 
 /// The unnormalised target of the reparameterization sampler on the projected disk,
 /// `f⊥(ω⊥ | φ, wi)` (for a material, the luminance of its BRDF: p* up to its normaliser),
@@ -100,5 +103,173 @@ impl Integrand for NeuralIntegrand<'_> {
 
     fn f(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32 {
         luminance(self.material.eval(phi, wi, wo)).max(0.0)
+    }
+}
+
+/// A measured material's `f⊥ = Y(f(wi, wo))` (φ is ignored: the data is homogeneous).
+///
+/// The tables are not on the training graph. [`Integrand::log_f`] returns the exact value
+/// `ln f⊥(wo)` with the gradient of `ln f⊥` at `wo` attached as a first-order term:
+/// `c + (wo − wo₀)·g` with `wo₀` the same values as constants, so the value is `c` and the
+/// derivative with respect to `wo` is `g`. `g` comes from central differences of `ln f⊥` on
+/// the host (one-sided where a side leaves the upper hemisphere or reads `f⊥ = 0`); the
+/// tables are piecewise bilinear, so this is their derivative up to the step's smoothing.
+pub struct MeasuredIntegrand<'a> {
+    material: &'a MeasuredMaterial<Vec<f32>>,
+}
+
+/// Step of the central differences of [`MeasuredIntegrand`] (in the direction's components).
+const MEASURED_GRADIENT_STEP: f32 = 5e-4;
+
+impl<'a> MeasuredIntegrand<'a> {
+    /// The integrand of `material`.
+    #[must_use]
+    pub fn new(material: &'a MeasuredMaterial<Vec<f32>>) -> Self {
+        MeasuredIntegrand { material }
+    }
+
+    /// `ln f⊥` at `wo` clamped to the neural material's range, or `None` where `f⊥ = 0`
+    /// (below the horizon, or where the data holds no reflectance).
+    fn ln_f(
+        prepared: &neusample::measured::MeasuredPrepared<'_, Vec<f32>>,
+        wo: Vec3,
+    ) -> Option<f32> {
+        if !(wo.z > 0.0) {
+            return None;
+        }
+        let f = luminance(prepared.eval(wo.normalize()));
+        (f > 0.0).then(|| f.ln().clamp(LOG_F_MIN, LOG_F_MAX))
+    }
+
+    /// `(ln f⊥, ∂ ln f⊥ / ∂wo)` at unit `wo` (`(LOG_F_MIN, 0)` where `f⊥ = 0`).
+    fn value_and_gradient(
+        prepared: &neusample::measured::MeasuredPrepared<'_, Vec<f32>>,
+        wo: Vec3,
+    ) -> (f32, [f32; 3]) {
+        let Some(c) = Self::ln_f(prepared, wo) else {
+            return (LOG_F_MIN, [0.0; 3]);
+        };
+        let h = MEASURED_GRADIENT_STEP;
+        let mut g = [0.0; 3];
+        for (k, gk) in g.iter_mut().enumerate() {
+            let e = Vec3::AXES[k] * h;
+            *gk = match (Self::ln_f(prepared, wo + e), Self::ln_f(prepared, wo - e)) {
+                (Some(a), Some(b)) => (a - b) / (2.0 * h),
+                (Some(a), None) => (a - c) / h,
+                (None, Some(b)) => (c - b) / h,
+                (None, None) => 0.0,
+            };
+        }
+        (c, g)
+    }
+}
+
+impl Integrand for MeasuredIntegrand<'_> {
+    fn log_f(
+        &self,
+        conds: &[([f32; FEATURE_DIM], Vec3)],
+        repeat: usize,
+        wo: Tensor<2>,
+        device: &Device,
+    ) -> Tensor<2> {
+        let n = conds.len() * repeat;
+        let host = to_host(wo.clone());
+        let rows: Vec<(f32, [f32; 3])> = conds
+            .par_iter()
+            .enumerate()
+            .flat_map_iter(|(i, (_, wi))| {
+                let prepared = self.material.prepare(*wi);
+                let host = &host;
+                (0..repeat).map(move |j| {
+                    let r = 3 * (i * repeat + j);
+                    let w = Vec3::new(host[r], host[r + 1], host[r + 2]);
+                    match &prepared {
+                        Some(p) if w.is_finite() => Self::value_and_gradient(p, w),
+                        _ => (LOG_F_MIN, [0.0; 3]),
+                    }
+                })
+            })
+            .collect();
+        let value = tensor2(rows.iter().map(|r| r.0).collect(), n, 1, device);
+        let grad = tensor2(rows.iter().flat_map(|r| r.1).collect(), n, 3, device);
+        let constant = tensor2(host, n, 3, device);
+        value + ((wo - constant) * grad).sum_dim(1)
+    }
+
+    fn f(&self, _phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32 {
+        self.material
+            .prepare(wi)
+            .map_or(0.0, |p| luminance(p.eval(wo)).max(0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::train_device;
+    use neusample_owned::measured::OwnedMeasured;
+
+    fn mint() -> OwnedMeasured {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../fixtures/measured/chm_mint_rgb.bsdf"
+        );
+        OwnedMeasured::open(std::path::Path::new(path)).expect("the mint fixture opens")
+    }
+
+    /// On the graph, the measured integrand's value is the host's `ln f⊥` and its gradient
+    /// with respect to `wo` points uphill: a small step along it raises `ln f⊥` on the host,
+    /// by the first-order amount, on the flank of the mint's specular lobe.
+    #[test]
+    fn measured_log_f_value_and_gradient() {
+        let data = mint();
+        let integrand = MeasuredIntegrand::new(data.material());
+        let wi = Vec3::new(0.5, 0.1, 0.86).normalize();
+        let mirror = Vec3::new(-wi.x, -wi.y, wi.z);
+        // Points around the mirror direction, off its peak, where the lobe is steep.
+        let wos: Vec<Vec3> = (0..12)
+            .map(|k| {
+                let a = k as f32 * std::f32::consts::TAU / 12.0;
+                (mirror + 0.06 * Vec3::new(a.cos(), a.sin(), 0.0)).normalize()
+            })
+            .collect();
+        let device = train_device();
+        let host: Vec<f32> = wos.iter().flat_map(|w| [w.x, w.y, w.z]).collect();
+        let wo = tensor2(host, wos.len(), 3, &device).require_grad();
+        let conds: Vec<_> = wos.iter().map(|_| ([0.0; FEATURE_DIM], wi)).collect();
+        let log_f = integrand.log_f(&conds, 1, wo.clone(), &device);
+        let values = to_host(log_f.clone());
+        let grads = log_f.sum().backward();
+        let g = to_host(wo.grad(&grads).expect("wo has a gradient"));
+        let mut rising = 0;
+        for (i, &w) in wos.iter().enumerate() {
+            let f = integrand.f(&[0.0; FEATURE_DIM], wi, w);
+            assert!(f > 0.0, "the lobe's flank reflects");
+            assert!(
+                (values[i] - f.ln()).abs() < 1e-5,
+                "value {} vs {}",
+                values[i],
+                f.ln()
+            );
+            let gi = Vec3::new(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
+            // The step along the gradient's tangential part.
+            let t = gi - gi.dot(w) * w;
+            assert!(
+                t.length() > 1.0,
+                "the flank is steep: |∇ ln f| = {}",
+                t.length()
+            );
+            let eta = 2e-3 / t.length();
+            let up = integrand.f(&[0.0; FEATURE_DIM], wi, (w + eta * t).normalize());
+            let predicted = eta * t.length_squared();
+            let gained = up.ln() - f.ln();
+            if gained > 0.5 * predicted && gained < 1.5 * predicted {
+                rising += 1;
+            }
+        }
+        assert!(
+            rising >= 10,
+            "{rising} of 12 steps rose as the gradient predicts"
+        );
     }
 }

@@ -57,6 +57,9 @@ pub use dispatch::{
     graph_log_pdf, mean_kl, model_pdf_disk, network_mean_kl, train, train_with, Trained,
 };
 pub use histogram_mixture::BakedTables;
-pub use integrand::{Integrand, NeuralIntegrand};
+pub use integrand::{Integrand, MeasuredIntegrand, NeuralIntegrand};
 pub use method::{needs_integrand, parse_method, METHODS};
-pub use source::{GtCondition, MaterialSource, SyntheticIntegrand, SyntheticSource, TargetSource};
+pub use source::{
+    has_integrand, material_integrand, GtCondition, MaterialSource, SyntheticIntegrand,
+    SyntheticSource, TargetSource,
+};

@@ -9,7 +9,7 @@ use rand::RngExt;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use super::integrand::{Integrand, NeuralIntegrand};
+use super::integrand::{Integrand, MeasuredIntegrand, NeuralIntegrand};
 use crate::groundtruth::{self, TargetOptions, TargetPdf};
 use crate::materials::Material;
 use crate::nn::tensor2;
@@ -53,18 +53,36 @@ pub trait TargetSource: Sync {
 /// Draws training conditions of a material with [`groundtruth::batch`].
 pub struct MaterialSource<'a> {
     material: &'a dyn Material,
-    integrand: Option<NeuralIntegrand<'a>>,
+    integrand: Option<Box<dyn Integrand + 'a>>,
 }
 
 impl<'a> MaterialSource<'a> {
-    /// The source of `material` (with the integrand of a neural material).
+    /// The source of `material`, with the integrand of a neural or a measured material.
     #[must_use]
     pub fn new(material: &'a dyn Material) -> Self {
         MaterialSource {
             material,
-            integrand: material.neural().map(NeuralIntegrand::new),
+            integrand: material_integrand(material),
         }
     }
+}
+
+/// The integrand the reparameterization sampler trains on, for the materials that have one:
+/// a neural material (its decoder) and a measured one (its tables).
+#[must_use]
+pub fn material_integrand<'a>(material: &'a dyn Material) -> Option<Box<dyn Integrand + 'a>> {
+    if let Some(n) = material.neural() {
+        return Some(Box::new(NeuralIntegrand::new(n)));
+    }
+    material
+        .measured()
+        .map(|m| Box::new(MeasuredIntegrand::new(m.material())) as Box<dyn Integrand + 'a>)
+}
+
+/// Whether `material` has an integrand to train the reparameterization sampler on.
+#[must_use]
+pub fn has_integrand(material: &dyn Material) -> bool {
+    material.neural().is_some() || material.measured().is_some()
 }
 
 impl TargetSource for MaterialSource<'_> {
@@ -86,7 +104,7 @@ impl TargetSource for MaterialSource<'_> {
     }
 
     fn integrand(&self) -> Option<&dyn Integrand> {
-        self.integrand.as_ref().map(|i| i as &dyn Integrand)
+        self.integrand.as_deref()
     }
 }
 
