@@ -32,7 +32,8 @@ pub struct BenchArgs {
     methods: Vec<String>,
     /// Instead of the report, run only the batched hot path of `--methods` for this many
     /// seconds each (for a sampling profiler such as `perf record`); the method `material`
-    /// is the neural material's batched eval.
+    /// is the neural material's batched eval, `measured` the measured material's batched
+    /// eval, pdf and sample.
     #[arg(long, value_name = "SECONDS")]
     profile_seconds: Option<f64>,
     /// Machine-readable output (`BenchReport` in `precompute/src/jobs/bench.rs`).

@@ -75,6 +75,9 @@ pub struct TrainArgs {
     /// Flows: length of the χ² fine-tuning phase as a fraction of the steps.
     #[arg(long)]
     chi2_fraction: Option<f64>,
+    /// Resolution (per side) of the tabulated ground truth the methods train on.
+    #[arg(long)]
+    gt_res: Option<usize>,
 }
 
 /// `--method`: one method, `all`, or a comma-separated list (a sweep, like `all`).
@@ -158,6 +161,12 @@ impl TryFrom<&TrainArgs> for TrainConfig {
         }
         if a.no_horizon {
             cfg.common.horizon_targets = false;
+        }
+        if let Some(r) = a.gt_res {
+            if !(8..=128).contains(&r) {
+                bail!("--gt-res must be in 8..=128 (the tabulated target samples up to 128²)");
+            }
+            cfg.common.gt_res = r;
         }
         if let Some(w) = a.chi2 {
             if !(w >= 0.0 && w.is_finite()) {

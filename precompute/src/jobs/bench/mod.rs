@@ -765,6 +765,9 @@ fn measured_batched(
 
 /// The `--methods` name of the neural material in a profiling run ([`profile`]).
 pub const PROFILE_MATERIAL: &str = "material";
+/// The `--methods` name of the measured material (`--measured`) in a profiling run: its
+/// batched eval, pdf and sample at N = 64.
+pub const PROFILE_MEASURED: &str = "measured";
 
 /// Refuses a method name that is no sampler kind's.
 fn check_methods(cfg: &BenchConfig) -> Result<()> {
@@ -779,7 +782,8 @@ fn check_methods(cfg: &BenchConfig) -> Result<()> {
 /// `cfg.methods` (at least one), `prepare`, `sample` and `pdf` over the bench's conditions,
 /// repeated for `seconds` per method and nothing else, so that a sampling profiler (`perf
 /// record -g -- neusample bench --methods M --profile-seconds S`) sees only the hot path.
-/// The method [`PROFILE_MATERIAL`] profiles the neural material's batched `eval` at N = 64.
+/// The method [`PROFILE_MATERIAL`] profiles the neural material's batched `eval` at N = 64,
+/// [`PROFILE_MEASURED`] the measured material's batched calls.
 /// Returns the passes made per method.
 pub fn profile(cfg: &BenchConfig, seconds: f64) -> Result<Vec<(String, usize)>> {
     if cfg.methods.is_empty() {
@@ -787,7 +791,7 @@ pub fn profile(cfg: &BenchConfig, seconds: f64) -> Result<Vec<(String, usize)>> 
     }
     let samplers = BenchConfig {
         methods: (cfg.methods.iter())
-            .filter(|m| *m != PROFILE_MATERIAL)
+            .filter(|m| *m != PROFILE_MATERIAL && *m != PROFILE_MEASURED)
             .cloned()
             .collect(),
         ..cfg.clone()
@@ -799,6 +803,18 @@ pub fn profile(cfg: &BenchConfig, seconds: f64) -> Result<Vec<(String, usize)>> 
     let rows = Rows::new(&inp);
     let mut done = Vec::new();
     for method in &cfg.methods {
+        if method == PROFILE_MEASURED {
+            let path = (cfg.measured.as_ref()).context("profiling `measured` needs --measured")?;
+            let data = neusample_owned::measured::OwnedMeasured::open(path)?;
+            let start = std::time::Instant::now();
+            let mut passes = 0;
+            while start.elapsed().as_secs_f64() < seconds {
+                measured_batched(data.material(), &rows, 64, 1);
+                passes += 1;
+            }
+            done.push((method.clone(), passes));
+            continue;
+        }
         if method == PROFILE_MATERIAL {
             let bytes = std::fs::read(&cfg.material)
                 .with_context(|| format!("reading {}", cfg.material.display()))?;
