@@ -14,7 +14,8 @@ prints the ratio) or it levels the comparison.
 
     # blobs: <dir>/<file stem without _rgb>/<method>.nsb, e.g. for each material file
     neusample train --material fixtures/measured/chm_mint.toml \\
-        --method baseline,analytic,flow,histogram-mixture --out-dir blobs/chm_mint
+        --method baseline,analytic,flow,disk-flow,histogram-mixture,reparam --out-dir blobs/chm_mint
+    # or the blobs a `neusample demo --train` run wrote (<out>/blobs)
     python bindings/python/examples/mitsuba_measured.py --blobs blobs [--budget 1] [--res 96] [--ref-spp 8192]
         → docs/measured/mitsuba_equal_time.md
 """
@@ -36,7 +37,9 @@ import mitsuba as mi  # noqa: E402
 import neusample.mitsuba as nsm  # noqa: E402
 
 ROOT = ms.ROOT
-METHODS = ["baseline", "analytic", "flow", "histogram-mixture"]
+# The default --methods: the baseline and the learned samplers (the paper's comparison
+# baselines, affine flow and direct histogram, on request).
+METHODS = ["baseline", "analytic", "flow", "disk-flow", "histogram-mixture", "reparam"]
 
 
 def scene_dict(bsdf, light, res):
@@ -58,11 +61,11 @@ def scene_dict(bsdf, light, res):
     }
 
 
-def configs(path, blobs):
+def configs(path, blobs, methods):
     plain = {"type": "measured", "filename": str(path)}
     out = [("measured (data's sampler)", plain, mi.render)]
     stem = path.name.removesuffix("_rgb.bsdf")
-    for m in METHODS:
+    for m in methods:
         blob = blobs / stem / f"{m}.nsb"
         if not blob.exists():
             raise SystemExit(f"{blob}: missing (see the module doc for the training command)")
@@ -81,7 +84,7 @@ def relmse(img, ref):
 
 
 def run_file(path, light, a):
-    cfgs = configs(path, a.blobs)
+    cfgs = configs(path, a.blobs, a.methods)
     sc = mi.load_dict(scene_dict(cfgs[0][1], light, a.res))
     render(sc, 4, 0, mi.render)  # compile
     ref, ref_secs = render(sc, a.ref_spp, 12345, mi.render)
@@ -115,18 +118,23 @@ def main():
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--lights", default="uniform,sky")
+    ap.add_argument("--methods", default=",".join(METHODS),
+                    help="comma-separated sampler blobs of each folder (baseline among them)")
     ap.add_argument("--files", nargs="*", type=Path,
                     default=sorted((ROOT / "fixtures" / "measured").glob("*_rgb.bsdf")))
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "measured" / "mitsuba_equal_time.md")
     a = ap.parse_args()
     if a.budget <= 0 or a.res < 8 or a.ref_spp < 1 or a.seeds < 1:
         ap.error("--budget, --res, --ref-spp and --seeds must be positive (res ≥ 8)")
+    a.methods = [m for m in a.methods.split(",") if m]
+    if "baseline" not in a.methods:
+        ap.error("--methods must include baseline (every speed-up is against it)")
     lights = a.lights.split(",")
     for light in lights:
         if light not in ("uniform", "sky"):
             ap.error(f"--lights: 'uniform' or 'sky', not {light!r}")
     for f in a.files:
-        configs(f, a.blobs)  # every blob present before any render
+        configs(f, a.blobs, a.methods)  # every blob present before any render
     lines = [
         "# Measured materials in Mitsuba 3 at equal time",
         "",
@@ -160,7 +168,8 @@ def main():
         lines.append("")
     lines += ["The reference's spp over the most any configuration got: " + ", ".join(lines_ref) + ".", ""]
     cmd = (f"python bindings/python/examples/mitsuba_measured.py --blobs <dir> --budget {a.budget:g} "
-           f"--res {a.res} --ref-spp {a.ref_spp} --seeds {a.seeds} --lights {a.lights}")
+           f"--res {a.res} --ref-spp {a.ref_spp} --seeds {a.seeds} --lights {a.lights} "
+           f"--methods {','.join(a.methods)}")
     lines += ["Reproduce (blobs: the module doc's `neusample train` loop):", "", "```sh", cmd, "```", ""]
     text = "\n".join(lines)
     a.out.parent.mkdir(parents=True, exist_ok=True)
