@@ -38,6 +38,10 @@ typedef enum NsStatus {
   NS_ERR_IO = 5,
   // A panic was caught at the boundary (a bug in neusample: please report it).
   NS_ERR_PANIC = 6,
+  // A measured-material file (RGL `.bsdf`, Mitsuba's `tensor_file`) is not one, or holds
+  // a field wrongly (truncated, missing, wrong shape or type, non-finite values): the
+  // message names the file and the field.
+  NS_ERR_MEASURED_FILE = 7,
   // Blob: fewer bytes than the format needs.
   NS_ERR_TRUNCATED = 10,
   // Blob: not a neusample blob (bad magic).
@@ -99,7 +103,7 @@ typedef enum NsKind {
   // Disk flow: spline couplings on chords, uniform base, every mass inside the disk.
   NS_KIND_DISK_FLOW = 9,
   // A measured (RGL) material with its own VNDF sampler (not a sampler kind: open it with
-  // `ns_measured_new`).
+  // `ns_measured_new`, or its `.bsdf` file with `ns_measured_open_bsdf`).
   NS_KIND_MEASURED = 10,
 } NsKind;
 
@@ -110,7 +114,8 @@ typedef struct NsBlob NsBlob;
 typedef struct NsMaterial NsMaterial;
 
 // A measured material (RGL data) with its own sampler, read in place from a measured blob
-// (shares the blob's bytes). Opaque; immutable; thread-safe.
+// (shares the blob's bytes; a `.bsdf` file opened with `ns_measured_open_bsdf` is held as
+// the blob `neusample measured-blob` would write). Opaque; immutable; thread-safe.
 typedef struct NsMeasured NsMeasured;
 
 // The prepared state of one shading point (the sampler's networks evaluated for `(φ, wi)`),
@@ -500,10 +505,22 @@ enum NsStatus ns_material_eval_batch(const struct NsMaterial *material,
 // `blob` is NULL or a live handle; `out` is NULL or writable.
 enum NsStatus ns_measured_new(const struct NsBlob *blob, struct NsMeasured **out);
 
+// Reads the RGL measured-material file at `path` (UTF-8, NUL-terminated; an RGB or spectral
+// `.bsdf` file in Mitsuba's `measured` format, spectra read in linear sRGB) and stores a new
+// handle in `*out` (free it with `ns_measured_free`): the same material, bit for bit, as
+// `ns_measured_new` on the blob `neusample measured-blob` writes from the file. Errors:
+// `NS_ERR_IO` (missing or unreadable file), `NS_ERR_MEASURED_FILE` (not a measured file, or
+// a field missing or wrong: `ns_last_error` names the file and the field).
+//
+// # Safety
+// `path` is NULL or a NUL-terminated string; `out` is NULL or writable.
+enum NsStatus ns_measured_open_bsdf(const char *path, struct NsMeasured **out);
+
 // Frees a measured-material handle (NULL is ignored).
 //
 // # Safety
-// `measured` is NULL or a handle from `ns_measured_new`, freed once.
+// `measured` is NULL or a handle from `ns_measured_new` or `ns_measured_open_bsdf`, freed
+// once.
 void ns_measured_free(struct NsMeasured *measured);
 
 // The measured BRDF `f(wi, wo)` in linear RGB, **without** the cosine (0 where either

@@ -1,10 +1,14 @@
 //! The safe bodies of the entry points: references and slices in, `Result` out. `ffi` checks
 //! the pointers and calls these.
 
+use std::path::Path;
+
 use neusample::wavefront::{
     AnyLane, BatchSampler, Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut,
 };
-use neusample::{Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
+use neusample::{BlobWriter, Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
+use neusample_owned::measured::OwnedMeasured;
+use neusample_owned::{measured_label, OwnedMeasuredBlob};
 
 use crate::error::CallError;
 use crate::types::{
@@ -219,6 +223,28 @@ pub(crate) fn eval_batch(
     out: RgbMut<'_>,
 ) -> Result<(), CallError> {
     Ok(m.0.get().eval_batch(phi, wi, wo, out)?)
+}
+
+/// The measured material of the `.bsdf` file at `path`, held as the blob `neusample
+/// measured-blob` writes from it (labelled with the file's stem and name), so that both
+/// constructors give one handle type with the same values.
+pub(crate) fn measured_open_bsdf(path: &str) -> Result<NsMeasured, CallError> {
+    let bytes = std::fs::read(path).map_err(|e| CallError::Io(format!("{path}: {e}")))?;
+    let data = OwnedMeasured::from_bytes(&bytes).map_err(|mut e| {
+        e.file = Some(path.to_string());
+        CallError::MeasuredFile(e)
+    })?;
+    let file = Path::new(path);
+    let text = |s: Option<&std::ffi::OsStr>| {
+        s.map_or_else(String::new, |s| s.to_string_lossy().into_owned())
+    };
+    let label = measured_label(
+        &text(file.file_stem()),
+        &text(file.file_name()),
+        data.description(),
+    );
+    let blob = BlobWriter::measured(data.material(), &label).to_bytes();
+    Ok(NsMeasured(OwnedMeasuredBlob::from_bytes(&blob)?))
 }
 
 /// The measured BRDF without the cosine; 0 where `wi` or `wo` is at or below the horizon.

@@ -5,6 +5,7 @@ use std::cell::RefCell;
 use std::ffi::CString;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
+use neusample_owned::measured::MeasuredError;
 use neusample_owned::{error_kind, OpenError};
 
 use crate::types::NsStatus;
@@ -17,6 +18,8 @@ pub(crate) enum CallError {
     NotFinite(&'static str),
     Io(String),
     Blob(neusample::Error),
+    /// A measured-material file's error (it names the file and the field).
+    MeasuredFile(MeasuredError),
     /// Not an error: the scalar call's condition or sample was refused.
     Refused,
 }
@@ -69,6 +72,7 @@ pub(crate) fn status_name(s: NsStatus) -> &'static [u8] {
         NS_ERR_NOT_FINITE => b"NS_ERR_NOT_FINITE\0",
         NS_ERR_IO => b"NS_ERR_IO\0",
         NS_ERR_PANIC => b"NS_ERR_PANIC\0",
+        NS_ERR_MEASURED_FILE => b"NS_ERR_MEASURED_FILE\0",
         NS_ERR_TRUNCATED => b"NS_ERR_TRUNCATED\0",
         NS_ERR_BAD_MAGIC => b"NS_ERR_BAD_MAGIC\0",
         NS_ERR_UNSUPPORTED_VERSION => b"NS_ERR_UNSUPPORTED_VERSION\0",
@@ -117,6 +121,7 @@ fn report(e: CallError) -> NsStatus {
         ),
         CallError::Io(m) => (NsStatus::NS_ERR_IO, m),
         CallError::Blob(e) => (blob_status(&e), e.to_string()),
+        CallError::MeasuredFile(e) => (NsStatus::NS_ERR_MEASURED_FILE, e.to_string()),
     };
     set_last_error(msg);
     status

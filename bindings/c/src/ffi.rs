@@ -159,6 +159,21 @@ unsafe fn get_mut<'a, T>(p: *mut T, what: &'static str) -> Result<&'a mut T, Cal
     unsafe { p.as_mut() }.ok_or(CallError::Null(what))
 }
 
+/// A path argument as UTF-8 text: [`CallError::Null`] for NULL, `NS_ERR_INVALID_ARGUMENT`
+/// for bytes that are not UTF-8.
+///
+/// # Safety
+/// `path` is NULL or a NUL-terminated string, not written during the call.
+unsafe fn path_arg<'a>(path: *const c_char) -> Result<&'a str, CallError> {
+    if path.is_null() {
+        return Err(CallError::Null("path"));
+    }
+    // SAFETY: non-NULL and NUL-terminated (caller's contract).
+    unsafe { CStr::from_ptr(path) }
+        .to_str()
+        .map_err(|_| CallError::Invalid("`path` is not UTF-8".into()))
+}
+
 /// Moves `value` to the heap and stores the pointer in `*out`.
 fn put<T>(out: &mut *mut T, value: T) {
     *out = Box::into_raw(Box::new(value));
@@ -189,13 +204,8 @@ pub unsafe extern "C" fn ns_blob_open(path: *const c_char, out: *mut *mut NsBlob
     guard(|| {
         // SAFETY: `out` is NULL or writable (contract).
         let out = unsafe { get_mut(out, "out") }?;
-        if path.is_null() {
-            return Err(CallError::Null("path"));
-        }
-        // SAFETY: non-NULL and NUL-terminated (contract).
-        let path = unsafe { CStr::from_ptr(path) }
-            .to_str()
-            .map_err(|_| CallError::Invalid("`path` is not UTF-8".into()))?;
+        // SAFETY: NULL or NUL-terminated (contract).
+        let path = unsafe { path_arg(path) }?;
         let blob = OwnedBlob::open(Path::new(path)).map_err(|e| open_error(path, e))?;
         put(out, NsBlob(blob));
         Ok(())
@@ -786,8 +796,8 @@ pub unsafe extern "C" fn ns_material_eval_batch(
 }
 
 // ---------------------------------------------------------------------------------------
-// Measured materials (RGL data in a measured blob): eval, the data's own sampler and its
-// density, each with respect to solid angle.
+// Measured materials (RGL data in a measured blob or a `.bsdf` file): eval, the data's own
+// sampler and its density, each with respect to solid angle.
 
 /// Builds the measured material of a measured blob (kind `NS_KIND_MEASURED`, written by
 /// `neusample measured-blob`) and stores a new handle in `*out` (free it with
@@ -810,10 +820,35 @@ pub unsafe extern "C" fn ns_measured_new(
     })
 }
 
+/// Reads the RGL measured-material file at `path` (UTF-8, NUL-terminated; an RGB or spectral
+/// `.bsdf` file in Mitsuba's `measured` format, spectra read in linear sRGB) and stores a new
+/// handle in `*out` (free it with `ns_measured_free`): the same material, bit for bit, as
+/// `ns_measured_new` on the blob `neusample measured-blob` writes from the file. Errors:
+/// `NS_ERR_IO` (missing or unreadable file), `NS_ERR_MEASURED_FILE` (not a measured file, or
+/// a field missing or wrong: `ns_last_error` names the file and the field).
+///
+/// # Safety
+/// `path` is NULL or a NUL-terminated string; `out` is NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ns_measured_open_bsdf(
+    path: *const c_char,
+    out: *mut *mut NsMeasured,
+) -> NsStatus {
+    guard(|| {
+        // SAFETY: writable or NULL (contract).
+        let out = unsafe { get_mut(out, "out") }?;
+        // SAFETY: NULL or NUL-terminated (contract).
+        let path = unsafe { path_arg(path) }?;
+        put(out, api::measured_open_bsdf(path)?);
+        Ok(())
+    })
+}
+
 /// Frees a measured-material handle (NULL is ignored).
 ///
 /// # Safety
-/// `measured` is NULL or a handle from `ns_measured_new`, freed once.
+/// `measured` is NULL or a handle from `ns_measured_new` or `ns_measured_open_bsdf`, freed
+/// once.
 #[no_mangle]
 pub unsafe extern "C" fn ns_measured_free(measured: *mut NsMeasured) {
     // SAFETY: caller's contract.

@@ -1,8 +1,9 @@
 //! # neusample-capi — the C ABI of neusample
 //!
-//! Opaque handles for a blob (owning its bytes), a sampler and a neural material; scalar
-//! calls in pbrt's shape (`prepare`, `sample`, `pdf`) and batched calls over
-//! structure-of-arrays float pointers; `NsStatus` codes with a per-thread message. The
+//! Opaque handles for a blob (owning its bytes), a sampler, a neural material and a measured
+//! (RGL) material (from a measured blob or its `.bsdf` file); scalar calls in pbrt's shape
+//! (`prepare`, `sample`, `pdf`) and batched calls over structure-of-arrays float pointers;
+//! `NsStatus` codes with a per-thread message. The
 //! header, `include/neusample.h`, is generated from this crate by cbindgen and committed;
 //! `tests/header.rs` fails when it is stale (`NEUSAMPLE_BLESS=1` rewrites it).
 //!

@@ -29,6 +29,10 @@ pub enum NsStatus {
     NS_ERR_IO = 5,
     /// A panic was caught at the boundary (a bug in neusample: please report it).
     NS_ERR_PANIC = 6,
+    /// A measured-material file (RGL `.bsdf`, Mitsuba's `tensor_file`) is not one, or holds
+    /// a field wrongly (truncated, missing, wrong shape or type, non-finite values): the
+    /// message names the file and the field.
+    NS_ERR_MEASURED_FILE = 7,
     /// Blob: fewer bytes than the format needs.
     NS_ERR_TRUNCATED = 10,
     /// Blob: not a neusample blob (bad magic).
@@ -93,7 +97,7 @@ pub enum NsKind {
     /// Disk flow: spline couplings on chords, uniform base, every mass inside the disk.
     NS_KIND_DISK_FLOW = 9,
     /// A measured (RGL) material with its own VNDF sampler (not a sampler kind: open it with
-    /// `ns_measured_new`).
+    /// `ns_measured_new`, or its `.bsdf` file with `ns_measured_open_bsdf`).
     NS_KIND_MEASURED = 10,
 }
 
@@ -315,7 +319,8 @@ pub struct NsSampler(pub(crate) OwnedSampler);
 pub struct NsMaterial(pub(crate) OwnedMaterial);
 
 /// A measured material (RGL data) with its own sampler, read in place from a measured blob
-/// (shares the blob's bytes). Opaque; immutable; thread-safe.
+/// (shares the blob's bytes; a `.bsdf` file opened with `ns_measured_open_bsdf` is held as
+/// the blob `neusample measured-blob` would write). Opaque; immutable; thread-safe.
 pub struct NsMeasured(pub(crate) OwnedMeasuredBlob);
 
 /// The prepared state of one shading point (the sampler's networks evaluated for `(φ, wi)`),

@@ -1,10 +1,12 @@
 //! The measured material through the C ABI: a measured blob built from a fixture `.bsdf`,
-//! opened with `ns_blob_from_bytes` + `ns_measured_new`, gives bit for bit the runtime's
-//! values (scalar and batched), and bad input — NULL, NaN, refused directions, wrong kinds,
-//! corrupted bytes, overlapping outputs — is a status code, never a crash.
+//! opened with `ns_blob_from_bytes` + `ns_measured_new`, and the `.bsdf` file itself opened
+//! with `ns_measured_open_bsdf`, give bit for bit the runtime's values (scalar and batched),
+//! and bad input — NULL, NaN, refused directions, wrong kinds, corrupted bytes, truncated or
+//! foreign files, overlapping outputs — is a status code, never a crash.
 #![allow(unsafe_code)]
 
-use std::path::Path;
+use std::ffi::{CStr, CString};
+use std::path::{Path, PathBuf};
 use std::ptr::{null, null_mut};
 
 use neusample::{BlobWriter, Vec2, Vec3};
@@ -12,9 +14,28 @@ use neusample_capi::ffi::*;
 use neusample_capi::*;
 use neusample_owned::measured::OwnedMeasured;
 
+fn fixture_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/measured/chm_mint_rgb.bsdf")
+}
+
 fn fixture() -> OwnedMeasured {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/measured/chm_mint_rgb.bsdf");
-    OwnedMeasured::open(&p).unwrap()
+    OwnedMeasured::open(&fixture_path()).unwrap()
+}
+
+/// `ns_measured_open_bsdf` on `path`: the status, the handle (NULL unless `NS_OK`) and the
+/// last error message.
+fn open_bsdf(path: &[u8]) -> (NsStatus, *mut NsMeasured, String) {
+    let c = CString::new(path).unwrap();
+    let mut h = null_mut();
+    // SAFETY: a NUL-terminated string, a writable output; the message pointer is read before
+    // any other call.
+    unsafe {
+        let s = ns_measured_open_bsdf(c.as_ptr(), &mut h);
+        let msg = CStr::from_ptr(ns_last_error())
+            .to_string_lossy()
+            .into_owned();
+        (s, h, msg)
+    }
 }
 
 fn blob(bytes: &[u8]) -> Result<*mut NsBlob, NsStatus> {
@@ -54,6 +75,59 @@ fn lane(i: usize) -> (Vec3, Vec3, Vec2) {
     )
 }
 
+/// Lane `i` through the scalar calls of `h` gives the runtime's values for `m` bit for bit
+/// (refused where the runtime refuses).
+fn scalar_lane_is_the_runtimes<W: neusample::Weights>(
+    h: *const NsMeasured,
+    m: &neusample::MeasuredMaterial<W>,
+    i: usize,
+) {
+    let (wi, wo, u) = lane(i);
+    let (wi_c, wo_c, u_c) = (v3(wi), v3(wo), NsVec2 { x: u.x, y: u.y });
+    let prepared = m.prepare(wi);
+    let (mut f, mut pdf, mut smp) = (NsRgb::default(), -1.0f32, NsMeasuredSample::default());
+    // SAFETY: live handle, writable outputs.
+    let (se, sp, ss) = unsafe {
+        (
+            ns_measured_eval(h, wi_c, wo_c, &mut f),
+            ns_measured_pdf(h, wi_c, wo_c, &mut pdf),
+            ns_measured_sample(h, wi_c, u_c, &mut smp),
+        )
+    };
+    assert_eq!(se, NsStatus::NS_OK);
+    let want_f = prepared.as_ref().map_or([0.0; 3], |p| p.eval(wo));
+    assert_eq!(
+        [f.r, f.g, f.b].map(f32::to_bits),
+        want_f.map(f32::to_bits),
+        "lane {i}"
+    );
+    match prepared {
+        None => {
+            assert_eq!((sp, ss), (NsStatus::NS_REFUSED, NsStatus::NS_REFUSED));
+            assert_eq!((pdf, smp), (0.0, NsMeasuredSample::default()));
+        }
+        Some(p) => {
+            assert_eq!(sp, NsStatus::NS_OK);
+            assert_eq!(pdf.to_bits(), p.pdf(wo).to_bits());
+            match p.sample(u) {
+                None => assert_eq!(ss, NsStatus::NS_REFUSED),
+                Some(want) => {
+                    assert_eq!(ss, NsStatus::NS_OK);
+                    assert_eq!(smp.pdf.to_bits(), want.pdf.to_bits());
+                    assert_eq!(
+                        [smp.wo.x, smp.wo.y, smp.wo.z].map(f32::to_bits),
+                        want.wo.to_array().map(f32::to_bits)
+                    );
+                    assert_eq!(
+                        [smp.weight.r, smp.weight.g, smp.weight.b].map(f32::to_bits),
+                        want.weight.map(f32::to_bits)
+                    );
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn measured_blob_through_the_c_abi() {
     let owned = fixture();
@@ -86,55 +160,13 @@ fn measured_blob_through_the_c_abi() {
     let mut cols: [Vec<f32>; 7] = std::array::from_fn(|_| Vec::with_capacity(N));
     for i in 0..N {
         let (wi, wo, u) = lane(i);
-        let (wi_c, wo_c, u_c) = (v3(wi), v3(wo), NsVec2 { x: u.x, y: u.y });
         for (c, v) in [wi.x, wi.y, wi.z, wo.x, wo.y, wo.z, u.x]
             .into_iter()
             .enumerate()
         {
             cols[c].push(v);
         }
-        let prepared = m.prepare(wi);
-        let (mut f, mut pdf, mut smp) = (NsRgb::default(), -1.0f32, NsMeasuredSample::default());
-        // SAFETY: live handle, writable outputs.
-        let (se, sp, ss) = unsafe {
-            (
-                ns_measured_eval(h, wi_c, wo_c, &mut f),
-                ns_measured_pdf(h, wi_c, wo_c, &mut pdf),
-                ns_measured_sample(h, wi_c, u_c, &mut smp),
-            )
-        };
-        assert_eq!(se, NsStatus::NS_OK);
-        let want_f = prepared.as_ref().map_or([0.0; 3], |p| p.eval(wo));
-        assert_eq!(
-            [f.r, f.g, f.b].map(f32::to_bits),
-            want_f.map(f32::to_bits),
-            "lane {i}"
-        );
-        match prepared {
-            None => {
-                assert_eq!((sp, ss), (NsStatus::NS_REFUSED, NsStatus::NS_REFUSED));
-                assert_eq!((pdf, smp), (0.0, NsMeasuredSample::default()));
-            }
-            Some(p) => {
-                assert_eq!(sp, NsStatus::NS_OK);
-                assert_eq!(pdf.to_bits(), p.pdf(wo).to_bits());
-                match p.sample(u) {
-                    None => assert_eq!(ss, NsStatus::NS_REFUSED),
-                    Some(want) => {
-                        assert_eq!(ss, NsStatus::NS_OK);
-                        assert_eq!(smp.pdf.to_bits(), want.pdf.to_bits());
-                        assert_eq!(
-                            [smp.wo.x, smp.wo.y, smp.wo.z].map(f32::to_bits),
-                            want.wo.to_array().map(f32::to_bits)
-                        );
-                        assert_eq!(
-                            [smp.weight.r, smp.weight.g, smp.weight.b].map(f32::to_bits),
-                            want.weight.map(f32::to_bits)
-                        );
-                    }
-                }
-            }
-        }
+        scalar_lane_is_the_runtimes(h, m, i);
     }
     let uy: Vec<f32> = (0..N).map(|i| lane(i).2.y).collect();
 
@@ -340,5 +372,64 @@ fn bad_measured_blobs_are_status_codes() {
         assert_eq!(ns_measured_new(b, &mut h), NsStatus::NS_ERR_WRONG_KIND);
         assert!(h.is_null());
         ns_blob_free(b);
+    }
+}
+
+#[test]
+fn bsdf_files_open_through_the_c_abi() {
+    let owned = fixture();
+    let path = fixture_path();
+    let (status, h, _) = open_bsdf(path.to_str().unwrap().as_bytes());
+    assert_eq!(status, NsStatus::NS_OK);
+    for i in 0..500 {
+        scalar_lane_is_the_runtimes(h, owned.material(), i);
+    }
+    // SAFETY: a live handle, freed once.
+    unsafe { ns_measured_free(h) };
+
+    // A truncated copy: the file and the field that runs past its end are named.
+    let dir = std::env::temp_dir().join(format!("neusample-capi-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = dir.join("truncated.bsdf");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let shown = cut.to_str().unwrap();
+    let (status, h, msg) = open_bsdf(shown.as_bytes());
+    assert_eq!(status, NsStatus::NS_ERR_MEASURED_FILE, "{msg}");
+    assert!(h.is_null());
+    assert!(
+        msg.starts_with(&format!("{shown}: field `vndf`: ")) && msg.contains("truncated"),
+        "{msg}"
+    );
+    // A blob is not a measured file; a missing file is an I/O error naming it.
+    let blob = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/blobs/cosine.nsb");
+    let (status, _, msg) = open_bsdf(blob.to_str().unwrap().as_bytes());
+    assert_eq!(status, NsStatus::NS_ERR_MEASURED_FILE, "{msg}");
+    assert!(msg.contains("not a tensor file"), "{msg}");
+    let missing = dir.join("missing.bsdf");
+    let (status, _, msg) = open_bsdf(missing.to_str().unwrap().as_bytes());
+    assert_eq!(status, NsStatus::NS_ERR_IO, "{msg}");
+    assert!(msg.starts_with(missing.to_str().unwrap()), "{msg}");
+    std::fs::remove_dir_all(&dir).unwrap();
+    // A path that is not UTF-8, NULL arguments.
+    let (status, _, _) = open_bsdf(b"/tmp/\xff.bsdf");
+    assert_eq!(status, NsStatus::NS_ERR_INVALID_ARGUMENT);
+    let c = CString::new(path.to_str().unwrap()).unwrap();
+    let mut h = null_mut();
+    // SAFETY: NULL arguments are checked by the call.
+    unsafe {
+        assert_eq!(
+            ns_measured_open_bsdf(null(), &mut h),
+            NsStatus::NS_ERR_NULL_POINTER
+        );
+        assert_eq!(
+            ns_measured_open_bsdf(c.as_ptr(), null_mut()),
+            NsStatus::NS_ERR_NULL_POINTER
+        );
+        assert!(h.is_null());
+        assert_eq!(
+            CStr::from_ptr(ns_status_name(NsStatus::NS_ERR_MEASURED_FILE)).to_str(),
+            Ok("NS_ERR_MEASURED_FILE")
+        );
     }
 }

@@ -28,8 +28,20 @@
 //! | `luminance` | f32 | `[n_φ, n_θ, h, w]`, `h = w` |
 //! | `rgb` | f32 | `[n_φ, n_θ, 3, h, w]`, as `luminance` |
 //!
-//! Spectral files (`spectra` and `wavelengths` instead of `rgb`) are refused with a message
-//! that says so.
+//! A spectral file (RGL's `*_spec.bsdf`) has, instead of `rgb`:
+//!
+//! | field | dtype | shape |
+//! |---|---|---|
+//! | `wavelengths` | f32 | `[n_λ]`, nm, ascending, `n_λ ≥ 1` |
+//! | `spectra` | f32 | `[n_φ, n_θ, n_λ, h, w]`, as `luminance` |
+//!
+//! and is read in linear sRGB, each texel's spectrum integrated against the CIE 1931
+//! observer under D65 ([`spectral`] gives the conversion and its normalisation: a flat
+//! spectrum of 1 is white, (1, 1, 1)). A file with both `rgb` and `spectra` is read from
+//! `rgb`.
+
+pub mod cie;
+pub mod spectral;
 
 use std::collections::HashMap;
 use std::fmt;
@@ -335,6 +347,7 @@ impl<'a> TensorFile<'a> {
 pub struct OwnedMeasured {
     material: MeasuredMaterial<Vec<f32>>,
     description: String,
+    wavelengths: Option<Vec<f32>>,
 }
 
 /// A shape dimension as a table size, or an error naming the field.
@@ -371,13 +384,6 @@ impl OwnedMeasured {
     /// truncation, a wrong magic, a missing field, non-finite values, inconsistent shapes.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, MeasuredError> {
         let tf = TensorFile::parse(bytes)?;
-        if !tf.has("rgb") && tf.has("spectra") {
-            return Err(MeasuredError::field(
-                "rgb",
-                "missing: this is a spectral file (`spectra`, `wavelengths`); use the RGB \
-                 version of the material (`*_rgb.bsdf`)",
-            ));
-        }
         let description = String::from_utf8_lossy(tf.bytes("description")?).into_owned();
         let jacobian = tf.bytes("jacobian")?;
         if jacobian.len() != 1 {
@@ -392,7 +398,6 @@ impl OwnedMeasured {
         let (sigma_s, sigma) = tf.f32s("sigma", 2)?;
         let (vndf_s, vndf) = tf.f32s("vndf", 4)?;
         let (lum_s, luminance) = tf.f32s("luminance", 4)?;
-        let (rgb_s, rgb) = tf.f32s("rgb", 5)?;
         let (n_phi, n_theta) = (phi_i.len() as u64, theta_i.len() as u64);
         if n_phi == 0 || n_theta == 0 {
             return Err(MeasuredError::field(
@@ -411,16 +416,7 @@ impl OwnedMeasured {
             &lum_s,
             &[(3, lum_s[2], "luminance slices are square")],
         )?;
-        expect("rgb", &rgb_s, &params)?;
-        expect(
-            "rgb",
-            &rgb_s,
-            &[
-                (2, 3, "three channels"),
-                (3, lum_s[2], "the luminance's height"),
-                (4, lum_s[3], "the luminance's width"),
-            ],
-        )?;
+        let (rgb, wavelengths) = colour(&tf, &params, &lum_s)?;
         let shape = MeasuredShape {
             n_phi: n_phi as u32,
             n_theta: n_theta as u32,
@@ -457,18 +453,8 @@ impl OwnedMeasured {
                 ));
             }
         }
-        for (field, nodes) in [("phi_i", &phi_i), ("theta_i", &theta_i)] {
-            if let Some(i) = (1..nodes.len()).find(|&i| !(nodes[i] > nodes[i - 1])) {
-                return Err(MeasuredError::field(
-                    field,
-                    format!(
-                        "nodes must ascend: element {i} is {} after {}",
-                        nodes[i],
-                        nodes[i - 1]
-                    ),
-                ));
-            }
-        }
+        ascending("phi_i", &phi_i)?;
+        ascending("theta_i", &theta_i)?;
         let (vw, vh) = (shape.vndf[0] as usize, shape.vndf[1] as usize);
         let (rw, rh) = (shape.rgb[0] as usize, shape.rgb[1] as usize);
         let (vndf, vndf_marginal, vndf_conditional) = marginal2d::build(&vndf, vw, vh, true);
@@ -492,6 +478,7 @@ impl OwnedMeasured {
         Ok(OwnedMeasured {
             material,
             description,
+            wavelengths,
         })
     }
 
@@ -520,4 +507,75 @@ impl OwnedMeasured {
     pub fn description(&self) -> &str {
         &self.description
     }
+
+    /// The wavelengths (nm) of a spectral file, whose spectra were read in linear sRGB;
+    /// `None` for an RGB file.
+    #[must_use]
+    pub fn wavelengths(&self) -> Option<&[f32]> {
+        self.wavelengths.as_deref()
+    }
+}
+
+/// Checks that `nodes` ascend strictly (angles, wavelengths).
+fn ascending(field: &str, nodes: &[f32]) -> Result<(), MeasuredError> {
+    match (1..nodes.len()).find(|&i| !(nodes[i] > nodes[i - 1])) {
+        Some(i) => Err(MeasuredError::field(
+            field,
+            format!(
+                "nodes must ascend: element {i} is {} after {}",
+                nodes[i],
+                nodes[i - 1]
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// The RGB table, `[n_φ, n_θ, 3, h, w]`: the `rgb` field, or the `spectra` over
+/// `wavelengths` in linear sRGB (then also the wavelengths). `params` checks the two
+/// incident-angle dimensions; `lum_s` is the luminance's shape, whose slices the colour's
+/// match.
+fn colour(
+    tf: &TensorFile<'_>,
+    params: &[(usize, u64, &str)],
+    lum_s: &[u64],
+) -> Result<(Vec<f32>, Option<Vec<f32>>), MeasuredError> {
+    // Each slice matches the luminance's.
+    let hw = [
+        (3, lum_s[2], "the luminance's height"),
+        (4, lum_s[3], "the luminance's width"),
+    ];
+    if tf.has("rgb") {
+        let (rgb_s, rgb) = tf.f32s("rgb", 5)?;
+        expect("rgb", &rgb_s, params)?;
+        expect("rgb", &rgb_s, &[(2, 3, "three channels")])?;
+        expect("rgb", &rgb_s, &hw)?;
+        return Ok((rgb, None));
+    }
+    if !(tf.has("spectra") || tf.has("wavelengths")) {
+        return Err(MeasuredError::field(
+            "rgb",
+            "missing (and no `spectra` and `wavelengths` either: neither an RGB nor a \
+             spectral file)",
+        ));
+    }
+    let (_, wavelengths) = tf.f32s("wavelengths", 1)?;
+    if wavelengths.is_empty() {
+        return Err(MeasuredError::field("wavelengths", "empty"));
+    }
+    ascending("wavelengths", &wavelengths)?;
+    let (spectra_s, spectra) = tf.f32s("spectra", 5)?;
+    expect("spectra", &spectra_s, params)?;
+    let n = wavelengths.len() as u64;
+    expect(
+        "spectra",
+        &spectra_s,
+        &[(2, n, "the length of wavelengths")],
+    )?;
+    expect("spectra", &spectra_s, &hw)?;
+    let slices = (spectra_s[0] * spectra_s[1]) as usize;
+    let pixels = (lum_s[2] * lum_s[3]) as usize;
+    let weights = spectral::rgb_weights(&wavelengths);
+    let rgb = spectral::spectra_to_rgb(&spectra, &weights, slices, pixels);
+    Ok((rgb, Some(wavelengths)))
 }

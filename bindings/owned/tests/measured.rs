@@ -1,7 +1,7 @@
 //! The measured-material reader and runtime against Mitsuba 3's `measured` BSDF (golden values
 //! from `tools/measured_reference.py`), their own invariants (the sampler's pdf integrates to
 //! one, sample and pdf agree, the weight is f·cos/pdf), a constructed anisotropic file, and
-//! bad files.
+//! bad files (spectral files: `tests/spectral.rs`).
 
 use std::path::Path;
 
@@ -401,10 +401,10 @@ fn bad_files_name_the_field() {
             "",
         ),
         (
-            "spectral",
+            "no colour",
             mutated(|b, h| b[field(h, "rgb").name_at..][..3].copy_from_slice(b"xyz")),
             Some("rgb"),
-            "missing",
+            "neither an RGB nor a spectral file",
         ),
         (
             "huge shape",

@@ -1,6 +1,6 @@
-//! `neusample.MeasuredMaterial`: a measured BRDF of the RGL material database (an RGB
-//! `.bsdf` file, Mitsuba's `measured` format, or a measured blob written from one) with the
-//! data's own sampler, batched over numpy arrays like the other classes.
+//! `neusample.MeasuredMaterial`: a measured BRDF of the RGL material database (an RGB or
+//! spectral `.bsdf` file, Mitsuba's `measured` format, or a measured blob written from one)
+//! with the data's own sampler, batched over numpy arrays like the other classes.
 //!
 //! The array methods call the runtime's batched calls (`MeasuredMaterial::eval_batch`,
 //! `pdf_batch`, `sample_batch`) on chunks of lanes. Each lane is prepared at its `wi` and
@@ -27,10 +27,11 @@ type MeasuredSampleArrays<'py> = (
     Bound<'py, PyArray2<f32>>,
 );
 
-/// A measured material from the RGL database (Dupuy & Jakob 2018): an RGB `.bsdf` file in
-/// Mitsuba's `measured` format, or a measured blob (`neusample measured-blob`), evaluated and
-/// sampled as Mitsuba 3's `measured` BSDF does (the data's visible-normal sampler, warped
-/// through its luminance).
+/// A measured material from the RGL database (Dupuy & Jakob 2018): an RGB or spectral
+/// `.bsdf` file in Mitsuba's `measured` format (spectra are read in linear sRGB: integrated
+/// against the CIE 1931 observer under D65, a flat spectrum of 1 being white), or a measured
+/// blob (`neusample measured-blob`), evaluated and sampled as Mitsuba 3's `measured` BSDF does
+/// (the data's visible-normal sampler, warped through its luminance).
 ///
 /// `MeasuredMaterial(path)` reads and checks the whole `.bsdf` file; a bad file raises
 /// `MeasuredFileError` (with `field` and `path`), a missing one `FileNotFoundError`.
@@ -121,7 +122,7 @@ fn read_file(py: Python<'_>, path: &std::path::Path) -> PyResult<(Vec<u8>, Strin
 
 #[pymethods]
 impl MeasuredMaterial {
-    /// Reads the measured material at `path` (an RGB `.bsdf` file).
+    /// Reads the measured material at `path` (an RGB or spectral `.bsdf` file).
     #[new]
     fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let (bytes, shown) = read_file(py, &path)?;
@@ -207,6 +208,16 @@ impl MeasuredMaterial {
     #[getter]
     fn isotropic(&self) -> bool {
         self.material().isotropic()
+    }
+
+    /// The wavelengths (nm) of a spectral `.bsdf` file, as a list (None for an RGB file or a
+    /// blob).
+    #[getter]
+    fn wavelengths(&self) -> Option<Vec<f32>> {
+        match &self.inner {
+            Source::File(m) => m.wavelengths().map(<[f32]>::to_vec),
+            Source::Blob(_) => None,
+        }
     }
 
     /// The file it was read from (None for a blob from bytes).

@@ -46,6 +46,10 @@ pub struct DemoConfig {
     /// With `use_fixtures`: read `<blobs>/<material>/<method>.nsb` from this folder instead of
     /// the committed `fixtures/blobs/`.
     pub blobs: Option<PathBuf>,
+    /// With `use_fixtures`: per material (its name in reports), a folder to read
+    /// `<folder>/<material>/<method>.nsb` from instead of `blobs` (`neusample table` points
+    /// the materials whose samplers it trained at them).
+    pub material_blobs: Vec<(String, PathBuf)>,
     /// Materials (built-in names or files, `.nsb` neural materials included); default: the
     /// neural versions of the three demo materials (or the procedural ones with
     /// `procedural`).
@@ -99,6 +103,7 @@ impl DemoConfig {
             out: out.into(),
             use_fixtures: true,
             blobs: None,
+            material_blobs: Vec::new(),
             materials: Vec::new(),
             procedural: false,
             seed: 1,
@@ -119,6 +124,18 @@ impl DemoConfig {
 }
 
 impl DemoConfig {
+    /// The folder holding `<material>/<method>.nsb` for `material` (with `use_fixtures`): its
+    /// entry of `material_blobs`, else `blobs`, else the committed fixtures.
+    #[must_use]
+    pub fn blob_dir(&self, material: &str) -> PathBuf {
+        self.material_blobs
+            .iter()
+            .find(|(name, _)| name == material)
+            .map(|(_, dir)| dir.clone())
+            .or_else(|| self.blobs.clone())
+            .unwrap_or_else(super::fixtures::fixtures_dir)
+    }
+
     /// The trained methods evaluated, in [`METHODS`] order: `methods` (every method when
     /// empty) with the improved baseline.
     #[must_use]
@@ -143,12 +160,12 @@ pub fn neural_fixture(name: &str) -> PathBuf {
 }
 
 /// A material of the demo and, for a neural material, the source it approximates (the
-/// reference of its fit).
+/// reference of its fit, found by [`resolve_source`]).
 pub struct DemoMaterial {
     /// What is rendered and sampled.
     pub material: Box<dyn Material>,
-    /// The source of a neural material, when it is known (a built-in name or a file in its
-    /// label's `source=` field).
+    /// The source of a neural material, when it is known (its label's `source=` field: a
+    /// built-in name or a file, [`resolve_source`]).
     pub source: Option<Box<dyn Material>>,
 }
 
@@ -171,7 +188,7 @@ pub fn resolve_demo_material(spec: &str, neural: bool) -> Result<DemoMaterial> {
         let bytes = io::read_blob(p)?;
         let (_, label) = NeuralParts::from_blob(&bytes)?;
         match label_field(&label, "source") {
-            Some(src) => match materials::resolve(src) {
+            Some(src) => match resolve_source(p, src) {
                 Ok(m) => Some(m),
                 Err(e) => {
                     eprintln!(
@@ -187,6 +204,52 @@ pub fn resolve_demo_material(spec: &str, neural: bool) -> Result<DemoMaterial> {
         None
     };
     Ok(DemoMaterial { material, source })
+}
+
+/// The extensions of a material file that [`resolve_source`] tries after the name itself.
+const SOURCE_EXTENSIONS: [&str; 3] = ["toml", "json", "bsdf"];
+
+/// The source material `source` (from its label) of the neural-material blob at `blob`: a
+/// built-in name or a path, as [`materials::resolve`] reads them; otherwise the first file
+/// of `<source>`, `<source>.toml`, `.json`, `.bsdf` beside the blob, then in the folder
+/// above it. `train-material` labels a material file's fit with the
+/// material's name, so `fixtures/measured/neural/chm_mint_neural.nsb` (source `chm_mint`)
+/// finds `fixtures/measured/chm_mint.toml`.
+///
+/// # Errors
+/// No such built-in or file: the message lists where it looked; or the file found does not
+/// load.
+pub fn resolve_source(blob: &Path, source: &str) -> Result<Box<dyn Material>> {
+    let direct = match materials::resolve(source) {
+        Ok(m) => return Ok(m),
+        Err(e) => e,
+    };
+    let candidates = source_candidates(blob, source);
+    match candidates.iter().find(|c| c.is_file()) {
+        Some(file) => materials::load(file),
+        None => {
+            let tried: Vec<String> = candidates.iter().map(|c| c.display().to_string()).collect();
+            Err(direct.context(format!("nor any of {}", tried.join(", "))))
+        }
+    }
+}
+
+/// Where [`resolve_source`] looks for the source `source` of the blob at `blob`, in order:
+/// `<source>`, then `<source>.toml`, `.json` and `.bsdf`, in the blob's folder and then in
+/// the folder above it.
+fn source_candidates(blob: &Path, source: &str) -> Vec<PathBuf> {
+    let here = blob.parent().unwrap_or_else(|| Path::new(""));
+    [Some(here), here.parent()]
+        .into_iter()
+        .flatten()
+        .flat_map(|dir| {
+            std::iter::once(dir.join(source)).chain(
+                SOURCE_EXTENSIONS
+                    .iter()
+                    .map(move |ext| dir.join(format!("{source}.{ext}"))),
+            )
+        })
+        .collect()
 }
 
 /// Sizes of a demo run.
@@ -265,4 +328,82 @@ pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
         pdf_res: 64,
         pdf_size: if q { 64 } else { 96 },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fixtures() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures")
+    }
+
+    /// A material file named `name` (gold's model) at `path`.
+    fn write_material(path: &Path, name: &str) {
+        let text = std::fs::read_to_string(fixtures().join("materials/gold.toml"))
+            .unwrap()
+            .replace("name = \"gold\"", &format!("name = \"{name}\""));
+        std::fs::write(path, text).unwrap();
+    }
+
+    /// The committed neural fit of the mint finds its material file one folder up, and the
+    /// demo resolves it as the fit's source.
+    #[test]
+    fn a_measured_fit_finds_its_material_file() {
+        let blob = fixtures().join("measured/neural/chm_mint_neural.nsb");
+        let src = resolve_source(&blob, "chm_mint").unwrap();
+        assert_eq!(src.name(), "chm_mint");
+        assert!(src.measured().is_some());
+        let d = resolve_demo_material(blob.to_str().unwrap(), false).unwrap();
+        assert_eq!(d.material.name(), "chm_mint_neural");
+        assert_eq!(
+            d.source.map(|s| s.name().to_string()).as_deref(),
+            Some("chm_mint")
+        );
+    }
+
+    /// A built-in source resolves by name wherever the blob is.
+    #[test]
+    fn a_builtin_source_resolves_by_name() {
+        let src = resolve_source(Path::new("/nonexistent/x.nsb"), "goat_leather").unwrap();
+        assert_eq!(src.name(), "goat_leather");
+    }
+
+    /// The blob's folder comes before the folder above it, `.toml` before `.json` and
+    /// `.bsdf`; a source found nowhere names where it was looked for.
+    #[test]
+    fn the_blobs_folder_comes_first() {
+        let dir = tempfile::tempdir().unwrap();
+        let (up, here) = (dir.path().to_path_buf(), dir.path().join("neural"));
+        std::fs::create_dir_all(&here).unwrap();
+        let blob = here.join("fit.nsb");
+        let c = source_candidates(&blob, "src");
+        let want: Vec<PathBuf> = [&here, &up]
+            .iter()
+            .flat_map(|d| ["src", "src.toml", "src.json", "src.bsdf"].map(|f| d.join(f)))
+            .collect();
+        assert_eq!(c, want);
+
+        write_material(&up.join("src.toml"), "one_up");
+        assert_eq!(resolve_source(&blob, "src").unwrap().name(), "one_up");
+        write_material(&here.join("src.toml"), "beside");
+        assert_eq!(resolve_source(&blob, "src").unwrap().name(), "beside");
+        // A measured file beside the blob.
+        std::fs::copy(
+            fixtures().join("measured/paper_white_rgb.bsdf"),
+            here.join("paper.bsdf"),
+        )
+        .unwrap();
+        let m = resolve_source(&blob, "paper").unwrap();
+        assert!(m.measured().is_some());
+
+        let Err(e) = resolve_source(&blob, "nowhere") else {
+            panic!("a source that is nowhere resolved");
+        };
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("nowhere") && e.contains(&here.join("nowhere.bsdf").display().to_string()),
+            "{e}"
+        );
+    }
 }

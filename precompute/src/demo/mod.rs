@@ -34,8 +34,8 @@ pub mod showcase;
 pub mod table;
 
 pub use config::{
-    neural_fixture, resolve_demo_material, DemoConfig, DemoMaterial, BASELINE, COSINE,
-    DEFAULT_MATERIALS, NEURAL_SUFFIX, ORACLE,
+    neural_fixture, resolve_demo_material, resolve_source, DemoConfig, DemoMaterial, BASELINE,
+    COSINE, DEFAULT_MATERIALS, NEURAL_SUFFIX, ORACLE,
 };
 pub use fixtures::{fixtures_dir, regenerate_fixtures, FixtureSet};
 pub use markdown::{markdown, SMOKE_LINE};

@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use glam::Vec2;
 use indicatif::ProgressBar;
 use neusample::{Blob, BlobSampler};
-use neusample::{CosineSampler, DType, Prepared, Sampler};
+use neusample::{CosineSampler, DType, Prepared, Sampler, SamplerKind};
 use neusample_render::{demo_scene, Estimator};
 
 use super::config::{
@@ -18,7 +18,7 @@ use super::config::{
     DEFAULT_MATERIALS, MEASURED_DATA, ORACLE,
 };
 use super::figures::{self, Rgb8};
-use super::fixtures::{fixture_path, fixtures_dir};
+use super::fixtures::fixture_path;
 use super::markdown::{fmt_chi2, markdown};
 use super::report::{
     method_report, FigureReport, MaterialReport, MethodReport, NeuralReport, ReferenceReport,
@@ -34,6 +34,50 @@ use crate::train::neural_material::NeuralTrainConfig;
 use crate::train::{self, has_integrand, needs_integrand, TrainConfig};
 use crate::util::io::{self, slug};
 use crate::util::progress::stages_bar;
+
+/// A sampler trained by the demo: the checked blob and what the report says of its training.
+pub(crate) struct TrainedBlob {
+    /// The blob (f32, baked, checked, with its defensive weight).
+    pub(crate) bytes: Vec<u8>,
+    /// Training time.
+    pub(crate) seconds: f64,
+    /// The last training loss.
+    pub(crate) loss: Option<f32>,
+    /// The bake check's largest relative pdf error.
+    pub(crate) max_relative: f64,
+}
+
+/// `method` trained on `m` as `neusample demo --train` trains it: the quick schedule with
+/// `a.quick`, else the defaults scaled by `a.steps_scale`; seed `a.seed`; baked to f32,
+/// checked and given its defensive weight.
+pub(crate) fn train_blob(
+    m: &dyn Material,
+    method: SamplerKind,
+    a: &DemoConfig,
+) -> Result<TrainedBlob> {
+    let (mname, method_name) = (m.name(), method.name());
+    let mut cfg = if a.quick {
+        TrainConfig::quick()
+    } else {
+        TrainConfig::default().with_steps_scaled(a.steps_scale)
+    };
+    cfg.common.seed = a.seed;
+    let trained = train::train(m, method, &cfg)
+        .with_context(|| format!("training {method_name} on {mname}"))?;
+    let label = format!(
+        "demo material={mname} method={method_name} steps={}",
+        cfg.schedule(method).map_or(0, |s| s.steps)
+    );
+    let (bytes, v) = bake::checked_blob_bytes(&trained, DType::F32, &label, m, 8, a.seed + 7)
+        .with_context(|| format!("baking {method_name} on {mname}"))?;
+    let (bytes, _) = defend::defend_baked(bytes, m, a.seed + 300)?;
+    Ok(TrainedBlob {
+        bytes,
+        seconds: trained.seconds,
+        loss: trained.loss_history.last().copied(),
+        max_relative: v.max_relative,
+    })
+}
 
 /// `neusample demo`.
 pub fn run(a: &DemoConfig) -> Result<()> {
@@ -134,38 +178,11 @@ pub fn run(a: &DemoConfig) -> Result<()> {
             }
             pb.set_message(format!("{mname}/{method_name}"));
             let (bytes, secs, loss, check) = if a.use_fixtures {
-                let dir = a.blobs.clone().unwrap_or_else(fixtures_dir);
-                let path = fixture_path(&dir, &slug(&mname), method_name);
+                let path = fixture_path(&a.blob_dir(&mname), &slug(&mname), method_name);
                 (io::read_blob(&path)?, 0.0, None, None)
             } else {
-                let mut cfg = if a.quick {
-                    TrainConfig::quick()
-                } else {
-                    TrainConfig::default().with_steps_scaled(a.steps_scale)
-                };
-                cfg.common.seed = a.seed;
-                let trained = train::train(m.as_ref(), method, &cfg)
-                    .with_context(|| format!("training {method_name} on {mname}"))?;
-                let label = format!(
-                    "demo material={mname} method={method_name} steps={}",
-                    cfg.schedule(method).map_or(0, |s| s.steps)
-                );
-                let (bytes, v) = bake::checked_blob_bytes(
-                    &trained,
-                    DType::F32,
-                    &label,
-                    m.as_ref(),
-                    8,
-                    a.seed + 7,
-                )
-                .with_context(|| format!("baking {method_name} on {mname}"))?;
-                let (bytes, _) = defend::defend_baked(bytes, m.as_ref(), a.seed + 300)?;
-                (
-                    bytes,
-                    trained.seconds,
-                    trained.loss_history.last().copied(),
-                    Some(v.max_relative),
-                )
+                let t = train_blob(m.as_ref(), method, a)?;
+                (t.bytes, t.seconds, t.loss, Some(t.max_relative))
             };
             io::atomic_write(
                 &out.join("blobs")

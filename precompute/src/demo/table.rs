@@ -1,7 +1,9 @@
 //! The evaluation over every built-in material (`neusample table`): the demo pipeline on the
-//! neural version of each built-in with the committed samplers, under two lightings, and one
-//! Markdown file with the paper's Table 2 (speed-up over the improved baseline, with intervals)
-//! and Table 1 (time per sample: tracing and shading, material evaluation, sampling) for both.
+//! neural version of each built-in with the committed samplers (and on material files, whose
+//! samplers come from the fixtures or are trained once into the output folder), under two
+//! lightings, and one Markdown file with the paper's Table 2 (speed-up over the improved
+//! baseline, with intervals) and Table 1 (time per sample: tracing and shading, material
+//! evaluation, sampling) for both.
 //!
 //! Two lightings, because they measure different things: under **uniform white light** the
 //! render's variance comes from the BSDF sampler alone (the paper's uniformly lit scenes);
@@ -21,7 +23,8 @@ use super::fixtures::{fixture_path, fixtures_dir, neural_fixtures};
 use super::markdown::{fmt_x, fmt_x_interval};
 use super::pipeline;
 use super::report::{MaterialReport, Report};
-use crate::materials;
+use crate::materials::{self, Material};
+use crate::train::{has_integrand, needs_integrand};
 use crate::util::io::{self, slug};
 use crate::util::stats::Estimate;
 
@@ -67,7 +70,11 @@ pub struct TableConfig {
     /// Output folder: `<out>/<lighting>/` holds each lighting's demo report, `<out>/table.md`
     /// the combined tables.
     pub out: PathBuf,
-    /// Built-in material names (their neural versions are evaluated); default: all.
+    /// Materials, mixed as they come: built-in names (their neural versions are evaluated,
+    /// with the committed samplers) and material files (`.toml`, `.json`, `.bsdf`, `.nsb`;
+    /// their samplers are read from `fixtures/blobs/<name>/` when it holds every method
+    /// evaluated, else trained once, as `demo --train` trains them, into
+    /// `<out>/blobs/<name>/`, where a later run finds them); default: every built-in.
     pub materials: Vec<String>,
     /// Seed of the evaluation.
     pub seed: u64,
@@ -111,19 +118,39 @@ impl TableConfig {
             .collect()
     }
 
-    fn names(&self) -> Vec<String> {
+    /// The materials asked for (every built-in by default), each a built-in name or a file.
+    fn entries(&self) -> Result<Vec<Entry>> {
         if self.materials.is_empty() {
-            materials::builtin_names()
+            return Ok(materials::builtin_names()
                 .iter()
-                .map(|s| s.to_string())
-                .collect()
-        } else {
-            self.materials.clone()
+                .map(|n| Entry::Builtin(n.to_string()))
+                .collect());
         }
+        self.materials
+            .iter()
+            .map(|spec| {
+                if materials::builtin_names().contains(&spec.as_str()) {
+                    return Ok(Entry::Builtin(spec.clone()));
+                }
+                let material = materials::resolve(spec).with_context(|| {
+                    format!("`{spec}` is neither a built-in material nor a material file")
+                })?;
+                Ok(Entry::File {
+                    spec: spec.clone(),
+                    material,
+                })
+            })
+            .collect()
     }
 
-    /// The demo run of one lighting.
-    fn demo(&self, lighting: Lighting) -> DemoConfig {
+    /// The demo run of one lighting over `entries`, reading the samplers of the materials in
+    /// `material_blobs` from their folders.
+    fn demo(
+        &self,
+        lighting: Lighting,
+        entries: &[Entry],
+        material_blobs: &[(String, PathBuf)],
+    ) -> DemoConfig {
         let mut d = DemoConfig::new(self.out.join(lighting.name()));
         d.use_fixtures = true;
         d.quick = self.smoke;
@@ -136,28 +163,42 @@ impl TableConfig {
         }
         d.uniform_light = lighting == Lighting::Uniform;
         d.methods = self.methods.clone();
-        d.materials = self
-            .names()
+        d.materials = entries
             .iter()
-            .map(|n| neural_fixture(n).to_string_lossy().into_owned())
+            .map(|e| match e {
+                Entry::Builtin(n) => neural_fixture(n).to_string_lossy().into_owned(),
+                Entry::File { spec, .. } => spec.clone(),
+            })
             .collect();
+        d.material_blobs = material_blobs.to_vec();
         d
     }
+}
+
+/// A material of the table.
+enum Entry {
+    /// A built-in: its neural version with the committed samplers.
+    Builtin(String),
+    /// A material file, as given, and its material.
+    File {
+        spec: String,
+        material: Box<dyn Material>,
+    },
 }
 
 /// `neusample table`: regenerates the neural fixtures that are not committed (training, slow),
 /// runs the demo pipeline for both lightings and writes `<out>/table.md`.
 pub fn run(cfg: &TableConfig) -> Result<()> {
-    let names = cfg.names();
-    for n in &names {
-        materials::builtin(n).with_context(|| format!("`{n}` is not a built-in material"))?;
-    }
+    let entries = cfg.entries()?;
     let mut seconds = Vec::new();
     if !cfg.markdown_only {
-        let missing: Vec<&str> = names
+        let methods = cfg.demo(Lighting::Uniform, &[], &[]).method_list();
+        let missing: Vec<&str> = entries
             .iter()
-            .map(String::as_str)
-            .filter(|n| !fixtures_complete(n, &cfg.demo(Lighting::Uniform).method_list()))
+            .filter_map(|e| match e {
+                Entry::Builtin(n) if !fixtures_complete(n, &methods) => Some(n.as_str()),
+                _ => None,
+            })
             .collect();
         if !missing.is_empty() {
             eprintln!(
@@ -166,9 +207,17 @@ pub fn run(cfg: &TableConfig) -> Result<()> {
             );
             neural_fixtures(&fixtures_dir(), &neural_dir(), &missing, &[], false)?;
         }
+        let mut material_blobs = Vec::new();
+        for e in &entries {
+            if let Entry::File { material, .. } = e {
+                if let Some(dir) = file_samplers(cfg, material.as_ref())? {
+                    material_blobs.push((material.name().to_string(), dir));
+                }
+            }
+        }
         for lighting in cfg.lightings_run() {
             let t = Instant::now();
-            pipeline::run(&cfg.demo(lighting))
+            pipeline::run(&cfg.demo(lighting, &entries, &material_blobs))
                 .with_context(|| format!("the {} run", lighting.name()))?;
             seconds.push((lighting, t.elapsed().as_secs_f64()));
         }
@@ -200,7 +249,7 @@ pub fn run(cfg: &TableConfig) -> Result<()> {
             .collect();
         eprintln!(
             "neusample table: {} materials, {:.0} s ({}); {}",
-            names.len(),
+            entries.len(),
             seconds.iter().map(|x| x.1).sum::<f64>(),
             parts.join(", "),
             cfg.out.join("table.md").display()
@@ -213,6 +262,44 @@ fn neural_dir() -> PathBuf {
     neural_fixture("x")
         .parent()
         .map_or_else(PathBuf::new, Path::to_path_buf)
+}
+
+/// The samplers of the material file `m`: `None` when `fixtures/blobs/<name>/` holds every
+/// method evaluated (the demo reads them there); else the folder `<out>/blobs`, after training
+/// the methods not yet in `<out>/blobs/<name>/` as `demo --train` trains them (blobs already
+/// there are kept: a run of one lighting, then of the other, evaluates the same samplers).
+fn file_samplers(cfg: &TableConfig, m: &dyn Material) -> Result<Option<PathBuf>> {
+    let demo = cfg.demo(Lighting::Uniform, &[], &[]);
+    let name = slug(m.name());
+    let methods: Vec<SamplerKind> = demo
+        .method_list()
+        .into_iter()
+        .filter(|&k| !needs_integrand(k) || has_integrand(m))
+        .collect();
+    let holds_all = |dir: &Path| {
+        methods
+            .iter()
+            .all(|k| fixture_path(dir, &name, k.name()).exists())
+    };
+    if holds_all(&fixtures_dir()) {
+        return Ok(None);
+    }
+    let dir = cfg.out.join("blobs");
+    for &k in &methods {
+        let path = fixture_path(&dir, &name, k.name());
+        if path.exists() {
+            continue;
+        }
+        eprintln!(
+            "neusample table: training {} on {} into {}",
+            k.name(),
+            m.name(),
+            path.display()
+        );
+        let trained = pipeline::train_blob(m, k, &demo)?;
+        io::atomic_write(&path, &trained.bytes)?;
+    }
+    Ok(Some(dir))
 }
 
 /// Whether the neural version of `name` and its samplers of `methods` are committed.
@@ -257,13 +344,27 @@ pub fn table_markdown(
     if cfg.smoke {
         let _ = writeln!(s, "{}\n", super::markdown::SMOKE_LINE);
     }
+    let (title, what) = if cfg.materials.is_empty() {
+        (
+            "every built-in material",
+            "the neural version of each built-in material with its committed samplers \
+             (`fixtures/`)",
+        )
+    } else {
+        (
+            "the materials asked for",
+            "the neural version of each built-in material named with its committed samplers \
+             (`fixtures/`), and each material file with the samplers of `fixtures/blobs/<name>/` \
+             when it holds them all, else with samplers trained once into \
+             `<out>/blobs/<name>/` as `neusample demo --train` trains them",
+        )
+    };
     let _ = writeln!(
         s,
-        "# neusample over every built-in material (Table 2 and Table 1)\n\n\
-         `neusample table --out {}` (seed {}, {}×{} pixels, N = {} spp): the neural version of \
-         each built-in material with its committed samplers (`fixtures/`), rendered through the \
-         batched path on one patch and sphere, **direct lighting by BSDF sampling** under two \
-         lightings. Each lighting's full report (fits, costs, images, convergence plots, \
+        "# neusample over {title} (Table 2 and Table 1)\n\n\
+         `neusample table --out {}` (seed {}, {}×{} pixels, N = {} spp): {what}, rendered \
+         through the batched path on one patch and sphere, **direct lighting by BSDF \
+         sampling** under two lightings. Each lighting's full report (fits, costs, images, convergence plots, \
          `report.json`) is in its folder. Speed-up = `(V·t)_baseline / (V·t)_method`: V the \
          per-sample variance (median of means over independent sample blocks), t the \
          single-thread time per sample including the neural material's evaluation; in brackets \

@@ -114,8 +114,9 @@ class MeasuredFileError(ValueError):
     path: str
 
 class MeasuredMaterial:
-    """A measured BRDF of the RGL material database (Dupuy & Jakob 2018) read from an RGB
-    ``.bsdf`` file (Mitsuba's ``measured`` format) or from a measured blob (``from_blob``;
+    """A measured BRDF of the RGL material database (Dupuy & Jakob 2018) read from an RGB or
+    spectral ``.bsdf`` file (Mitsuba's ``measured`` format; spectra are read in linear sRGB,
+    integrated against the CIE 1931 observer under D65) or from a measured blob (``from_blob``;
     written by ``to_blob`` or ``neusample measured-blob``: the same values bit for bit),
     evaluated and sampled as Mitsuba 3's ``measured`` BSDF does (the data's visible-normal
     sampler warped through its luminance). Raises FileNotFoundError / OSError for a missing
@@ -139,6 +140,9 @@ class MeasuredMaterial:
     @property
     def label(self) -> Optional[str]:
         """The blob's label; None for a material read from a ``.bsdf`` file."""
+    @property
+    def wavelengths(self) -> Optional[List[float]]:
+        """The wavelengths (nm) of a spectral ``.bsdf`` file; None for an RGB file or a blob."""
     @property
     def isotropic(self) -> bool:
         """Whether the data is isotropic (at most two φi nodes)."""

@@ -95,6 +95,7 @@ impl From<DemoArgs> for DemoConfig {
             out: a.out,
             use_fixtures: !a.train,
             blobs: a.blobs,
+            material_blobs: Vec::new(),
             materials: a.materials,
             procedural: a.procedural,
             seed: a.seed,
@@ -156,11 +157,14 @@ pub struct TableArgs {
     /// Output folder: one demo report per lighting and `table.md`.
     #[arg(long, default_value = "neusample-table")]
     pub out: PathBuf,
-    /// Built-in materials (default: all thirteen); their neural versions are evaluated, and
-    /// trained into `fixtures/` first where they are not committed.
+    /// Materials (default: all thirteen built-ins), built-in names and material files mixed
+    /// (`.toml`, `.json`, `.bsdf`, `.nsb`). A built-in's neural version is evaluated (trained
+    /// into `fixtures/` first where it is not committed); a file's samplers are read from
+    /// `fixtures/blobs/<name>/` when it holds every method evaluated, else trained once into
+    /// `<out>/blobs/<name>/` (as `demo --train` trains them; a later run reuses them).
     #[arg(long, value_delimiter = ',')]
     pub materials: Vec<String>,
-    /// Seed of the evaluation.
+    /// Seed of the evaluation (and of the training of a file's samplers).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Image width in pixels (height = 3/4 of it).

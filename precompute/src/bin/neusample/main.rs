@@ -64,7 +64,8 @@ enum Command {
     /// samplers, or --train), report with intervals.
     Demo(demo::DemoArgs),
     /// Table 2 and Table 1 over every built-in material under two lightings (the demo
-    /// pipeline on each neural version, committed samplers).
+    /// pipeline on each neural version, committed samplers), or over built-ins and material
+    /// files mixed.
     Table(demo::TableArgs),
     /// Several neural materials in one scene (sky, MIS, global illumination): the baseline
     /// against the best sampler per material at equal time, with a reference.
