@@ -686,7 +686,13 @@ impl Ctx<'_> {
             }
         } else {
             for l in 0..CHUNK {
-                let b = SliceBlend::new(t.phi_i, t.theta_i, [p.phi_i[l], theta_i[l]]);
+                let b = SliceBlend::new(
+                    t.phi_i,
+                    self.s.n_phi,
+                    t.theta_i,
+                    self.s.n_theta,
+                    [p.phi_i[l], theta_i[l]],
+                );
                 p.slice[l] = b.slice;
                 [[p.w[0][0][l], p.w[0][1][l]], [p.w[1][0][l], p.w[1][1][l]]] = b.weight;
             }
