@@ -51,7 +51,7 @@ fn pq(t: f32) -> (f32, f32) {
 /// asin x in [−π/2, π/2], NaN outside [−1, 1] (fdlibm's `asinf`, f32 only).
 #[must_use]
 pub(crate) fn asinf(x: f32) -> f32 {
-    let a = super::abs(x);
+    let a = libm::fabsf(x);
     if a == 1.0 {
         return x * PIO2_HI + x * PIO2_LO;
     }
@@ -70,7 +70,7 @@ pub(crate) fn asinf(x: f32) -> f32 {
     // ½ ≤ |x| < 1.
     let t = (1.0 - a) * 0.5;
     let (p, q) = pq(t);
-    let s = super::sqrt(t);
+    let s = libm::sqrtf(t);
     let r = if a >= NEAR_ONE {
         PIO2_HI - (2.0 * (s + s * (p / q)) - PIO2_LO)
     } else {
