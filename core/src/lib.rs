@@ -77,8 +77,6 @@ pub mod distrib;
 mod error;
 mod kind;
 mod math;
-// Not yet checked on SPIR-V: the measured material stays off shader builds for now.
-#[cfg(not(target_arch = "spirv"))]
 pub mod measured;
 pub mod neural_material;
 pub mod nn;
@@ -96,9 +94,9 @@ pub use error::{Error, Result};
 pub use glam::{Vec2, Vec3};
 pub use kind::{DType, Interpolation, SamplerKind};
 pub use math::ONE_MINUS_EPSILON;
-#[cfg(not(target_arch = "spirv"))]
 pub use measured::{
-    MeasuredMaterial, MeasuredPrepared, MeasuredSample, MeasuredShape, MeasuredTables,
+    MeasuredMaterial, MeasuredPrepared, MeasuredPreparedCopied, MeasuredSample, MeasuredShape,
+    MeasuredTables,
 };
 pub use neural_material::NeuralMaterial;
 pub use nn::FEATURE_DIM;

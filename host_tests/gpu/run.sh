@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# GPU check of neusample (issues 7, 13): build the samplers and the neural material
-# (features, eval) to SPIR-V with rust-gpu, validate the module, run each of them on a Vulkan
-# device (lavapipe on CI) and compare each output record with the CPU; then measure their
-# code size on thumbv7em.
+# GPU check of neusample (issues 7, 13): build the samplers, the neural material
+# (features, eval) and the measured material (eval, pdf, its own sampler) to SPIR-V with
+# rust-gpu, validate the module, run each of them on a Vulkan device (lavapipe on CI) and
+# compare each output record with the CPU; then measure their code size on thumbv7em.
 #
 # Exit status: 0 passed; 1 failed (build, validation or a CPU/GPU mismatch); 3 skipped
 # because a prerequisite (pinned nightly, apt packages, a Vulkan device) cannot be had here —
@@ -104,7 +104,7 @@ if [ "${NEUSAMPLE_GPU_SKIP_EMBEDDED:-0}" != 1 ]; then
         fi
         NM="$(command -v arm-none-eabi-nm || command -v llvm-nm || true)"
         if [ -n "$NM" ]; then
-            echo "[embedded] per-sampler (and neural-material) entry functions (bytes, shared helpers such as libm not included):"
+            echo "[embedded] per-sampler (and material) entry functions (bytes, shared helpers such as libm not included):"
             "$NM" -S --size-sort "$ELF" | while read -r _ sz _ name; do
                 case "$name" in ns_*) printf '  %-22s %6d\n' "$name" "$((16#$sz))" ;; esac
             done

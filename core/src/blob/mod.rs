@@ -21,7 +21,8 @@
 //! layout and `write` (the `alloc` feature) builds blobs.
 
 mod format;
-// The measured material is not yet built for SPIR-V (see `crate::measured`).
+// Measured blobs are read on hosts: shaders take the tables as storage buffers
+// (`MeasuredMaterial::new_unchecked`).
 #[cfg(not(target_arch = "spirv"))]
 mod measured;
 mod read;

@@ -399,7 +399,8 @@ impl<'a> Blob<'a> {
     fn check_measured(&self) -> Result<()> {
         #[cfg(not(target_arch = "spirv"))]
         return super::measured::check_integrals(&self.measured()?);
-        // The measured material is not built for SPIR-V yet: no blob of it opens there.
+        // Shaders take a measured material's tables as storage buffers: no blob of it
+        // opens there.
         #[cfg(target_arch = "spirv")]
         Err(Error::WrongKind {
             expected: SamplerKind::Cosine,

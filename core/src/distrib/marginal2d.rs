@@ -52,20 +52,24 @@ impl SliceBlend {
         }
     }
 
-    /// The blend of the slices around `value = (p0, p1)` on the node grids `nodes0`, `nodes1`
-    /// (each ascending, at least one node; parameter 0 outermost). Values outside a grid
-    /// clamp to its end; NaN gives the lower end.
+    /// The blend of the slices around `value = (p0, p1)` on the node grids `nodes0` (its
+    /// first `n0` elements) and `nodes1` (its first `n1`), each ascending with at least one
+    /// node; parameter 0 outermost. The counts come from the caller, not from the storages'
+    /// lengths, which may be padded (GPU buffers). Values outside a grid clamp to its end;
+    /// NaN gives the lower end.
     #[must_use]
-    pub fn new<W: Weights + ?Sized>(nodes0: &W, nodes1: &W, value: [f32; 2]) -> Self {
-        let n1 = nodes1.len();
-        let (i0, w0) = locate(nodes0, value[0]);
-        let (i1, w1) = locate(nodes1, value[1]);
+    pub fn new<W: Weights + ?Sized>(
+        nodes0: &W,
+        n0: u32,
+        nodes1: &W,
+        n1: u32,
+        value: [f32; 2],
+    ) -> Self {
+        let (i0, w0) = locate(nodes0, n0, value[0]);
+        let (i1, w1) = locate(nodes1, n1, value[1]);
         SliceBlend {
             slice: i0 * n1 + i1,
-            stride: [
-                if nodes0.len() > 1 { n1 } else { 0 },
-                if n1 > 1 { 1 } else { 0 },
-            ],
+            stride: [if n0 > 1 { n1 } else { 0 }, if n1 > 1 { 1 } else { 0 }],
             weight: [w0, w1],
         }
     }
@@ -84,9 +88,8 @@ impl SliceBlend {
     }
 }
 
-/// The interval of `nodes` holding `p` and the linear weights across it.
-fn locate<W: Weights + ?Sized>(nodes: &W, p: f32) -> (u32, [f32; 2]) {
-    let n = nodes.len();
+/// The interval of the first `n` `nodes` holding `p` and the linear weights across it.
+fn locate<W: Weights + ?Sized>(nodes: &W, n: u32, p: f32) -> (u32, [f32; 2]) {
     if n < 2 {
         return (0, [1.0, 0.0]);
     }
@@ -112,23 +115,27 @@ pub(crate) fn lerp(a: f32, b: f32, t: f32) -> f32 {
     a + (b - a) * t
 }
 
-/// A continuous piecewise-bilinear distribution (module docs) over borrowed tables: `data`
-/// (slices of `width × height` values), `marg` (slices of `height − 1`) and `cond` (slices of
+/// A continuous piecewise-bilinear distribution (module docs) over the tables `data` (slices
+/// of `width × height` values), `marg` (slices of `height − 1`) and `cond` (slices of
 /// `height × (width − 1)`), all from [`build`]. `eval` needs only `data`.
+///
+/// The tables are handles held by value (`&[f32]`, `&Vec<f32>`, a blob's `Tensor`, …).
+// rust-gpu: by value, not `&W`: with storage-buffer tables a reference would point at a
+// local variable holding a buffer pointer, which lavapipe cannot compile.
 #[derive(Copy, Clone, Debug)]
-pub struct Marginal2D<'a, W: ?Sized> {
-    data: &'a W,
-    marg: &'a W,
-    cond: &'a W,
+pub struct Marginal2D<W> {
+    data: W,
+    marg: W,
+    cond: W,
     width: u32,
     height: u32,
 }
 
-impl<'a, W: Weights + ?Sized> Marginal2D<'a, W> {
+impl<W: Weights> Marginal2D<W> {
     /// A distribution over tables that the caller has checked: `width, height ≥ 2` and every
     /// slice read is in range (reads past the end give 0, never a panic).
     #[must_use]
-    pub fn new(data: &'a W, marg: &'a W, cond: &'a W, width: u32, height: u32) -> Self {
+    pub fn new(data: W, marg: W, cond: W, width: u32, height: u32) -> Self {
         Marginal2D {
             data,
             marg,
@@ -160,10 +167,10 @@ impl<'a, W: Weights + ?Sized> Marginal2D<'a, W> {
         let n = self.n_data();
         let i = blend.slice * n + r * self.width + c;
         [
-            blend.lookup(self.data, n, i),
-            blend.lookup(self.data, n, i + 1),
-            blend.lookup(self.data, n, i + self.width),
-            blend.lookup(self.data, n, i + self.width + 1),
+            blend.lookup(&self.data, n, i),
+            blend.lookup(&self.data, n, i + 1),
+            blend.lookup(&self.data, n, i + self.width),
+            blend.lookup(&self.data, n, i + self.width + 1),
         ]
     }
 
@@ -186,21 +193,21 @@ impl<'a, W: Weights + ?Sized> Marginal2D<'a, W> {
         let mut uy = math::clamp(u.y, eps, math::ONE_MINUS_EPSILON);
 
         let off_marg = blend.slice * n_marg;
-        let marg = |i: u32| blend.lookup(self.marg, n_marg, off_marg + i);
+        let marg = |i: u32| blend.lookup(&self.marg, n_marg, off_marg + i);
         let row = search(n_marg - 1, |i| marg(i) < uy);
         if row > 0 {
             uy -= marg(row - 1);
         }
 
         let off_cond = blend.slice * n_cond + row * (w - 1);
-        let r0 = blend.lookup(self.cond, n_cond, off_cond + (w - 1) - 1);
-        let r1 = blend.lookup(self.cond, n_cond, off_cond + 2 * (w - 1) - 1);
+        let r0 = blend.lookup(&self.cond, n_cond, off_cond + (w - 1) - 1);
+        let r1 = blend.lookup(&self.cond, n_cond, off_cond + 2 * (w - 1) - 1);
         uy = sample_segment(uy, (h - 1) as f32, r0, r1);
         ux *= lerp(r0, r1, uy);
 
         let cond = |i: u32| {
-            let v0 = blend.lookup(self.cond, n_cond, off_cond + i);
-            let v1 = blend.lookup(self.cond, n_cond, off_cond + i + (w - 1));
+            let v0 = blend.lookup(&self.cond, n_cond, off_cond + i);
+            let v1 = blend.lookup(&self.cond, n_cond, off_cond + i + (w - 1));
             lerp(v0, v1, uy)
         };
         let col = search(w - 2, |i| cond(i) < ux);
@@ -234,17 +241,17 @@ impl<'a, W: Weights + ?Sized> Marginal2D<'a, W> {
         let mut ux = invert_segment(t.x, 1.0 / (w - 1) as f32, c0, c1);
         let off_cond = blend.slice * n_cond + r * (w - 1);
         if c > 0 {
-            let v0 = blend.lookup(self.cond, n_cond, off_cond + c - 1);
-            let v1 = blend.lookup(self.cond, n_cond, off_cond + c - 1 + (w - 1));
+            let v0 = blend.lookup(&self.cond, n_cond, off_cond + c - 1);
+            let v1 = blend.lookup(&self.cond, n_cond, off_cond + c - 1 + (w - 1));
             ux += lerp(v0, v1, t.y);
         }
-        let r0 = blend.lookup(self.cond, n_cond, off_cond + (w - 1) - 1);
-        let r1 = blend.lookup(self.cond, n_cond, off_cond + 2 * (w - 1) - 1);
+        let r0 = blend.lookup(&self.cond, n_cond, off_cond + (w - 1) - 1);
+        let r1 = blend.lookup(&self.cond, n_cond, off_cond + 2 * (w - 1) - 1);
         ux /= lerp(r0, r1, t.y);
 
         let mut uy = invert_segment(t.y, 1.0 / (self.height - 1) as f32, r0, r1);
         if r > 0 {
-            uy += blend.lookup(self.marg, n_marg, blend.slice * n_marg + r - 1);
+            uy += blend.lookup(&self.marg, n_marg, blend.slice * n_marg + r - 1);
         }
         (Vec2::new(ux, uy), pdf)
     }

@@ -4,11 +4,9 @@
 //! Eq. 5–6) and the piecewise-bilinear warps of measured materials ([`marginal2d`]).
 
 pub mod gaussian;
-#[cfg(not(target_arch = "spirv"))]
 pub mod marginal2d;
 pub mod spline;
 pub mod table2d;
 
-#[cfg(not(target_arch = "spirv"))]
 pub use marginal2d::Marginal2D;
 pub use table2d::Table2D;

@@ -445,14 +445,20 @@ pub fn sin_cos_fast(x: f32) -> (f32, f32) {
     }
 }
 
-// FreeBSD e_asinf.c: R(x²)'s coefficients.
+// FreeBSD e_asinf.c: R(x²)'s coefficients. Not on SPIR-V, which has no f64 (see `single`).
+#[cfg(not(target_arch = "spirv"))]
 const ASIN_PS0: f32 = f32::from_bits(0x3e2a_aa75);
+#[cfg(not(target_arch = "spirv"))]
 const ASIN_PS1: f32 = f32::from_bits(0xbd2f_13ba);
+#[cfg(not(target_arch = "spirv"))]
 const ASIN_PS2: f32 = f32::from_bits(0xbc0d_d36b);
+#[cfg(not(target_arch = "spirv"))]
 const ASIN_QS1: f32 = f32::from_bits(0xbf34_e5ae);
+#[cfg(not(target_arch = "spirv"))]
 const PIO2_F64: f64 = core::f64::consts::FRAC_PI_2;
 
 /// √x in double precision (an LLVM intrinsic with `std`, so loops of it vectorise).
+#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 fn sqrt_f64(x: f64) -> f64 {
     #[cfg(feature = "std")]
@@ -466,6 +472,7 @@ fn sqrt_f64(x: f64) -> f64 {
 }
 
 /// libm's `R(z)` of `asinf`.
+#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 fn asin_r(z: f32) -> f32 {
     let p = z * (ASIN_PS0 + z * (ASIN_PS1 + z * ASIN_PS2));
@@ -474,6 +481,7 @@ fn asin_r(z: f32) -> f32 {
 }
 
 /// asin x: libm's `asinf` (FreeBSD e_asinf.c) bit for bit, for every `x`.
+#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[must_use]
 pub fn asin(x: f32) -> f32 {

@@ -7,16 +7,19 @@
 //!
 //! On SIMD CPU targets ([`BRANCH_FREE`]; not SPIR-V, where the compiler maps libm's calls to
 //! GLSL.std.450 instructions) the hot path's functions (`exp`, `ln`, `ln_1p`, `sin_cos`,
-//! `tanh`, `asin`, `atan2`, `floor` and those built on them) run [`branch_free`] rewrites that give libm's results bit
-//! for bit without branches or calls, so that a loop of them over lanes vectorises and a
-//! batched path gives exactly the scalar path's numbers. Elsewhere they call libm: the same
-//! numbers in less code.
+//! `tanh`, `asin`, `atan2`, `floor` and those built on them) run [`branch_free`] rewrites
+//! that give libm's results bit for bit without branches or calls, so that a loop of them over
+//! lanes vectorises and a batched path gives exactly the scalar path's numbers. Elsewhere they
+//! call libm: the same numbers in less code. On SPIR-V `asin` is fdlibm's single-precision
+//! `asinf` (module `single`): the GPU's own is too coarse.
 
 // The batched path's fast approximations (not on GPUs, which have no batched path).
 #[cfg(not(target_arch = "spirv"))]
 pub(crate) mod approx;
 mod branch_free;
 pub(crate) mod lane;
+#[cfg(any(test, target_arch = "spirv"))]
+mod single;
 
 pub use branch_free::SIN_COS_FAST_MAX;
 
@@ -175,19 +178,27 @@ pub fn atan2(y: f32, x: f32) -> f32 {
 }
 
 /// asin x in [−π/2, π/2] (NaN outside [−1, 1]).
-#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[must_use]
 pub fn asin(x: f32) -> f32 {
-    if BRANCH_FREE {
-        branch_free::asin(x)
-    } else {
-        libm::asinf(x)
+    // rust-gpu: GLSL.std.450 `Asin`, as Mesa lowers it, is off by ~1e-4 for |x| ≥ ½ (a
+    // cubic), which the measured material's sharp tables amplify; fdlibm's single-precision
+    // asinf instead (libm's own takes one branch in f64, which SPIR-V lacks).
+    #[cfg(target_arch = "spirv")]
+    {
+        single::asinf(x)
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    {
+        if BRANCH_FREE {
+            branch_free::asin(x)
+        } else {
+            libm::asinf(x)
+        }
     }
 }
 
 /// x rounded to the nearest integer, ties to even.
-#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 #[must_use]
 pub fn round(x: f32) -> f32 {

@@ -686,7 +686,13 @@ impl Ctx<'_> {
             }
         } else {
             for l in 0..CHUNK {
-                let b = SliceBlend::new(t.phi_i, t.theta_i, [p.phi_i[l], theta_i[l]]);
+                let b = SliceBlend::new(
+                    t.phi_i,
+                    self.s.n_phi,
+                    t.theta_i,
+                    self.s.n_theta,
+                    [p.phi_i[l], theta_i[l]],
+                );
                 p.slice[l] = b.slice;
                 [[p.w[0][0][l], p.w[0][1][l]], [p.w[1][0][l], p.w[1][1][l]]] = b.weight;
             }
@@ -1177,6 +1183,61 @@ mod tests {
             }
         }
         assert!(sampled > n / 4, "only {sampled} samples");
+    }
+
+    /// `prepare_copied` over `&[f32]` views of tables padded with junk (as GPU buffers are)
+    /// and built by `new_unchecked` gives `prepare`'s numbers bit for bit: the counts come
+    /// from the shape.
+    fn check_copied(m: &MeasuredMaterial<Vec<f32>>, seed: u64) {
+        use crate::Prepared;
+        let padded: Vec<Vec<f32>> = m
+            .tables()
+            .as_array()
+            .iter()
+            .map(|t| {
+                let mut v = t.to_vec();
+                v.extend([7.0, -3.0, f32::NAN, 1e30]);
+                v
+            })
+            .collect();
+        let views: [&[f32]; 11] = core::array::from_fn(|i| padded[i].as_slice());
+        let g = MeasuredMaterial::new_unchecked(
+            *m.shape(),
+            MeasuredTables::from_array(views),
+            m.jacobian(),
+        );
+        let mut r = Rng(seed);
+        let n = 1000;
+        let wi = directions(&mut r, n);
+        let wo = directions(&mut r, n);
+        let mut sampled = 0;
+        for i in 0..n {
+            let (a, b) = (m.prepare(wi[i]), g.prepare_copied(wi[i]));
+            assert_eq!(a.is_some(), b.is_some(), "lane {i}");
+            let (Some(a), Some(b)) = (a, b) else {
+                continue;
+            };
+            let u = Vec2::new(r.next(), r.next());
+            let bits = |v: [f32; 3]| v.map(f32::to_bits);
+            assert_eq!(bits(a.eval(wo[i])), bits(b.eval(wo[i])), "lane {i}");
+            assert_eq!(bits(a.eval_cos(wo[i])), bits(b.eval_cos(wo[i])), "lane {i}");
+            assert_eq!(a.pdf(wo[i]).to_bits(), b.pdf(wo[i]).to_bits(), "lane {i}");
+            let p = Vec2::new(wo[i].x, wo[i].y) * 0.7;
+            assert_eq!(a.pdf_disk(p).to_bits(), b.pdf_disk(p).to_bits(), "lane {i}");
+            let (sa, sb) = (a.sample(u), b.sample(u));
+            assert_eq!(sa, sb, "lane {i}");
+            sampled += usize::from(sa.is_some());
+        }
+        assert!(sampled > n / 4, "only {sampled} samples");
+    }
+
+    #[test]
+    fn copied_handles_on_padded_tables_are_borrowed_bit_for_bit() {
+        let pi = core::f32::consts::PI;
+        check_copied(&material(1, 0.0, 7), 5);
+        check_copied(&material(2, pi, 8), 6);
+        check_copied(&material(3, pi, 9), 7);
+        check_copied(&material(4, pi / 2.0, 10), 8);
     }
 
     #[test]

@@ -29,12 +29,22 @@
 //!
 //! Everything is total: non-finite or below-horizon directions give `None` or 0, never NaN or
 //! a panic, and nothing allocates.
+//!
+//! # On GPUs
+//!
+//! The scalar path compiles for SPIR-V (rust-gpu): a shader builds the material over its
+//! storage buffers with [`MeasuredMaterial::new_unchecked`] (the host checks the same tables
+//! with [`MeasuredMaterial::new`]) and prepares it with [`MeasuredMaterial::prepare_copied`],
+//! whose state holds copies of the buffer handles rather than a reference to the material.
+//! Only the shape says how many elements a table has: buffers may be padded. The batched
+//! calls (`eval_batch`, `pdf_batch`, `sample_batch`) are CPU only.
 
 use glam::{Vec2, Vec3};
 
 use crate::distrib::marginal2d::{Marginal2D, SliceBlend, MAX_PARAM_NODES};
 use crate::error::{Error, Result};
 use crate::math::{self, PI};
+use crate::samplers::Held;
 use crate::weights::Weights;
 
 #[cfg(not(target_arch = "spirv"))]
@@ -255,18 +265,28 @@ impl<W: Weights> MeasuredMaterial<W> {
                 }
             }
         }
+        Ok(Self::new_unchecked(shape, tables, jacobian))
+    }
+
+    /// The material without the checks of [`Self::new`], for GPU shaders (`Result<Self>`
+    /// with borrowed tables cannot be tested by rust-gpu): check the tables on the host. Not
+    /// `unsafe`: tables that do not fit `shape` give wrong values, never a panic or NaN
+    /// (reads past the end give 0). Tables may be longer than `shape` says (padded GPU
+    /// buffers): only `shape` decides what is read.
+    #[must_use]
+    pub fn new_unchecked(shape: MeasuredShape, tables: MeasuredTables<W>, jacobian: bool) -> Self {
         let reduction = if shape.n_phi <= 2 {
             0
         } else {
             let span = tables.phi_i.at(shape.n_phi - 1) - tables.phi_i.at(0);
             math::round(2.0 * PI / span) as u32
         };
-        Ok(MeasuredMaterial {
+        MeasuredMaterial {
             shape,
             tables,
             jacobian,
             reduction,
-        })
+        }
     }
 
     /// The same material viewing this one's tables (a `Copy` handle for owned storage).
@@ -319,9 +339,32 @@ impl<W: Weights> MeasuredMaterial<W> {
 
     /// The material at one incident direction `wi` (local frame, z = normal, pointing away
     /// from the surface; normalised here), or `None` when `wi` is at or below the horizon, of
-    /// zero length or not finite.
+    /// zero length or not finite. The prepared state borrows the material; GPU shaders use
+    /// [`Self::prepare_copied`].
     #[must_use]
     pub fn prepare(&self, wi: Vec3) -> Option<MeasuredPrepared<'_, W>> {
+        Some(MeasuredPrepared {
+            m: self,
+            at: self.borrowed().incident(wi)?,
+        })
+    }
+}
+
+impl<W: Weights + Copy> MeasuredMaterial<W> {
+    /// [`Self::prepare`] for tables held by `Copy` handles (`&[f32]` storage buffers, blob
+    /// tensors): the prepared state keeps a copy of the handles instead of a reference to the
+    /// material, as GPU shaders need (a reference to a local material holding buffer
+    /// pointers is a pointer-to-pointer that Vulkan drivers fail on). The same numbers.
+    #[must_use]
+    pub fn prepare_copied(&self, wi: Vec3) -> Option<MeasuredPreparedCopied<W>> {
+        Some(MeasuredPreparedCopied {
+            m: Held::new(*self),
+            at: self.incident(wi)?,
+        })
+    }
+
+    /// What [`Self::prepare`] computes at `wi`, without a handle.
+    fn incident(&self, wi: Vec3) -> Option<Incident> {
         let wi = normalize(wi)?;
         if !(wi.z > 0.0) {
             return None;
@@ -341,18 +384,12 @@ impl<W: Weights> MeasuredMaterial<W> {
         let theta_i = elevation(wi);
         let phi_i = azimuth(wi);
         let t = &self.tables;
-        let blend = SliceBlend::new(&t.phi_i, &t.theta_i, [phi_i, theta_i]);
+        let s = &self.shape;
+        let blend = SliceBlend::new(&t.phi_i, s.n_phi, &t.theta_i, s.n_theta, [phi_i, theta_i]);
         let u_wi = Vec2::new(theta2u(theta_i), phi2u(phi_i));
-        let sigma = Marginal2D::new(
-            &t.sigma,
-            &t.sigma,
-            &t.sigma,
-            self.shape.sigma[0],
-            self.shape.sigma[1],
-        )
-        .eval(&SliceBlend::single(0), u_wi);
-        Some(MeasuredPrepared {
-            m: self,
+        let sigma = Marginal2D::new(t.sigma, t.sigma, t.sigma, s.sigma[0], s.sigma[1])
+            .eval(&SliceBlend::single(0), u_wi);
+        Some(Incident {
             wi,
             flip,
             phi_i,
@@ -443,10 +480,79 @@ pub struct MeasuredSample {
     pub weight: [f32; 3],
 }
 
-/// A [`MeasuredMaterial`] at one incident direction: eval, sample and pdf.
+/// A [`MeasuredMaterial`] at one incident direction, borrowing it: eval, sample and pdf.
 #[derive(Copy, Clone, Debug)]
 pub struct MeasuredPrepared<'a, W> {
     m: &'a MeasuredMaterial<W>,
+    at: Incident,
+}
+
+/// A [`MeasuredMaterial`] at one incident direction, with a copy of its table handles
+/// ([`MeasuredMaterial::prepare_copied`]): the same methods and numbers as
+/// [`MeasuredPrepared`].
+#[derive(Debug)]
+pub struct MeasuredPreparedCopied<W> {
+    /// A copy of the material (see `Held`).
+    m: Held<MeasuredMaterial<W>>,
+    at: Incident,
+}
+
+impl<W: Copy> Clone for MeasuredPreparedCopied<W> {
+    fn clone(&self) -> Self {
+        MeasuredPreparedCopied {
+            m: self.m.clone(),
+            at: self.at,
+        }
+    }
+}
+
+/// The methods of both prepared states, over the material `$m` (a `MeasuredMaterial<V>`
+/// with `Copy` handles `V`).
+macro_rules! prepared_methods {
+    ($self:ident => $m:expr) => {
+        /// The measured `f(wi, wo) · cos θo` in linear RGB (Mitsuba's `eval`); 0 when `wo`
+        /// is at or below the horizon or not finite.
+        #[must_use]
+        pub fn eval_cos(&$self, wo: Vec3) -> [f32; 3] {
+            $self.at.eval_cos(&$m, wo)
+        }
+
+        /// The BRDF `f(wi, wo)` in linear RGB, **without** the cosine; 0 when `wo` is at or
+        /// below the horizon or not finite.
+        #[must_use]
+        pub fn eval(&$self, wo: Vec3) -> [f32; 3] {
+            $self.at.eval(&$m, wo)
+        }
+
+        /// The density of the data's sampler at `wo`, with respect to solid angle; 0 when
+        /// `wo` is at or below the horizon or not finite.
+        #[must_use]
+        pub fn pdf(&$self, wo: Vec3) -> f32 {
+            $self.at.pdf(&$m, wo)
+        }
+
+        /// A direction drawn by the data's sampler from the uniform variates `u` (Mitsuba's
+        /// `sample2`, the same direction for the same `u`), or `None` when it falls at or
+        /// below the horizon or its density is zero.
+        #[must_use]
+        pub fn sample(&$self, u: Vec2) -> Option<MeasuredSample> {
+            $self.at.sample(&$m, u)
+        }
+    };
+}
+
+impl<W: Weights> MeasuredPrepared<'_, W> {
+    prepared_methods!(self => self.m.borrowed());
+}
+
+impl<W: Weights + Copy> MeasuredPreparedCopied<W> {
+    prepared_methods!(self => self.m.get());
+}
+
+/// A measured material at one incident direction, without its tables: what both prepared
+/// states hold beside their handle.
+#[derive(Copy, Clone, Debug)]
+struct Incident {
     /// `wi`, folded into the stored azimuths.
     wi: Vec3,
     /// The signs that fold directions into the stored azimuths.
@@ -456,20 +562,22 @@ pub struct MeasuredPrepared<'a, W> {
     inv_4sigma: f32,
 }
 
-impl<W: Weights> MeasuredPrepared<'_, W> {
-    fn vndf(&self) -> Marginal2D<'_, W> {
-        let t = &self.m.tables;
-        let [w, h] = self.m.shape.vndf;
-        Marginal2D::new(&t.vndf, &t.vndf_marginal, &t.vndf_conditional, w, h)
+// rust-gpu: index loops, no iterators or `array::map`; the tables are read through `Copy`
+// handles held by value (`Marginal2D<V>`), never through references to them.
+impl Incident {
+    fn vndf<V: Weights + Copy>(m: &MeasuredMaterial<V>) -> Marginal2D<V> {
+        let t = &m.tables;
+        let [w, h] = m.shape.vndf;
+        Marginal2D::new(t.vndf, t.vndf_marginal, t.vndf_conditional, w, h)
     }
 
-    fn luminance(&self) -> Marginal2D<'_, W> {
-        let t = &self.m.tables;
-        let [w, h] = self.m.shape.rgb;
+    fn luminance<V: Weights + Copy>(m: &MeasuredMaterial<V>) -> Marginal2D<V> {
+        let t = &m.tables;
+        let [w, h] = m.shape.rgb;
         Marginal2D::new(
-            &t.luminance,
-            &t.luminance_marginal,
-            &t.luminance_conditional,
+            t.luminance,
+            t.luminance_marginal,
+            t.luminance_conditional,
             w,
             h,
         )
@@ -477,31 +585,33 @@ impl<W: Weights> MeasuredPrepared<'_, W> {
 
     /// The RGB values at `sample` (the VNDF's sample space), times `D/(4σ)` when the data
     /// asks for it: `f · cos θo`.
-    fn rgb(&self, sample: Vec2, u_m: Vec2) -> [f32; 3] {
-        let t = &self.m.tables;
-        let [w, h] = self.m.shape.rgb;
-        let rgb = Marginal2D::new(&t.rgb, &t.rgb, &t.rgb, w, h);
-        let scale = if self.m.jacobian {
-            let [nw, nh] = self.m.shape.ndf;
-            Marginal2D::new(&t.ndf, &t.ndf, &t.ndf, nw, nh).eval(&SliceBlend::single(0), u_m)
+    fn rgb<V: Weights + Copy>(&self, m: &MeasuredMaterial<V>, sample: Vec2, u_m: Vec2) -> [f32; 3] {
+        let t = &m.tables;
+        let [w, h] = m.shape.rgb;
+        let rgb = Marginal2D::new(t.rgb, t.rgb, t.rgb, w, h);
+        let scale = if m.jacobian {
+            let [nw, nh] = m.shape.ndf;
+            Marginal2D::new(t.ndf, t.ndf, t.ndf, nw, nh).eval(&SliceBlend::single(0), u_m)
                 * self.inv_4sigma
         } else {
             1.0
         };
         let mut out = [0.0; 3];
-        for (c, o) in out.iter_mut().enumerate() {
+        let mut c = 0;
+        while c < 3 {
             // The channel is the innermost slice index: blend the (φ, θ) slices of channel c.
             let mut b = self.blend;
             b.slice = b.slice * 3 + c as u32;
             b.stride = [b.stride[0] * 3, b.stride[1] * 3];
-            *o = math::finite_density(rgb.eval(&b, sample) * scale);
+            out[c] = math::finite_density(rgb.eval(&b, sample) * scale);
+            c += 1;
         }
         out
     }
 
     /// `wo` folded like `wi`, the half vector and its table coordinates, or `None` below the
     /// horizon or for a non-finite `wo`.
-    fn half(&self, wo: Vec3) -> Option<(Vec3, Vec3, Vec2)> {
+    fn half(&self, isotropic: bool, wo: Vec3) -> Option<(Vec3, Vec3, Vec2)> {
         let wo = normalize(wo)?;
         if !(wo.z > 0.0) {
             return None;
@@ -510,31 +620,21 @@ impl<W: Weights> MeasuredPrepared<'_, W> {
         let m = normalize(self.wi + wo)?;
         let theta_m = elevation(m);
         let phi_m = azimuth(m);
-        let rel = if self.m.isotropic() {
-            phi_m - self.phi_i
-        } else {
-            phi_m
-        };
+        let rel = if isotropic { phi_m - self.phi_i } else { phi_m };
         let mut uy = phi2u(rel);
         uy -= math::floor(uy);
         Some((wo, m, Vec2::new(theta2u(theta_m), uy)))
     }
 
-    /// The measured `f(wi, wo) · cos θo` in linear RGB (Mitsuba's `eval`); 0 when `wo` is
-    /// at or below the horizon or not finite.
-    #[must_use]
-    pub fn eval_cos(&self, wo: Vec3) -> [f32; 3] {
-        let Some((_, _, u_m)) = self.half(wo) else {
+    fn eval_cos<V: Weights + Copy>(&self, m: &MeasuredMaterial<V>, wo: Vec3) -> [f32; 3] {
+        let Some((_, _, u_m)) = self.half(m.isotropic(), wo) else {
             return [0.0; 3];
         };
-        let (sample, _) = self.vndf().invert(&self.blend, u_m);
-        self.rgb(sample, u_m)
+        let (sample, _) = Self::vndf(m).invert(&self.blend, u_m);
+        self.rgb(m, sample, u_m)
     }
 
-    /// The BRDF `f(wi, wo)` in linear RGB, **without** the cosine; 0 when `wo` is at or below
-    /// the horizon or not finite.
-    #[must_use]
-    pub fn eval(&self, wo: Vec3) -> [f32; 3] {
+    fn eval<V: Weights + Copy>(&self, m: &MeasuredMaterial<V>, wo: Vec3) -> [f32; 3] {
         let Some(wo) = normalize(wo) else {
             return [0.0; 3];
         };
@@ -542,54 +642,58 @@ impl<W: Weights> MeasuredPrepared<'_, W> {
             return [0.0; 3];
         }
         let inv_cos = 1.0 / wo.z;
-        self.eval_cos(wo).map(|v| math::finite_density(v * inv_cos))
+        let mut f = self.eval_cos(m, wo);
+        let mut c = 0;
+        while c < 3 {
+            f[c] = math::finite_density(f[c] * inv_cos);
+            c += 1;
+        }
+        f
     }
 
-    /// The density of the data's sampler at `wo`, with respect to solid angle; 0 when `wo`
-    /// is at or below the horizon or not finite.
-    #[must_use]
-    pub fn pdf(&self, wo: Vec3) -> f32 {
-        let Some((_, m, u_m)) = self.half(wo) else {
+    fn pdf<V: Weights + Copy>(&self, m: &MeasuredMaterial<V>, wo: Vec3) -> f32 {
+        let Some((_, h, u_m)) = self.half(m.isotropic(), wo) else {
             return 0.0;
         };
-        let (sample, vndf_pdf) = self.vndf().invert(&self.blend, u_m);
-        let lum_pdf = self.luminance().eval(&self.blend, sample);
+        let (sample, vndf_pdf) = Self::vndf(m).invert(&self.blend, u_m);
+        let lum_pdf = Self::luminance(m).eval(&self.blend, sample);
         // sin θm from the tangent components: 1 − cos² cancels near the pole.
-        let sin_theta_m = math::sqrt(m.x * m.x + m.y * m.y);
-        let jacobian = jacobian(u_m.x, sin_theta_m, self.wi.dot(m));
+        let sin_theta_m = math::sqrt(h.x * h.x + h.y * h.y);
+        let jacobian = jacobian(u_m.x, sin_theta_m, self.wi.dot(h));
         math::finite_density(vndf_pdf * lum_pdf / jacobian)
     }
 
-    /// A direction drawn by the data's sampler from the uniform variates `u` (Mitsuba's
-    /// `sample2`, the same direction for the same `u`), or `None` when it falls at or below
-    /// the horizon or its density is zero.
-    #[must_use]
-    pub fn sample(&self, u: Vec2) -> Option<MeasuredSample> {
+    fn sample<V: Weights + Copy>(
+        &self,
+        m: &MeasuredMaterial<V>,
+        u: Vec2,
+    ) -> Option<MeasuredSample> {
         let u = Vec2::new(math::sanitize_u(u.y)?, math::sanitize_u(u.x)?);
-        let (sample, lum_pdf) = self.luminance().sample(&self.blend, u);
-        let (u_m, vndf_pdf) = self.vndf().sample(&self.blend, sample);
+        let (sample, lum_pdf) = Self::luminance(m).sample(&self.blend, u);
+        let (u_m, vndf_pdf) = Self::vndf(m).sample(&self.blend, sample);
         let mut phi_m = u2phi(u_m.y);
-        if self.m.isotropic() {
+        if m.isotropic() {
             phi_m += self.phi_i;
         }
         let theta_m = u2theta(u_m.x);
         let (sin_phi, cos_phi) = math::sin_cos(phi_m);
         let (sin_theta, cos_theta) = math::sin_cos(theta_m);
-        let m = Vec3::new(cos_phi * sin_theta, sin_phi * sin_theta, cos_theta);
-        let dot = m.dot(self.wi);
+        let h = Vec3::new(cos_phi * sin_theta, sin_phi * sin_theta, cos_theta);
+        let dot = h.dot(self.wi);
         let pdf = vndf_pdf * lum_pdf / jacobian(u_m.x, sin_theta, dot);
-        let wo = m * (2.0 * dot) - self.wi;
+        let wo = h * (2.0 * dot) - self.wi;
         let wo = Vec3::new(wo.x * self.flip.x, wo.y * self.flip.y, wo.z);
         if !(wo.z > 0.0) || !(pdf > 0.0) || !math::is_finite(pdf) {
             return None;
         }
-        let rgb = self.rgb(sample, u_m);
+        let mut weight = self.rgb(m, sample, u_m);
         let inv_pdf = 1.0 / pdf;
-        Some(MeasuredSample {
-            wo,
-            pdf,
-            weight: rgb.map(|v| math::finite_density(v * inv_pdf)),
-        })
+        let mut c = 0;
+        while c < 3 {
+            weight[c] = math::finite_density(weight[c] * inv_pdf);
+            c += 1;
+        }
+        Some(MeasuredSample { wo, pdf, weight })
     }
 }
 
@@ -620,30 +724,39 @@ impl<W: Weights> crate::Sampler for MeasuredMaterial<W> {
     }
 }
 
-impl<W: Weights> crate::Prepared for MeasuredPrepared<'_, W> {
-    #[inline]
-    fn sample(&self, u: Vec2) -> Option<crate::Sample> {
-        let s = MeasuredPrepared::sample(self, u)?;
-        Some(crate::Sample {
-            wo: s.wo,
-            pdf: s.pdf,
-            pdf_disk: s.pdf / s.wo.z,
-        })
-    }
+/// The runtime's [`Prepared`](crate::Prepared) interface of a prepared state (the sample's
+/// weight is dropped: `Sample` has none).
+macro_rules! prepared_trait {
+    ($ty:ty, $($bounds:tt)*) => {
+        impl<$($bounds)*> crate::Prepared for $ty {
+            #[inline]
+            fn sample(&self, u: Vec2) -> Option<crate::Sample> {
+                let s = Self::sample(self, u)?;
+                Some(crate::Sample {
+                    wo: s.wo,
+                    pdf: s.pdf,
+                    pdf_disk: s.pdf / s.wo.z,
+                })
+            }
 
-    #[inline]
-    fn pdf_disk(&self, p: Vec2) -> f32 {
-        match crate::warp::from_disk(p) {
-            Some(wo) => math::finite_density(MeasuredPrepared::pdf(self, wo) / wo.z),
-            None => 0.0,
+            #[inline]
+            fn pdf_disk(&self, p: Vec2) -> f32 {
+                match crate::warp::from_disk(p) {
+                    Some(wo) => math::finite_density(Self::pdf(self, wo) / wo.z),
+                    None => 0.0,
+                }
+            }
+
+            #[inline]
+            fn pdf(&self, wo: Vec3) -> f32 {
+                Self::pdf(self, wo)
+            }
         }
-    }
-
-    #[inline]
-    fn pdf(&self, wo: Vec3) -> f32 {
-        MeasuredPrepared::pdf(self, wo)
-    }
+    };
 }
+
+prepared_trait!(MeasuredPrepared<'_, W>, W: Weights);
+prepared_trait!(MeasuredPreparedCopied<W>, W: Weights + Copy);
 
 #[cfg(test)]
 mod tests {

@@ -46,4 +46,5 @@ pub use lobes::{
 };
 pub use reparam::{ReparamLane, ReparamPrepared, ReparamSampler};
 pub use spline_flow::{FlowLane, FlowPrepared, FlowSampler};
+pub(crate) use traits::Held;
 pub use traits::{Prepared, Sample, Sampler};

@@ -1,7 +1,7 @@
-//! A bare-metal binary that prepares, samples and evaluates every `neusample` sampler, and
-//! the neural material's `features` and `eval`, with opaque inputs (`black_box`), so that
-//! none of them is optimised away. Built for `thumbv7em-none-eabihf` to measure the code size
-//! the samplers and the material add to firmware.
+//! A bare-metal binary that prepares, samples and evaluates every `neusample` sampler, the
+//! neural material's `features` and `eval`, and the measured material, with opaque inputs
+//! (`black_box`), so that none of them is optimised away. Built for `thumbv7em-none-eabihf`
+//! to measure the code size the samplers and the materials add to firmware.
 //!
 //! Each sampler sits in its own `#[inline(never)]` function, so `nm --size-sort` attributes
 //! most of its code to that symbol (shared helpers such as libm stay separate).
@@ -128,6 +128,37 @@ pub extern "C" fn ns_neural_features() -> f32 {
     acc
 }
 
+/// The measured material (RGL data): prepare, the data's own sampler (luminance and VNDF
+/// warps, reflection), the density and `f` of a second direction, folded into one number.
+#[inline(never)]
+#[no_mangle]
+pub extern "C" fn ns_measured() -> f32 {
+    let shape = neusample::MeasuredShape {
+        n_phi: black_box(1),
+        n_theta: black_box(6),
+        ndf: black_box([32, 32]),
+        sigma: black_box([32, 32]),
+        vndf: black_box([32, 32]),
+        rgb: black_box([32, 32]),
+    };
+    let tables = neusample::MeasuredTables::from_array([weights(); 11]);
+    let m = neusample::MeasuredMaterial::new_unchecked(shape, tables, black_box(true));
+    let wi = black_box(Vec3::new(0.1, 0.2, 0.9));
+    let u = black_box(Vec2::new(0.3, 0.7));
+    let wo2 = black_box(Vec3::new(-0.2, 0.1, 0.8));
+    match m.prepare(wi) {
+        Some(p) => {
+            let a = match p.sample(u) {
+                Some(s) => s.pdf + s.wo.x + s.weight[0],
+                None => 0.0,
+            };
+            let f = p.eval(wo2);
+            a + p.pdf(wo2) + f[0] + f[1] + f[2]
+        }
+        None => -1.0,
+    }
+}
+
 /// Entry point (no runtime: the binary is only measured, never run).
 #[no_mangle]
 pub extern "C" fn _start() -> ! {
@@ -141,6 +172,7 @@ pub extern "C" fn _start() -> ! {
     acc += ns_histogram_mixture();
     acc += ns_neural_eval();
     acc += ns_neural_features();
+    acc += ns_measured();
     black_box(acc);
     loop {}
 }

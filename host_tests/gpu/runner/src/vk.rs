@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use ash::vk;
 
 /// Number of storage-buffer bindings every pipeline's descriptor set has (0..BINDINGS).
-pub const BINDINGS: usize = 8;
+pub const BINDINGS: usize = 13;
 
 /// Result of one dispatch.
 pub struct Dispatch {

@@ -4,7 +4,10 @@
 //! sub-slices. Indices are checked by [`in_range`] before [`run`] is called.
 
 use neusample::neural_material::DECODER_OUTPUTS;
-use neusample::{NeuralMaterial, Prepared, Sampler, Vec2, Vec3, Weights, FEATURE_DIM};
+use neusample::{
+    MeasuredMaterial, MeasuredShape, NeuralMaterial, Prepared, Sampler, Vec2, Vec3, Weights,
+    FEATURE_DIM,
+};
 
 /// Floats per input record: φ (8), wi (3), u (2), wo2 (3).
 pub const IN_STRIDE: usize = 16;
@@ -42,6 +45,43 @@ pub struct Params {
     pub width: u32,
     /// Neural material: feature-texture height (texels along v).
     pub height: u32,
+    /// Measured material: number of `φi` nodes.
+    pub n_phi: u32,
+    /// Measured material: number of `θi` nodes.
+    pub n_theta: u32,
+    /// Measured material: NDF table width.
+    pub ndf_w: u32,
+    /// Measured material: NDF table height.
+    pub ndf_h: u32,
+    /// Measured material: projected-area table width.
+    pub sigma_w: u32,
+    /// Measured material: projected-area table height.
+    pub sigma_h: u32,
+    /// Measured material: VNDF slice width.
+    pub vndf_w: u32,
+    /// Measured material: VNDF slice height.
+    pub vndf_h: u32,
+    /// Measured material: luminance and RGB slice width.
+    pub rgb_w: u32,
+    /// Measured material: luminance and RGB slice height.
+    pub rgb_h: u32,
+    /// Measured material: 1 when the RGB values are multiplied by `D/(4σ)`.
+    pub jacobian: u32,
+}
+
+impl Params {
+    /// The measured material's table sizes.
+    #[must_use]
+    pub fn measured_shape(&self) -> MeasuredShape {
+        MeasuredShape {
+            n_phi: self.n_phi,
+            n_theta: self.n_theta,
+            ndf: [self.ndf_w, self.ndf_h],
+            sigma: [self.sigma_w, self.sigma_h],
+            vndf: [self.vndf_w, self.vndf_h],
+            rgb: [self.rgb_w, self.rgb_h],
+        }
+    }
 }
 
 /// `true` when record `i` lies inside both buffers (lengths in floats).
@@ -176,4 +216,62 @@ fn write_record(i: u32, rec: &[f32; OUT_STRIDE], output: &mut [f32]) {
         output[o + k] = rec[k];
         k += 1;
     }
+}
+
+/// `measured` output record: offset of the sampled `wo` (0 when not sampled).
+pub const MS_OUT_WO: usize = 0;
+/// `measured` output record: the sample's solid-angle density.
+pub const MS_OUT_PDF: usize = 3;
+/// `measured` output record: the solid-angle density at `wo2`.
+pub const MS_OUT_PDF_WO2: usize = 4;
+/// `measured` output record: `f(wi, wo2)` (RGB, no cosine).
+pub const MS_OUT_EVAL: usize = 6;
+/// `measured` output record: the sample's weight `f·cos θo / pdf` (RGB).
+pub const MS_OUT_WEIGHT: usize = 9;
+
+/// The measured material on record `i` (input as [`run`]'s, φ unused): prepare at `wi`
+/// (`prepare_copied`, as a shader must), `pdf(wo2)` and `eval(wo2)`, and a sample from `u`
+/// (direction, density, weight). Output: `wo | pdf | pdf(wo2) | flags | f(wo2) rgb |
+/// weight rgb` (flags at 5 as [`run`]'s). The caller guarantees [`in_range`].
+#[inline]
+pub fn run_measured<W: Weights + Copy>(
+    m: &MeasuredMaterial<W>,
+    i: u32,
+    input: &[f32],
+    output: &mut [f32],
+) {
+    let b = i as usize * IN_STRIDE;
+    let wi = Vec3::new(input[b + IN_WI], input[b + IN_WI + 1], input[b + IN_WI + 2]);
+    let u = Vec2::new(input[b + IN_U], input[b + IN_U + 1]);
+    let wo2 = Vec3::new(
+        input[b + IN_WO2],
+        input[b + IN_WO2 + 1],
+        input[b + IN_WO2 + 2],
+    );
+    let mut rec = [0.0f32; OUT_STRIDE];
+    let mut flags = 0u32;
+    if let Some(p) = m.prepare_copied(wi) {
+        flags |= FLAG_PREPARED;
+        rec[MS_OUT_PDF_WO2] = p.pdf(wo2);
+        let f = p.eval(wo2);
+        let mut c = 0;
+        while c < 3 {
+            rec[MS_OUT_EVAL + c] = f[c];
+            c += 1;
+        }
+        if let Some(s) = p.sample(u) {
+            flags |= FLAG_SAMPLED;
+            rec[MS_OUT_WO] = s.wo.x;
+            rec[MS_OUT_WO + 1] = s.wo.y;
+            rec[MS_OUT_WO + 2] = s.wo.z;
+            rec[MS_OUT_PDF] = s.pdf;
+            let mut c = 0;
+            while c < 3 {
+                rec[MS_OUT_WEIGHT + c] = s.weight[c];
+                c += 1;
+            }
+        }
+    }
+    rec[5] = flags as f32;
+    write_record(i, &rec, output);
 }

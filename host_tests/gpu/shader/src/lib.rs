@@ -20,6 +20,13 @@
 //! the reparameterization sampler, whose pdf is its pdf network's);
 //! `pdf(wo2)` is the density of an unrelated direction, as MIS needs.
 //!
+//! The measured material's entry point (`measured`) reads [`kernel::run`]'s input records
+//! (φ unused) and writes its own output record:
+//!
+//! ```text
+//! output [12]: wo.x wo.y wo.z | pdf | pdf(wo2) | flags | f(wo2) rgb | weight rgb
+//! ```
+//!
 //! The neural material's entry points (`neural_features`, `neural_eval`) use the same
 //! strides with their own record layout:
 //!
@@ -229,6 +236,54 @@ pub fn neural_eval(
         let m =
             neusample::NeuralMaterial::new_unchecked(texture, decoder, params.width, params.height);
         kernel::run_eval(&m, i, input, output);
+    }
+}
+
+/// Measured material (RGL data, Mitsuba 3's `measured`): `eval(wo2)`, `pdf(wo2)` and the data's
+/// own sampler of every record (`kernel::run_measured`). The eleven tables at bindings 2–12
+/// in `MeasuredTables` order (`phi_i`, `theta_i`, `ndf`, `sigma`, `vndf`, `vndf_marginal`,
+/// `vndf_conditional`, `luminance`, `luminance_marginal`, `luminance_conditional`, `rgb`);
+/// their shape and the `jacobian` flag in the push constants.
+#[spirv(compute(threads(64)))]
+#[allow(clippy::too_many_arguments)] // one argument per binding
+pub fn measured(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(push_constant)] params: &Params,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] input: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] output: &mut [f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] phi_i: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] theta_i: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] ndf: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] sigma: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vndf: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] vndf_marginal: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] vndf_conditional: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] luminance: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] luminance_marginal: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] luminance_conditional: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] rgb: &[f32],
+) {
+    let i = id.x;
+    if i < params.n && kernel::in_range(i, input.len(), output.len()) {
+        let tables = neusample::MeasuredTables {
+            phi_i,
+            theta_i,
+            ndf,
+            sigma,
+            vndf,
+            vndf_marginal,
+            vndf_conditional,
+            luminance,
+            luminance_marginal,
+            luminance_conditional,
+            rgb,
+        };
+        let m = neusample::MeasuredMaterial::new_unchecked(
+            params.measured_shape(),
+            tables,
+            params.jacobian != 0,
+        );
+        kernel::run_measured(&m, i, input, output);
     }
 }
 
