@@ -1026,7 +1026,7 @@ fn main() {
                 failed.extend(measured::run(&ctx, &m, n, 0x3ea5_0001, verbose));
             }
             Err(e) => {
-                println!("measured: cannot load the committed file: {e}");
+                println!("measured: cannot load {e}");
                 failed.push("measured".to_string());
             }
         }
