@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# GPU check of neusample (issues 7, 13): build the samplers, the neural material
+# GPU check of neusample: build the samplers, the neural material
 # (features, eval) and the measured material (eval, pdf, its own sampler) to SPIR-V with
 # rust-gpu, validate the module, run each of them on a Vulkan device (lavapipe on CI) and
 # compare each output record with the CPU; then measure their code size on thumbv7em.

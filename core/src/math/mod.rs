@@ -181,9 +181,9 @@ pub fn atan2(y: f32, x: f32) -> f32 {
 #[inline(always)]
 #[must_use]
 pub fn asin(x: f32) -> f32 {
-    // rust-gpu: GLSL.std.450 `Asin`, as Mesa lowers it, is off by ~1e-4 for |x| ≥ ½ (a
-    // cubic), which the measured material's sharp tables amplify; fdlibm's single-precision
-    // asinf instead (libm's own takes one branch in f64, which SPIR-V lacks).
+    // rust-gpu: GLSL.std.450 `Asin`, as Mesa lowers it, is a coarse cubic for |x| ≥ ½,
+    // which the measured material's sharp tables amplify; fdlibm's single-precision asinf
+    // instead (libm's own takes one branch in f64, which SPIR-V lacks).
     #[cfg(target_arch = "spirv")]
     {
         single::asinf(x)

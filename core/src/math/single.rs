@@ -17,7 +17,7 @@ const PIO2_HI: f32 = f32::from_bits(0x3fc9_0fda);
 const PIO2_LO: f32 = f32::from_bits(0x33a2_2168);
 /// π/4, head: half of `PIO2_HI`, so that `2·PIO4_HI + PIO2_LO = π/2`. (fdlibm's float
 /// conversion rounds π/4 up on its own, `0x3f490fdb`, which breaks that identity by one ulp
-/// of π/2 and puts its results up to 2.2 ulps off just above ½.)
+/// of π/2 and puts its results more than one ulp off just above ½.)
 const PIO4_HI: f32 = PIO2_HI * 0.5;
 /// Numerator of the rational approximation `R(t) = P(t)/Q(t)`.
 const PS: [f32; 6] = [

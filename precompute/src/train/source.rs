@@ -79,10 +79,11 @@ pub fn material_integrand<'a>(material: &'a dyn Material) -> Option<Box<dyn Inte
         .map(|m| Box::new(MeasuredIntegrand::new(m.material())) as Box<dyn Integrand + 'a>)
 }
 
-/// Whether `material` has an integrand to train the reparameterization sampler on.
+/// Whether `material` has an integrand to train the reparameterization sampler on
+/// ([`material_integrand`] is `Some`).
 #[must_use]
 pub fn has_integrand(material: &dyn Material) -> bool {
-    material.neural().is_some() || material.measured().is_some()
+    material_integrand(material).is_some()
 }
 
 impl TargetSource for MaterialSource<'_> {

@@ -85,8 +85,8 @@
 //! where a corner value is 0, is ill-conditioned there; `wo` is compared as everywhere.
 //!
 //! On SPIR-V core's `asin` (the polar angles) is fdlibm's single-precision `asinf`, within
-//! one ulp of the CPU's libm: Mesa's own `Asin` is a cubic off by ~1e-4 above ½, which the
-//! mint's tables amplify far beyond these tolerances.
+//! one ulp of the CPU's libm: Mesa's own `Asin` is a coarse cubic above ½, which the mint's
+//! tables amplify far beyond these tolerances (figures: `docs/measured/README.md`).
 
 mod measured;
 mod neural;
@@ -1026,7 +1026,7 @@ fn main() {
                 failed.extend(measured::run(&ctx, &m, n, 0x3ea5_0001, verbose));
             }
             Err(e) => {
-                println!("measured: cannot load the committed file: {e}");
+                println!("measured: cannot load {e}");
                 failed.push("measured".to_string());
             }
         }

@@ -75,7 +75,7 @@ pub struct TrainArgs {
     /// Flows: length of the χ² fine-tuning phase as a fraction of the steps.
     #[arg(long)]
     chi2_fraction: Option<f64>,
-    /// Resolution (per side) of the tabulated ground truth the methods train on.
+    /// Resolution (per side, 8 to 128) of the tabulated ground truth the methods train on.
     #[arg(long)]
     gt_res: Option<usize>,
 }
@@ -163,8 +163,10 @@ impl TryFrom<&TrainArgs> for TrainConfig {
             cfg.common.horizon_targets = false;
         }
         if let Some(r) = a.gt_res {
-            if !(8..=128).contains(&r) {
-                bail!("--gt-res must be in 8..=128 (the tabulated target samples up to 128²)");
+            if !(8..=MAX_N).contains(&r) {
+                bail!(
+                    "--gt-res must be in 8..={MAX_N} (the tabulated target's largest resolution)"
+                );
             }
             cfg.common.gt_res = r;
         }
