@@ -34,6 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import mitsuba_scene as ms  # noqa: E402  (sets llvm_ad_rgb, registers the plugin)
 
 import mitsuba as mi  # noqa: E402
+import neusample.drjit as ndj  # noqa: E402
 import neusample.mitsuba as nsm  # noqa: E402
 
 ROOT = ms.ROOT
@@ -69,7 +70,10 @@ def configs(path, blobs, methods):
         blob = blobs / stem / f"{m}.nsb"
         if not blob.exists():
             raise SystemExit(f"{blob}: missing (see the module doc for the training command)")
-        out.append((m, {"type": "neusample", "sampler": str(blob), "bsdf": plain}, nsm.render))
+        d = {"type": "neusample", "sampler": str(blob), "bsdf": plain}
+        if m not in ndj.KINDS:
+            d["mode"] = "evaluated"  # the Rust plugin: the kinds Dr.Jit does not implement
+        out.append((m, d, nsm.render))
     return out
 
 
