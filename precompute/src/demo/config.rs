@@ -123,6 +123,12 @@ impl DemoConfig {
     }
 }
 
+/// The folder of the committed fixture blobs.
+#[must_use]
+pub fn fixtures_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/blobs")
+}
+
 impl DemoConfig {
     /// The folder holding `<material>/<method>.nsb` for `material` (with `use_fixtures`): its
     /// entry of `material_blobs`, else `blobs`, else the committed fixtures.
@@ -133,7 +139,7 @@ impl DemoConfig {
             .find(|(name, _)| name == material)
             .map(|(_, dir)| dir.clone())
             .or_else(|| self.blobs.clone())
-            .unwrap_or_else(super::fixtures::fixtures_dir)
+            .unwrap_or_else(fixtures_dir)
     }
 
     /// The trained methods evaluated, in [`METHODS`] order: `methods` (every method when

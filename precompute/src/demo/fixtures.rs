@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use neusample::DType;
 use neusample::{BlobWriter, SamplerKind};
 
+pub use super::config::fixtures_dir;
 use super::config::NEURAL_SUFFIX;
 use crate::bake;
 use crate::defend;
@@ -45,12 +46,6 @@ fn fixture_config() -> TrainConfig {
 /// `<dir>/<material>/<method>.nsb`.
 pub(crate) fn fixture_path(dir: &Path, material: &str, method: &str) -> PathBuf {
     dir.join(material).join(format!("{method}.nsb"))
-}
-
-/// The folder of the committed fixture blobs.
-#[must_use]
-pub fn fixtures_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/blobs")
 }
 
 /// Which fixtures `neusample fixtures` regenerates.
