@@ -16,7 +16,7 @@
 //! It writes `report.md`, `report.json` (schema in `docs/report_schema.md` and [`Report`]), `images/`,
 //! `plots/` and `blobs/` into the output folder, every file atomically.
 //!
-//! [`showcase`] is `neusample scene`: several neural materials in one scene, the baseline
+//! [`showcase`] is `neusample scene`: several materials in one scene, the baseline
 //! against the best sampler per material at equal time.
 //!
 //! Files: `config` (names, [`DemoConfig`], run sizes, the materials evaluated), `pipeline`

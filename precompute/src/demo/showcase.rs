@@ -1,4 +1,4 @@
-//! `neusample scene`: a Fig. 11-style scene — several neural materials in one image, lit by
+//! `neusample scene`: a Fig. 11-style scene — several materials in one image, lit by
 //! the daylight sky with MIS and multi-bounce global illumination, rendered once with the
 //! improved baseline on every object and once with the best sampler per material, at equal
 //! single-thread time, both against a high-sample reference.
@@ -6,9 +6,11 @@
 //! # Procedure
 //!
 //! 1. Each material is the committed neural version of a built-in one
-//!    (`fixtures/materials/neural/<name>_neural.nsb`, [`neural_fixture`]) with its samplers
-//!    from `fixtures/blobs/<name>_neural/<method>.nsb`. The first material is the floor, the
-//!    others the spheres of [`showcase_scene`].
+//!    (`fixtures/materials/neural/<name>_neural.nsb`, [`neural_fixture`]) or a material file
+//!    (a measured `.bsdf` or its `.toml`, a neural `.nsb`, any material file) rendered as
+//!    itself. Its samplers are the first `<dir>/<name>/<method>.nsb` of `--blobs`,
+//!    `fixtures/blobs/` and `fixtures/measured/blobs/` ([`measured_blobs_dir`]). The first
+//!    material is the floor, the others the spheres of [`showcase_scene`].
 //! 2. A method per material: an explicit `name=method` entry, else the verdict of a demo
 //!    report (`table`, or `<table>/sky-sun/report.json`: its `verdict.best`), else `flow`
 //!    (with a note).
@@ -44,11 +46,13 @@ use neusample_render::{
 };
 use serde::{Deserialize, Serialize};
 
-use super::config::{neural_fixture, resolve_demo_material, BASELINE, COSINE, NEURAL_SUFFIX};
+use super::config::{
+    neural_fixture, resolve_demo_material, BASELINE, COSINE, MEASURED_DATA, NEURAL_SUFFIX,
+};
 use super::figures;
 use super::fixtures::{fixture_path, fixtures_dir};
 use super::markdown::{fmt_e_interval, fmt_x_interval};
-use super::report::Report;
+use super::report::{MaterialReport, Report};
 use crate::eval::metrics::{self, Reference};
 use crate::materials::Material;
 use crate::util::io;
@@ -81,8 +85,9 @@ pub const TABLE_REPORT: &str = "sky-sun/report.json";
 pub struct ShowcaseConfig {
     /// Output folder (created; files are replaced atomically).
     pub out: PathBuf,
-    /// Materials (built-in names with a committed neural version, `_neural` optional): the
-    /// floor first, then the spheres; 1 to 5. Empty: [`SHOWCASE_MATERIALS`].
+    /// Materials, the floor first, then the spheres; 1 to 5: built-in names with a committed
+    /// neural version (`_neural` optional), or material files (`.toml`, `.json`, a measured
+    /// `.bsdf`, a neural `.nsb`) rendered as themselves. Empty: [`SHOWCASE_MATERIALS`].
     pub materials: Vec<String>,
     /// A demo report whose verdicts give each material's best method: a `report.json`, or a
     /// folder of reports whose `sky-sun/report.json` is used.
@@ -108,6 +113,9 @@ pub struct ShowcaseConfig {
     /// An equirectangular OpenEXR environment map instead of the procedural sky (the sun is
     /// added unless `sun_radiance` is 0).
     pub envmap: Option<PathBuf>,
+    /// A folder of samplers, `<blobs>/<material>/<method>.nsb`, searched before the
+    /// committed fixtures.
+    pub blobs: Option<PathBuf>,
 }
 
 impl ShowcaseConfig {
@@ -128,6 +136,7 @@ impl ShowcaseConfig {
             sun_radiance: 60.0,
             sun_size: 4.0,
             envmap: None,
+            blobs: None,
         }
     }
 }
@@ -283,10 +292,42 @@ struct Loaded {
     best: Option<Vec<u8>>,
 }
 
-/// The blob of `method` for the neural material `name` (`gold_neural`).
-fn load_blob(name: &str, method: &str) -> Result<Vec<u8>> {
-    let path = fixture_path(&fixtures_dir(), name, method);
-    io::read_blob(&path).with_context(|| format!("sampler `{method}` of {name}"))
+/// The folder of the samplers committed for the measured fixtures
+/// (`fixtures/measured/blobs/<material>/<method>.nsb`).
+#[must_use]
+pub fn measured_blobs_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/measured/blobs")
+}
+
+/// Where the samplers of the scene's materials are looked for, in order: `--blobs`, the
+/// committed fixtures, the committed measured fixtures.
+fn blob_dirs(c: &ShowcaseConfig) -> Vec<PathBuf> {
+    c.blobs
+        .iter()
+        .cloned()
+        .chain([fixtures_dir(), measured_blobs_dir()])
+        .collect()
+}
+
+/// The blob of `method` for the material `name` (`gold_neural`, `chm_mint`): the first
+/// `<dir>/<slug of name>/<method>.nsb` of `dirs`.
+fn load_blob(dirs: &[PathBuf], name: &str, spec: &str, method: &str) -> Result<Vec<u8>> {
+    let candidates: Vec<PathBuf> = dirs
+        .iter()
+        .map(|d| fixture_path(d, &io::slug(name), method))
+        .collect();
+    let Some(path) = candidates.iter().find(|p| p.is_file()) else {
+        let tried: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
+        anyhow::bail!(
+            "no `{method}` sampler for {name}: none of {}; train one with `neusample train \
+             --material {spec} --method {method} --out <dir>/{}/{method}.nsb` and pass \
+             `--blobs <dir>` (or `neusample demo --train --materials {spec} --out X` and \
+             `--blobs X/blobs`)",
+            tried.join(", "),
+            io::slug(name)
+        );
+    };
+    io::read_blob(path).with_context(|| format!("sampler `{method}` of {name}"))
 }
 
 /// The sampler of a loaded blob (cosine sampling without one).
@@ -303,6 +344,10 @@ fn sampler_of(bytes: Option<&[u8]>) -> Result<BlobSampler<'_>> {
 fn check_method(material: &str, method: &str) -> Result<()> {
     match SamplerKind::from_name(method) {
         Some(k) if k.is_sampler() => Ok(()),
+        _ if method == MEASURED_DATA => anyhow::bail!(
+            "{material}: the data's own sampler (`{MEASURED_DATA}`) is not one of the \
+             scene's runtime samplers; `neusample demo` renders it"
+        ),
         _ => {
             let names: Vec<&str> = SamplerKind::ALL.iter().map(|k| k.name()).collect();
             anyhow::bail!(
@@ -332,9 +377,38 @@ fn table_methods(table: &Path) -> Result<Vec<(String, String)>> {
         .with_context(|| format!("{} is not a demo report", path.display()))?;
     Ok(report
         .materials
-        .into_iter()
-        .filter_map(|m| Some((base_name(&m.material).to_string(), m.verdict?.best)))
+        .iter()
+        .filter_map(|m| Some((base_name(&m.material).to_string(), table_method(m)?)))
         .collect())
+}
+
+/// Whether the scene can render `method`: a runtime sampler (a blob, or cosine sampling).
+fn is_runtime_sampler(method: &str) -> bool {
+    SamplerKind::from_name(method).is_some_and(SamplerKind::is_sampler)
+}
+
+/// The method the table gives a material: its verdict, or, when the verdict is a technique
+/// the scene does not render (the oracle, a measured material's own sampler), the runtime
+/// sampler with the largest equal-time speed-up in the report (with a note).
+fn table_method(m: &MaterialReport) -> Option<String> {
+    let best = &m.verdict.as_ref()?.best;
+    if is_runtime_sampler(best) {
+        return Some(best.clone());
+    }
+    let fallback = m
+        .methods
+        .iter()
+        .filter(|x| is_runtime_sampler(&x.method))
+        .filter_map(|x| Some((&x.method, x.render.as_ref()?.speedup.value)))
+        .filter(|(_, v)| v.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1))?
+        .0;
+    eprintln!(
+        "note: the table's best for {} is `{best}`, which the scene does not render; \
+         using `{fallback}`, its best runtime sampler",
+        m.material
+    );
+    Some(fallback.clone())
 }
 
 fn validate(c: &ShowcaseConfig) -> Result<()> {
@@ -379,8 +453,45 @@ fn validate(c: &ShowcaseConfig) -> Result<()> {
     Ok(())
 }
 
+/// Whether a `--materials` entry names a file rather than a built-in material.
+fn is_file_spec(spec: &str) -> bool {
+    let p = Path::new(spec);
+    p.is_file() || spec.contains(['/', '\\', '.'])
+}
+
+/// A `--materials` entry resolved: its name, the material and the spec that loads it.
+fn resolve_entry(spec: &str) -> Result<(String, Box<dyn Material>, String)> {
+    if is_file_spec(spec) {
+        let material = resolve_demo_material(spec, false)
+            .with_context(|| format!("material `{spec}`"))?
+            .material;
+        return Ok((material.name().to_string(), material, spec.to_string()));
+    }
+    let base = base_name(spec);
+    let path = neural_fixture(base);
+    anyhow::ensure!(
+        path.exists(),
+        "unknown material `{spec}`: neither a material file nor a built-in name with a \
+         committed neural version {}",
+        path.display()
+    );
+    let material = resolve_demo_material(base, true)
+        .with_context(|| format!("material `{spec}`"))?
+        .material;
+    Ok((
+        format!("{base}{NEURAL_SUFFIX}"),
+        material,
+        path.display().to_string(),
+    ))
+}
+
 /// Resolves every material, its method and its blobs.
-fn load(c: &ShowcaseConfig, names: &[String]) -> Result<Vec<Loaded>> {
+fn load(c: &ShowcaseConfig, specs: &[String]) -> Result<Vec<Loaded>> {
+    let entries = specs
+        .iter()
+        .map(|spec| resolve_entry(spec))
+        .collect::<Result<Vec<_>>>()?;
+    let names: Vec<&str> = entries.iter().map(|(n, _, _)| n.as_str()).collect();
     for (m, _) in &c.methods {
         anyhow::ensure!(
             names.iter().any(|n| base_name(n) == base_name(m)),
@@ -392,19 +503,11 @@ fn load(c: &ShowcaseConfig, names: &[String]) -> Result<Vec<Loaded>> {
         Some(dir) => table_methods(dir)?,
         None => Vec::new(),
     };
-    names
-        .iter()
-        .map(|spec| {
-            let base = base_name(spec);
-            anyhow::ensure!(
-                neural_fixture(base).exists(),
-                "unknown material `{spec}`: no committed neural version {}",
-                neural_fixture(base).display()
-            );
-            let material = resolve_demo_material(base, true)
-                .with_context(|| format!("material `{spec}`"))?
-                .material;
-            let name = format!("{base}{NEURAL_SUFFIX}");
+    let dirs = blob_dirs(c);
+    entries
+        .into_iter()
+        .map(|(name, material, spec)| {
+            let base = base_name(&name);
             let given = c.methods.iter().find(|(m, _)| base_name(m) == base);
             let from_table = table.iter().find(|(m, _)| m == base);
             let (method, method_source) = match (given, from_table) {
@@ -416,11 +519,11 @@ fn load(c: &ShowcaseConfig, names: &[String]) -> Result<Vec<Loaded>> {
                 }
             };
             check_method(&name, &method)?;
-            let baseline = load_blob(&name, BASELINE)?;
+            let baseline = load_blob(&dirs, &name, &spec, BASELINE)?;
             let best = if method == COSINE {
                 None
             } else {
-                Some(load_blob(&name, &method)?)
+                Some(load_blob(&dirs, &name, &spec, &method)?)
             };
             Ok(Loaded {
                 name,
@@ -776,7 +879,7 @@ pub fn run(c: &ShowcaseConfig) -> Result<()> {
 #[must_use]
 pub fn markdown(r: &ShowcaseReport) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# Showcase: several neural materials in one scene\n");
+    let _ = writeln!(s, "# Showcase: several materials in one scene\n");
     let _ = writeln!(
         s,
         "{}×{} px, daylight sky (sun radiance {}, radius {}°{}), MIS (BSDF sampling and \

@@ -11,8 +11,9 @@ pub struct SceneArgs {
     /// Output folder (created; files are replaced atomically).
     #[arg(long, default_value = "neusample-scene")]
     pub out: PathBuf,
-    /// Materials with a committed neural version: the floor first, then up to four spheres;
-    /// default wagon_wood,gold,brushed_metal,victorian_fabric,car_paint.
+    /// Materials, the floor first, then up to four spheres: built-in names with a committed
+    /// neural version, or material files (.toml, .json, measured .bsdf, neural .nsb) rendered
+    /// as themselves; default wagon_wood,gold,brushed_metal,victorian_fabric,car_paint.
     #[arg(long, value_delimiter = ',')]
     pub materials: Vec<String>,
     /// A demo report whose verdicts give each material's method: a report.json, or a folder
@@ -52,6 +53,11 @@ pub struct SceneArgs {
     /// sun is added unless --sun-radiance is 0.
     #[arg(long)]
     pub envmap: Option<PathBuf>,
+    /// A folder of samplers, <DIR>/<material>/<method>.nsb (what `neusample demo --train
+    /// --out X` writes under X/blobs), searched before fixtures/blobs and
+    /// fixtures/measured/blobs.
+    #[arg(long, value_name = "DIR")]
+    pub blobs: Option<PathBuf>,
 }
 
 fn parse_choice(s: &str) -> Result<(String, String), String> {
@@ -74,6 +80,7 @@ impl From<SceneArgs> for ShowcaseConfig {
             sun_radiance: a.sun_radiance,
             sun_size: a.sun_size,
             envmap: a.envmap,
+            blobs: a.blobs,
         }
     }
 }
