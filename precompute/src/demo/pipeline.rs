@@ -26,6 +26,7 @@ use super::report::{
 };
 use crate::bake;
 use crate::defend;
+use crate::eval::measured_data::MeasuredDataSampler;
 use crate::eval::metrics::{self, Technique};
 use crate::eval::{self, Fit, OracleSampler};
 use crate::groundtruth::{self, TargetPdf};
@@ -219,9 +220,9 @@ pub fn run(a: &DemoConfig) -> Result<()> {
         // A measured material's own sampler: the peer a user of the data would pick.
         if let Some(data) = m.measured() {
             pb.set_message(format!("{mname}/{MEASURED_DATA}"));
-            let s = data.material().borrowed();
+            let s = MeasuredDataSampler(data.material().borrowed());
             let (fit, kl_src) = fits(&s, m.as_ref(), src, &p, a.seed);
-            let cost = eval::cost_scalar(&s, m.as_ref(), p.cost_n, p.cost_passes);
+            let cost = eval::cost(&s, m.as_ref(), p.cost_n, p.cost_passes);
             methods.push(method_report(MEASURED_DATA, 0.0, None, 0, None, fit, cost));
             methods.last_mut().expect("pushed").kl_vs_source = kl_src;
         }

@@ -11,9 +11,10 @@
 //!   true image.
 //! * **Renders** — every runtime sampler renders with the wavefront integrator
 //!   ([`render::render_wavefront`]: tiles of pixels, one batch per surface and path depth
-//!   through the batched API, as the paper ran its samplers); the oracle, whose `prepare` is
-//!   a table build, with the scalar integrator. Both give the same image for the same
-//!   sampler.
+//!   through the batched API, as the paper ran its samplers), a measured material's own
+//!   sampler too (through its batched calls, [`MeasuredDataSampler`]); the oracle, whose
+//!   `prepare` is a table build, with the scalar integrator. Both give the same image for
+//!   the same sampler.
 //! * **Time per sample** ([`TechniqueEval::ns_per_sample`]) — the single-thread wall time of
 //!   the whole render loop (primary ray, features, `prepare`, `sample`, material evaluation,
 //!   shadow ray, environment lookup, and with MIS the environment sample and `pdf`) divided by
@@ -45,6 +46,7 @@ use neusample_render::{self as render, Estimator, Image, Render, RenderOptions, 
 use serde::{Deserialize, Serialize};
 
 use super::concrete::{with_concrete, WithSampler};
+use super::measured_data::MeasuredDataSampler;
 use super::oracle::OracleSampler;
 use crate::materials::Material;
 use crate::util::json::f64_or_nan;
@@ -58,7 +60,8 @@ pub enum Technique<'a> {
     Blob(BlobSampler<'a>),
     /// The tabulated oracle (prepared once per pixel, table time excluded).
     Oracle(OracleSampler<'a>),
-    /// A measured material's own sampler (VNDF and luminance warps), scalar path.
+    /// A measured material's own sampler (VNDF and luminance warps), through its batched
+    /// path ([`MeasuredDataSampler`]).
     Measured(MeasuredMaterial<&'a Vec<f32>>),
 }
 
@@ -85,7 +88,11 @@ impl Technique<'_> {
                 },
             ),
             Technique::Oracle(s) => render::render(scene, &[Surface::new(material, *s)], &o),
-            Technique::Measured(s) => render::render(scene, &[Surface::new(material, *s)], &o),
+            Technique::Measured(s) => render::render_wavefront(
+                scene,
+                &[Surface::new(material, MeasuredDataSampler(*s))],
+                &o,
+            ),
         }
     }
 
@@ -112,9 +119,12 @@ impl Technique<'_> {
             Technique::Oracle(s) => {
                 render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
             }
-            Technique::Measured(s) => {
-                render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
-            }
+            Technique::Measured(s) => render::time_per_sample_wavefront(
+                scene,
+                &[Surface::new(material, MeasuredDataSampler(*s))],
+                &o,
+                passes,
+            )?,
         })
     }
 }

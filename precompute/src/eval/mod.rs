@@ -15,6 +15,7 @@
 mod concrete;
 pub mod cost;
 mod fit;
+pub mod measured_data;
 pub mod metrics;
 mod oracle;
 pub mod warp_inverse;
