@@ -174,19 +174,10 @@ impl<W: Weights> MeasuredMaterial<W> {
                 for i in 0..wi.len() {
                     let s = self.prepare(wi.at(i)).and_then(|p| p.sample(u.at(i)));
                     set_rgb(&mut weight, i, s.map_or([0.0; 3], |s| s.weight));
-                    out.set(i, s.map(sample_of));
+                    out.set(i, s.map(super::runtime_sample));
                 }
             }
         }
-    }
-}
-
-/// The runtime's [`Sample`](crate::Sample) of a measured sample.
-fn sample_of(s: super::MeasuredSample) -> crate::Sample {
-    crate::Sample {
-        wo: s.wo,
-        pdf: s.pdf,
-        pdf_disk: s.pdf / s.wo.z,
     }
 }
 

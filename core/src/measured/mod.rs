@@ -724,6 +724,17 @@ impl<W: Weights> crate::Sampler for MeasuredMaterial<W> {
     }
 }
 
+/// The runtime's [`Sample`](crate::Sample) of a measured sample (the weight dropped); its
+/// disk density is [`Prepared::pdf_disk`](crate::Prepared::pdf_disk)'s, 0 where `pdf / z`
+/// overflows at a grazing `wo`.
+pub(crate) fn runtime_sample(s: MeasuredSample) -> crate::Sample {
+    crate::Sample {
+        wo: s.wo,
+        pdf: s.pdf,
+        pdf_disk: math::finite_density(s.pdf / s.wo.z),
+    }
+}
+
 /// The runtime's [`Prepared`](crate::Prepared) interface of a prepared state (the sample's
 /// weight is dropped: `Sample` has none).
 macro_rules! prepared_trait {
@@ -732,11 +743,7 @@ macro_rules! prepared_trait {
             #[inline]
             fn sample(&self, u: Vec2) -> Option<crate::Sample> {
                 let s = Self::sample(self, u)?;
-                Some(crate::Sample {
-                    wo: s.wo,
-                    pdf: s.pdf,
-                    pdf_disk: s.pdf / s.wo.z,
-                })
+                Some(runtime_sample(s))
             }
 
             #[inline]
