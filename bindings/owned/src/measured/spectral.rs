@@ -16,7 +16,7 @@
 //! ```
 //!
 //! so a flat spectrum of 1 maps to D65's white, which linear sRGB calls (1, 1, 1) up to the
-//! rounding of the tables and the matrix (within 1e-4). The conversion is linear in the
+//! rounding of the tables and the matrix (within 2e-4, as the tests check). The conversion is linear in the
 //! values, `RGB = Σ_k v_k · w_k`, and Mitsuba's interpolation over the incident angles and
 //! the sample space is linear too: converting each texel equals integrating Mitsuba's
 //! spectral evaluation over wavelength at any direction pair.
