@@ -82,7 +82,37 @@ impl<W: Weights> MeasuredMaterial<W> {
         u.check(n)?;
         out.check(n)?;
         check_rgb(&weight, n)?;
-        self.run(Op::Sample { wi, u, out, weight });
+        self.run(Op::Sample {
+            wi,
+            u,
+            out,
+            weight: Some(weight),
+        });
+        Ok(())
+    }
+
+    /// [`Self::sample_batch`] without the weights: the directions and densities only, for a
+    /// renderer that evaluates the material itself (the RGB tables are not read). The same
+    /// directions and densities bit for bit.
+    ///
+    /// # Errors
+    /// [`Error::BatchLength`](crate::Error::BatchLength) when the slices' lengths differ.
+    pub fn sample_directions_batch(
+        &self,
+        wi: Vec3s<'_>,
+        u: Vec2s<'_>,
+        out: SamplesMut<'_>,
+    ) -> Result<()> {
+        let n = wi.len();
+        wi.check(n)?;
+        u.check(n)?;
+        out.check(n)?;
+        self.run(Op::Sample {
+            wi,
+            u,
+            out,
+            weight: None,
+        });
         Ok(())
     }
 
@@ -173,7 +203,9 @@ impl<W: Weights> MeasuredMaterial<W> {
             } => {
                 for i in 0..wi.len() {
                     let s = self.prepare(wi.at(i)).and_then(|p| p.sample(u.at(i)));
-                    set_rgb(&mut weight, i, s.map_or([0.0; 3], |s| s.weight));
+                    if let Some(weight) = &mut weight {
+                        set_rgb(weight, i, s.map_or([0.0; 3], |s| s.weight));
+                    }
                     out.set(i, s.map(super::runtime_sample));
                 }
             }
@@ -210,7 +242,8 @@ enum Op<'a> {
         wi: Vec3s<'a>,
         u: Vec2s<'a>,
         out: SamplesMut<'a>,
-        weight: RgbMut<'a>,
+        /// `None`: directions and densities only.
+        weight: Option<RgbMut<'a>>,
     },
 }
 
@@ -508,7 +541,10 @@ impl<const A: bool> Kernel for Job<'_, A> {
                 let mut a = 0;
                 while a < wi.len() {
                     let m = chunk_len(wi.len(), a);
-                    c.sample_chunk::<A>(&wi, &u, &mut out, &mut weight, a, m);
+                    match &mut weight {
+                        Some(w) => c.sample_chunk::<A, true>(&wi, &u, &mut out, Some(w), a, m),
+                        None => c.sample_chunk::<A, false>(&wi, &u, &mut out, None, a, m),
+                    }
                     a += m;
                 }
             }
@@ -601,24 +637,25 @@ impl Ctx<'_> {
         }
     }
 
-    /// `sample_batch` of lanes `a .. a + m`.
+    /// `sample_batch` of lanes `a .. a + m`; the weights (and the `sigma` table they need)
+    /// only with `WEIGHT`.
     #[inline(always)]
-    fn sample_chunk<const A: bool>(
+    fn sample_chunk<const A: bool, const WEIGHT: bool>(
         &self,
         wi: &Vec3s<'_>,
         u: &Vec2s<'_>,
         out: &mut SamplesMut<'_>,
-        weight: &mut RgbMut<'_>,
+        weight: Option<&mut RgbMut<'_>>,
         a: usize,
         m: usize,
     ) {
         let mut p = self.empty();
-        self.prepare::<A, true>(wi, a, m, &mut p);
+        self.prepare::<A, WEIGHT>(wi, a, m, &mut p);
         let mut uu = [Vec2::ZERO; CHUNK];
         for (l, o) in uu.iter_mut().enumerate().take(m) {
             *o = u.at(a + l);
         }
-        self.sample_lanes::<A>(&p, &uu, out, weight, a, m);
+        self.sample_lanes::<A, WEIGHT>(&p, &uu, out, weight, a, m);
     }
 
     /// A chunk's prepared lanes, before [`Ctx::prepare`] fills them.
@@ -863,14 +900,14 @@ impl Ctx<'_> {
     }
 
     /// `MeasuredPrepared::sample` on every lane, written for lanes `a .. a + m` (zero where
-    /// refused).
+    /// refused); the weights are read from the RGB tables and written only with `WEIGHT`.
     #[inline(always)]
-    fn sample_lanes<const A: bool>(
+    fn sample_lanes<const A: bool, const WEIGHT: bool>(
         &self,
         p: &Prepared,
         u: &[Vec2; CHUNK],
         out: &mut SamplesMut<'_>,
-        weight: &mut RgbMut<'_>,
+        mut weight: Option<&mut RgbMut<'_>>,
         a: usize,
         m: usize,
     ) {
@@ -934,23 +971,30 @@ impl Ctx<'_> {
             [wo[0][l], wo[1][l], wo[2][l]] = [w.x * p.flip[0][l], w.y * p.flip[1][l], w.z];
             ok[l] &= (wo[2][l] > 0.0) & (pdf[l] > 0.0) & math::is_finite(pdf[l]);
         }
-        let rgb = self.rgb::<A>(p, &sample, &u_m);
+        if WEIGHT {
+            if let Some(weight) = &mut weight {
+                let rgb = self.rgb::<A>(p, &sample, &u_m);
+                for l in 0..m {
+                    let inv_pdf = 1.0 / pdf[l];
+                    let f = if ok[l] {
+                        [
+                            math::finite_density(rgb[0][l] * inv_pdf),
+                            math::finite_density(rgb[1][l] * inv_pdf),
+                            math::finite_density(rgb[2][l] * inv_pdf),
+                        ]
+                    } else {
+                        [0.0; 3]
+                    };
+                    set_rgb(weight, a + l, f);
+                }
+            }
+        }
         for l in 0..m {
-            let inv_pdf = 1.0 / pdf[l];
-            let (w, d, f) = if ok[l] {
-                (
-                    Vec3::new(wo[0][l], wo[1][l], wo[2][l]),
-                    pdf[l],
-                    [
-                        math::finite_density(rgb[0][l] * inv_pdf),
-                        math::finite_density(rgb[1][l] * inv_pdf),
-                        math::finite_density(rgb[2][l] * inv_pdf),
-                    ],
-                )
+            let (w, d) = if ok[l] {
+                (Vec3::new(wo[0][l], wo[1][l], wo[2][l]), pdf[l])
             } else {
-                (Vec3::ZERO, 0.0, [0.0; 3])
+                (Vec3::ZERO, 0.0)
             };
-            set_rgb(weight, a + l, f);
             out.wo.set(a + l, w);
             out.pdf[a + l] = d;
         }
@@ -1142,6 +1186,34 @@ mod tests {
                 },
             )
             .unwrap();
+        }
+        // Without the weights: the same directions and densities.
+        let mut d = [vec![9.0; n], vec![9.0; n], vec![9.0; n], vec![9.0; n]];
+        {
+            let [dx, dy, dz, dp] = &mut d;
+            m.sample_directions_batch(
+                wis,
+                Vec2s { x: &ux, y: &uy },
+                SamplesMut {
+                    wo: Vec3sMut {
+                        x: dx,
+                        y: dy,
+                        z: dz,
+                    },
+                    pdf: dp,
+                },
+            )
+            .unwrap();
+        }
+        for (k, (a, b)) in d.iter().zip(&s).enumerate() {
+            for i in 0..n {
+                assert!(
+                    same(a[i], b[i]),
+                    "lane {i} directions {k}: {} vs {}",
+                    a[i],
+                    b[i]
+                );
+            }
         }
         let mut sampled = 0;
         for i in 0..n {

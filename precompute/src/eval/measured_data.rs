@@ -7,9 +7,7 @@
 //! kept whenever `wi` is finite with `z > 0` and the batched calls decide the rest (a zero
 //! density, a zero sample). Densities are with respect to solid angle.
 
-use neusample::wavefront::{
-    BatchSampler, Features, RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut,
-};
+use neusample::wavefront::{BatchSampler, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut};
 use neusample::{Error, MeasuredMaterial, MeasuredPrepared, Result, Sampler, Vec3, Weights};
 
 /// Lanes gathered from the lane states per call of the measured material's batched path.
@@ -31,17 +29,33 @@ fn check(what: &'static str, found: usize, expected: usize) -> Result<()> {
     }
 }
 
-/// The incident directions of `lanes` as three arrays (refused lanes: the zero vector, which
-/// the measured material refuses).
-fn gather(lanes: &[Option<[f32; 3]>]) -> [[f32; GROUP]; 3] {
-    let mut wi = [[0.0; GROUP]; 3];
-    for (i, lane) in lanes.iter().enumerate() {
-        let w = lane.unwrap_or([0.0; 3]);
-        for (c, v) in wi.iter_mut().zip(w) {
-            c[i] = v;
+/// The incident directions of at most [`GROUP`] lanes as three arrays (refused lanes: the
+/// zero vector, which the measured material refuses).
+struct Gathered {
+    wi: [[f32; GROUP]; 3],
+    n: usize,
+}
+
+impl Gathered {
+    fn new(lanes: &[Option<[f32; 3]>]) -> Self {
+        let mut wi = [[0.0; GROUP]; 3];
+        for (i, lane) in lanes.iter().enumerate() {
+            let w = lane.unwrap_or([0.0; 3]);
+            for (c, v) in wi.iter_mut().zip(w) {
+                c[i] = v;
+            }
+        }
+        Gathered { wi, n: lanes.len() }
+    }
+
+    fn view(&self) -> Vec3s<'_> {
+        let [x, y, z] = &self.wi;
+        Vec3s {
+            x: &x[..self.n],
+            y: &y[..self.n],
+            z: &z[..self.n],
         }
     }
-    wi
 }
 
 impl<W: Weights> Sampler for MeasuredDataSampler<W> {
@@ -89,17 +103,10 @@ impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
         check("pdf", out.pdf.len(), n)?;
         let SamplesMut { wo, pdf } = out;
         let Vec3sMut { x, y, z } = wo;
-        let mut weight = [[0.0f32; GROUP]; 3];
         for (a, group) in lanes.chunks(GROUP).enumerate() {
             let (s, m) = (a * GROUP, group.len());
-            let wi = gather(group);
-            let [wr, wg, wb] = &mut weight;
-            self.0.sample_batch(
-                Vec3s {
-                    x: &wi[0][..m],
-                    y: &wi[1][..m],
-                    z: &wi[2][..m],
-                },
+            self.0.sample_directions_batch(
+                Gathered::new(group).view(),
                 Vec2s {
                     x: &u.x[s..s + m],
                     y: &u.y[s..s + m],
@@ -112,11 +119,6 @@ impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
                     },
                     pdf: &mut pdf[s..s + m],
                 },
-                RgbMut {
-                    r: &mut wr[..m],
-                    g: &mut wg[..m],
-                    b: &mut wb[..m],
-                },
             )?;
         }
         Ok(())
@@ -128,13 +130,8 @@ impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
         check("pdf", pdf.len(), n)?;
         for (a, group) in lanes.chunks(GROUP).enumerate() {
             let (s, m) = (a * GROUP, group.len());
-            let wi = gather(group);
             self.0.pdf_batch(
-                Vec3s {
-                    x: &wi[0][..m],
-                    y: &wi[1][..m],
-                    z: &wi[2][..m],
-                },
+                Gathered::new(group).view(),
                 Vec3s {
                     x: &wo.x[s..s + m],
                     y: &wo.y[s..s + m],
