@@ -92,6 +92,19 @@ pub fn in_range(i: u32, input_len: usize, output_len: usize) -> bool {
     (i + 1) * IN_STRIDE <= input_len && (i + 1) * OUT_STRIDE <= output_len
 }
 
+/// The incident direction, the sample's variates and the second direction of the record at
+/// `b` of `input`.
+fn directions(input: &[f32], b: usize) -> (Vec3, Vec2, Vec3) {
+    let wi = Vec3::new(input[b + IN_WI], input[b + IN_WI + 1], input[b + IN_WI + 2]);
+    let u = Vec2::new(input[b + IN_U], input[b + IN_U + 1]);
+    let wo2 = Vec3::new(
+        input[b + IN_WO2],
+        input[b + IN_WO2 + 1],
+        input[b + IN_WO2 + 2],
+    );
+    (wi, u, wo2)
+}
+
 /// Runs sampler `s` on record `i`: prepare, sample, and the densities; writes the output
 /// record. The caller guarantees [`in_range`].
 #[inline]
@@ -103,13 +116,7 @@ pub fn run<S: Sampler>(s: &S, i: u32, input: &[f32], output: &mut [f32]) {
         phi[k] = input[b + k];
         k += 1;
     }
-    let wi = Vec3::new(input[b + IN_WI], input[b + IN_WI + 1], input[b + IN_WI + 2]);
-    let u = Vec2::new(input[b + IN_U], input[b + IN_U + 1]);
-    let wo2 = Vec3::new(
-        input[b + IN_WO2],
-        input[b + IN_WO2 + 1],
-        input[b + IN_WO2 + 2],
-    );
+    let (wi, u, wo2) = directions(input, b);
 
     let mut rec = [0.0f32; OUT_STRIDE];
     let mut flags = 0u32;
@@ -241,13 +248,7 @@ pub fn run_measured<W: Weights + Copy>(
     output: &mut [f32],
 ) {
     let b = i as usize * IN_STRIDE;
-    let wi = Vec3::new(input[b + IN_WI], input[b + IN_WI + 1], input[b + IN_WI + 2]);
-    let u = Vec2::new(input[b + IN_U], input[b + IN_U + 1]);
-    let wo2 = Vec3::new(
-        input[b + IN_WO2],
-        input[b + IN_WO2 + 1],
-        input[b + IN_WO2 + 2],
-    );
+    let (wi, u, wo2) = directions(input, b);
     let mut rec = [0.0f32; OUT_STRIDE];
     let mut flags = 0u32;
     if let Some(p) = m.prepare_copied(wi) {
