@@ -5,7 +5,7 @@
 
 use core::fmt;
 
-use crate::kind::{DType, SamplerKind};
+use crate::kind::{BlobKind, DType};
 
 /// Why a blob could not be opened.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -41,16 +41,16 @@ pub enum Error {
     /// The blob holds a different kind of sampler than the caller asked for.
     WrongKind {
         /// Kind the caller asked for.
-        expected: SamplerKind,
+        expected: BlobKind,
         /// Kind stored in the blob.
-        found: SamplerKind,
+        found: BlobKind,
     },
     /// [`Blob::sampler`](crate::blob::Blob::sampler) was called on a blob that holds no
     /// sampler (a neural material: open it with
     /// [`Blob::neural_material`](crate::blob::Blob::neural_material)).
     NotASampler {
         /// Kind stored in the blob.
-        found: SamplerKind,
+        found: BlobKind,
     },
     /// An architecture dimension differs from the one compiled into this build, or a table
     /// dimension is zero or above its limit.

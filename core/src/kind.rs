@@ -1,75 +1,49 @@
-//! The names the format and the API share: which sampler a blob holds ([`SamplerKind`]), how
+//! The names the format and the API share: what a blob holds ([`BlobKind`], [`SamplerKind`]), how
 //! a tensor is stored ([`DType`]) and how the histogram mixture reads its latent axis
-//! ([`Interpolation`]). A leaf: it depends on nothing else in the crate.
+//! ([`Interpolation`]). It depends on nothing else in the crate but the list of kinds
+//! ([`sampler_kinds!`](crate::samplers)). Lookups are loops over bytes, as rust-gpu compiles
+//! them (no slice equality, no iterators).
 
 use serde::{Deserialize, Serialize};
 
-/// The kind of sampler a blob holds (or the neural material it samples).
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum SamplerKind {
-    /// Cosine-hemisphere sampling (no parameters).
-    Cosine,
-    /// Improved baseline: Lambert + isotropic Gaussian (paper Eq. 1).
-    ImprovedBaseline,
-    /// Analytic mixture: Lambert + two anisotropic Gaussians (paper Eq. 2).
-    AnalyticMixture,
-    /// Conditional rational-quadratic spline flow (paper Eq. 3–4).
-    Flow,
-    /// Affine-coupling flow baseline (Xie et al. 2019).
-    AffineFlow,
-    /// Direct histogram baseline (Zhu et al. 2021).
-    DirectHistogram,
-    /// Histogram mixture (paper Eq. 5–6).
-    HistogramMixture,
-    /// Not a sampler: a NeuMIP-style neural material (feature texture + decoder,
-    /// [`crate::neural_material`]), the BRDF the samplers are trained for. Opened with
-    /// [`Blob::neural_material`](crate::Blob::neural_material); [`Blob::sampler`](crate::Blob::sampler) refuses it. Not in [`SamplerKind::ALL`].
-    NeuralMaterial,
-    /// Reparameterization sampler (Wu et al. 2025): an MLP warp of a Gaussian with its exact
-    /// Jacobian weight, and a pdf network for MIS ([`crate::samplers::reparam`]).
-    Reparam,
-    /// Disk flow: the paper's spline couplings on a uniform base with every mass inside the
-    /// disk (`core/ARCHITECTURES.md` §9).
-    DiskFlow,
-    /// Not a sampler: a measured material of the RGL database ([`crate::measured`]), with its
-    /// own VNDF sampler. Opened with [`Blob::measured`](crate::Blob::measured);
-    /// [`Blob::sampler`](crate::Blob::sampler) refuses it. Not in [`SamplerKind::ALL`].
-    Measured,
+/// Generates [`SamplerKind`] from [`sampler_kinds!`](crate::samplers): the enum, its list,
+/// names and blob tags.
+macro_rules! sampler_kind_enum {
+    ($($(#[$doc:meta])* $variant:ident = $tag:literal, $name:literal, $sampler:ty, $lane:ty;)*) => {
+        /// The kind of sampler a blob holds. Materials, which blobs hold too, are
+        /// [`BlobKind`]s that are not sampler kinds.
+        #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+        pub enum SamplerKind {
+            $($(#[$doc])* $variant,)*
+        }
+
+        impl SamplerKind {
+            /// Every sampler kind, in a stable order.
+            pub const ALL: [SamplerKind; [$(SamplerKind::$variant),*].len()] =
+                [$(SamplerKind::$variant),*];
+
+            /// The kind's stable name (CLI and JSON).
+            #[must_use]
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $(SamplerKind::$variant => $name,)*
+                }
+            }
+
+            /// The number a blob's header stores for the kind ([`BlobKind::tag`]).
+            #[must_use]
+            pub const fn tag(self) -> u32 {
+                match self {
+                    $(SamplerKind::$variant => $tag,)*
+                }
+            }
+        }
+    };
 }
 
+crate::samplers::kinds::sampler_kinds!(sampler_kind_enum);
+
 impl SamplerKind {
-    /// Every sampler kind, in a stable order (the materials, [`SamplerKind::NeuralMaterial`]
-    /// and [`SamplerKind::Measured`], which are not samplers, are not listed).
-    pub const ALL: [SamplerKind; 9] = [
-        SamplerKind::Cosine,
-        SamplerKind::ImprovedBaseline,
-        SamplerKind::AnalyticMixture,
-        SamplerKind::Flow,
-        SamplerKind::DiskFlow,
-        SamplerKind::AffineFlow,
-        SamplerKind::DirectHistogram,
-        SamplerKind::HistogramMixture,
-        SamplerKind::Reparam,
-    ];
-
-    /// The kind's stable name (CLI and JSON).
-    #[must_use]
-    pub const fn name(self) -> &'static str {
-        match self {
-            SamplerKind::Cosine => "cosine",
-            SamplerKind::ImprovedBaseline => "baseline",
-            SamplerKind::AnalyticMixture => "analytic",
-            SamplerKind::Flow => "flow",
-            SamplerKind::DiskFlow => "disk-flow",
-            SamplerKind::AffineFlow => "affine-flow",
-            SamplerKind::DirectHistogram => "direct-histogram",
-            SamplerKind::HistogramMixture => "histogram-mixture",
-            SamplerKind::NeuralMaterial => "neural-material",
-            SamplerKind::Reparam => "reparam",
-            SamplerKind::Measured => "measured",
-        }
-    }
-
     /// Whether a sample's density is the kind's `pdf` at the sampled direction (every kind
     /// but [`SamplerKind::Reparam`], whose samples carry the warp's exact density and whose
     /// `pdf` is its pdf network's: see [`Prepared::mis_pdf`](crate::Prepared::mis_pdf)).
@@ -78,30 +52,155 @@ impl SamplerKind {
         !matches!(self, SamplerKind::Reparam)
     }
 
-    /// Whether the kind is a sampler (every kind but the materials,
-    /// [`SamplerKind::NeuralMaterial`] and [`SamplerKind::Measured`]).
-    #[must_use]
-    pub const fn is_sampler(self) -> bool {
-        !matches!(self, SamplerKind::NeuralMaterial | SamplerKind::Measured)
-    }
-
-    /// The kind with the given [`SamplerKind::name`] (the materials included).
+    /// The kind with the given [`SamplerKind::name`].
     #[must_use]
     pub fn from_name(name: &str) -> Option<SamplerKind> {
-        if name.as_bytes() == SamplerKind::NeuralMaterial.name().as_bytes() {
-            return Some(SamplerKind::NeuralMaterial);
-        }
-        if name.as_bytes() == SamplerKind::Measured.name().as_bytes() {
-            return Some(SamplerKind::Measured);
-        }
         let mut i = 0;
         while i < Self::ALL.len() {
-            if Self::ALL[i].name().as_bytes() == name.as_bytes() {
+            if same_bytes(Self::ALL[i].name().as_bytes(), name.as_bytes()) {
                 return Some(Self::ALL[i]);
             }
             i += 1;
         }
         None
+    }
+
+    /// The kind with the given [`SamplerKind::tag`].
+    #[must_use]
+    pub fn from_tag(tag: u32) -> Option<SamplerKind> {
+        let mut i = 0;
+        while i < Self::ALL.len() {
+            if Self::ALL[i].tag() == tag {
+                return Some(Self::ALL[i]);
+            }
+            i += 1;
+        }
+        None
+    }
+}
+
+/// Byte-wise equality (rust-gpu lowers slice equality to an intrinsic it lacks).
+fn same_bytes(a: &[u8], b: &[u8]) -> bool {
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut i = 0;
+    while i < a.len() {
+        if a[i] != b[i] {
+            return false;
+        }
+        i += 1;
+    }
+    true
+}
+
+/// What a blob holds: a sampler of some [`SamplerKind`], or a material. Stored in a blob's
+/// header as its tag ([`BlobKind::tag`]), a postcard varint (the bytes of the enum this
+/// replaced, so every blob written before opens).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(into = "u32", try_from = "u32")]
+pub enum BlobKind {
+    /// A sampler.
+    Sampler(SamplerKind),
+    /// A NeuMIP-style neural material (feature texture + decoder, [`crate::neural_material`]),
+    /// the BRDF the samplers are trained for. Opened with
+    /// [`Blob::neural_material`](crate::Blob::neural_material).
+    NeuralMaterial,
+    /// A measured material of the RGL database ([`crate::measured`]) with its own VNDF
+    /// sampler. Opened with [`Blob::measured`](crate::Blob::measured).
+    Measured,
+}
+
+impl BlobKind {
+    /// Tag of [`BlobKind::NeuralMaterial`].
+    const NEURAL_MATERIAL_TAG: u32 = 7;
+    /// Tag of [`BlobKind::Measured`].
+    const MEASURED_TAG: u32 = 10;
+
+    /// The number a blob's header stores (and the C ABI's `NsKind`).
+    #[must_use]
+    pub const fn tag(self) -> u32 {
+        match self {
+            BlobKind::Sampler(k) => k.tag(),
+            BlobKind::NeuralMaterial => Self::NEURAL_MATERIAL_TAG,
+            BlobKind::Measured => Self::MEASURED_TAG,
+        }
+    }
+
+    /// The kind stored as `tag`.
+    #[must_use]
+    pub fn from_tag(tag: u32) -> Option<BlobKind> {
+        match tag {
+            Self::NEURAL_MATERIAL_TAG => Some(BlobKind::NeuralMaterial),
+            Self::MEASURED_TAG => Some(BlobKind::Measured),
+            t => SamplerKind::from_tag(t).map(BlobKind::Sampler),
+        }
+    }
+
+    /// The stable name: the sampler kind's, `neural-material` or `measured`.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            BlobKind::Sampler(k) => k.name(),
+            BlobKind::NeuralMaterial => "neural-material",
+            BlobKind::Measured => "measured",
+        }
+    }
+
+    /// The kind with the given [`BlobKind::name`].
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<BlobKind> {
+        if same_bytes(name.as_bytes(), BlobKind::NeuralMaterial.name().as_bytes()) {
+            return Some(BlobKind::NeuralMaterial);
+        }
+        if same_bytes(name.as_bytes(), BlobKind::Measured.name().as_bytes()) {
+            return Some(BlobKind::Measured);
+        }
+        SamplerKind::from_name(name).map(BlobKind::Sampler)
+    }
+
+    /// The sampler kind, if the blob holds a sampler.
+    #[must_use]
+    pub const fn sampler(self) -> Option<SamplerKind> {
+        match self {
+            BlobKind::Sampler(k) => Some(k),
+            _ => None,
+        }
+    }
+}
+
+impl From<SamplerKind> for BlobKind {
+    fn from(k: SamplerKind) -> BlobKind {
+        BlobKind::Sampler(k)
+    }
+}
+
+impl PartialEq<SamplerKind> for BlobKind {
+    fn eq(&self, k: &SamplerKind) -> bool {
+        *self == BlobKind::Sampler(*k)
+    }
+}
+
+impl From<BlobKind> for u32 {
+    fn from(k: BlobKind) -> u32 {
+        k.tag()
+    }
+}
+
+/// A blob tag that names no kind this build knows.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct UnknownTag(pub u32);
+
+impl core::fmt::Display for UnknownTag {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "unknown blob kind tag {}", self.0)
+    }
+}
+
+impl TryFrom<u32> for BlobKind {
+    type Error = UnknownTag;
+    fn try_from(tag: u32) -> Result<BlobKind, UnknownTag> {
+        BlobKind::from_tag(tag).ok_or(UnknownTag(tag))
     }
 }
 

@@ -92,7 +92,7 @@ pub use blob::{Blob, TensorRole};
 pub use distrib::Table2D;
 pub use error::{Error, Result};
 pub use glam::{Vec2, Vec3};
-pub use kind::{DType, Interpolation, SamplerKind};
+pub use kind::{BlobKind, DType, Interpolation, SamplerKind, UnknownTag};
 pub use math::ONE_MINUS_EPSILON;
 pub use measured::{
     MeasuredMaterial, MeasuredPrepared, MeasuredPreparedCopied, MeasuredSample, MeasuredShape,

@@ -36,7 +36,9 @@ pub use crate::batch::{
     current_isa, detected_isa, prefer_isa, BatchSampler, Features, FeaturesMut, Isa, LaneState,
     RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut, FUSED_CHUNK,
 };
-pub use crate::samplers::{AffineLane, AnyLane, FlowLane, MixtureLane, ReparamLane};
+pub use crate::samplers::{
+    AffineLane, AnyLane, FlowLane, MixtureLane, ReparamLane, SamplerVisitor,
+};
 
 /// One dense layer `dense(I, O)` at `offset` of `w` (`core/ARCHITECTURES.md`: weights
 /// input-major `W[i][o]`, then the bias) over a chunk of `B` lanes in structure-of-arrays

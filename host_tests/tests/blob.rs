@@ -167,13 +167,14 @@ fn wrong_magic_version_and_kind() {
     );
     let blob = Blob::open(&bytes).unwrap();
     assert_eq!(
-        blob.histogram_mixture().unwrap_err(),
+        blob.sampler_as::<neusample::HistogramMixtureSampler<_>>()
+            .unwrap_err(),
         Error::WrongKind {
-            expected: SamplerKind::HistogramMixture,
-            found: SamplerKind::Flow
+            expected: SamplerKind::HistogramMixture.into(),
+            found: SamplerKind::Flow.into()
         }
     );
-    assert!(blob.flow().is_ok());
+    assert!(blob.sampler_as::<neusample::FlowSampler<_>>().is_ok());
     // Trailing garbage is refused.
     let mut b = bytes.clone();
     b.push(0);

@@ -34,7 +34,12 @@ fn versions_and_validation() {
     let b = Blob::open(&v2).unwrap();
     assert_eq!((b.version(), b.defensive()), (2, 0.125));
     assert_eq!(b.sampler().unwrap().alpha(), 0.125);
-    assert_eq!(b.histogram_mixture().unwrap().alpha(), 0.125);
+    assert_eq!(
+        b.sampler_as::<neusample::HistogramMixtureSampler<_>>()
+            .unwrap()
+            .alpha(),
+        0.125
+    );
     for bad in [-0.1f32, 1.0, 1.5, f32::NAN, f32::INFINITY] {
         assert_eq!(
             Blob::open(&defended(&bytes, bad)).unwrap_err(),

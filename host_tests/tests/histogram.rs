@@ -1295,7 +1295,9 @@ fn compact_blob_round_trips_and_is_smaller() {
     );
     let blob = neusample::Blob::open(&bytes).unwrap();
     assert!(blob.is_compact());
-    let from_blob = blob.histogram_mixture().unwrap();
+    let from_blob = blob
+        .sampler_as::<neusample::HistogramMixtureSampler<_>>()
+        .unwrap();
     let cond = c.conditional_f32();
     let host = HistogramMixtureSampler::new_compact(
         &params[..],

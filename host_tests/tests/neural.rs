@@ -6,7 +6,7 @@ use neusample::neural_material::{
     decoder_input, texture_len, wrap_bilinear, NeuralMaterial, DECODER_PARAM_COUNT, LOG_F_MAX,
     LOG_F_MIN, MAX_TEXTURE_SIZE,
 };
-use neusample::{Blob, BlobWriter, SamplerKind, TensorRole};
+use neusample::{Blob, BlobKind, BlobWriter, SamplerKind, TensorRole};
 use neusample::{DType, Error, Vec2, Vec3};
 use neusample_host_tests::rng;
 use proptest::prelude::*;
@@ -204,8 +204,7 @@ fn constructor_checks_lengths_and_dims() {
 fn neural_blob(w: u32, h: u32, dtype: DType) -> (Vec<u8>, Vec<f32>, Vec<f32>) {
     let tex: Vec<f32> = ramp_texture(w, h).iter().map(|v| v * 1e-3).collect();
     let params = random_params(7, 0.2);
-    let mut bw =
-        BlobWriter::new(SamplerKind::NeuralMaterial, dtype, "name=test").texture_dims(w, h);
+    let mut bw = BlobWriter::new(BlobKind::NeuralMaterial, dtype, "name=test").texture_dims(w, h);
     bw.tensor(TensorRole::Params, &params)
         .tensor(TensorRole::Features, &tex);
     (bw.to_bytes(), tex, params)
@@ -216,11 +215,11 @@ fn blob_round_trip_f32_and_f16() {
     for dtype in [DType::F32, DType::F16] {
         let (bytes, tex, params) = neural_blob(5, 3, dtype);
         let blob = Blob::open(&bytes).unwrap();
-        assert_eq!(blob.kind(), SamplerKind::NeuralMaterial);
-        assert!(!blob.kind().is_sampler());
+        assert_eq!(blob.kind(), BlobKind::NeuralMaterial);
+        assert!(blob.kind().sampler().is_none());
         assert_eq!(
-            SamplerKind::from_name("neural-material"),
-            Some(SamplerKind::NeuralMaterial)
+            BlobKind::from_name("neural-material"),
+            Some(BlobKind::NeuralMaterial)
         );
         let m = blob.neural_material().unwrap();
         assert_eq!((m.width(), m.height()), (5, 3));
@@ -252,10 +251,13 @@ fn blob_round_trip_f32_and_f16() {
         assert!(matches!(
             blob.sampler(),
             Err(Error::NotASampler {
-                found: SamplerKind::NeuralMaterial,
+                found: BlobKind::NeuralMaterial,
             })
         ));
-        assert!(matches!(blob.flow(), Err(Error::WrongKind { .. })));
+        assert!(matches!(
+            blob.sampler_as::<neusample::FlowSampler<_>>(),
+            Err(Error::WrongKind { .. })
+        ));
     }
     // A sampler blob is not a neural material.
     let params = vec![0.0f32; SamplerKind::AnalyticMixture.param_count()];
@@ -265,7 +267,7 @@ fn blob_round_trip_f32_and_f16() {
     assert!(matches!(
         Blob::open(&bytes).unwrap().neural_material(),
         Err(Error::WrongKind {
-            expected: SamplerKind::NeuralMaterial,
+            expected: BlobKind::NeuralMaterial,
             ..
         })
     ));
@@ -275,7 +277,7 @@ fn open_with(dims: (u32, u32), edit: impl FnOnce(&mut BlobWriter<'static>)) -> R
     let (w, h) = dims;
     let tex = vec![0.25f32; texture_len(w.clamp(1, 64), h.clamp(1, 64))];
     let params = random_params(9, 0.2);
-    let mut bw = BlobWriter::new(SamplerKind::NeuralMaterial, DType::F32, "").texture_dims(w, h);
+    let mut bw = BlobWriter::new(BlobKind::NeuralMaterial, DType::F32, "").texture_dims(w, h);
     bw.tensor(TensorRole::Params, &params)
         .tensor(TensorRole::Features, &tex);
     edit(&mut bw);

@@ -158,7 +158,7 @@ fn jacobian_matches_central_differences() {
     for seed in 0..6 {
         let (bytes, _) = small_blob(SamplerKind::Reparam, DType::F32, seed);
         let blob = Blob::open(&bytes).unwrap();
-        let s = blob.reparam().unwrap();
+        let s = blob.sampler_as::<neusample::ReparamSampler<_>>().unwrap();
         let s = s.inner();
         let phi: [f32; FEATURE_DIM] = std::array::from_fn(|_| r.random::<f32>() - 0.5);
         let p = s.prepare(&phi, wi()).unwrap();
@@ -321,7 +321,7 @@ fn batched_equals_scalar_with_mis_densities() {
             let d = BlobWriter::from_blob(&blob).defensive(alpha).to_bytes();
             let blob = Blob::open(&d).unwrap();
             let any = blob.sampler().unwrap();
-            let concrete = blob.reparam().unwrap();
+            let concrete = blob.sampler_as::<neusample::ReparamSampler<_>>().unwrap();
             check(&any, &mut r);
             check(&concrete, &mut r);
         }

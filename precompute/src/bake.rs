@@ -20,15 +20,11 @@ use rand::{RngExt, SeedableRng};
 
 use crate::groundtruth;
 use crate::materials::Material;
-use crate::train::{model_pdf_disk, Trained};
+use crate::train::{model_pdf_disk, pole_tolerance, Trained};
 
 /// Largest relative difference allowed between an f32 blob and the trained model.
 pub const F32_TOLERANCE: f64 = 1e-3;
 
-/// The disk flow's tolerance within 1e-2 of a pole of the disk (`|y| > 0.99`), where
-/// `1 ± y/C(x)` cancels in f32 before the second spline sees it (`host_tests/tests/flow.rs`
-/// measures it against an f64 reference).
-pub const DISK_FLOW_POLE_TOLERANCE: f64 = 1e-2;
 /// Largest relative difference allowed between an f16 blob and the trained model (f16
 /// weights carry 11 significant bits; errors compound through the layers).
 pub const F16_TOLERANCE: f64 = 0.25;
@@ -191,8 +187,9 @@ pub struct Verification {
     pub max_relative: f64,
     /// The tolerance applied.
     pub tolerance: f64,
-    /// The disk flow's largest relative difference within 1e-2 of a pole, checked against
-    /// [`DISK_FLOW_POLE_TOLERANCE`] (0 for other kinds, whose points all count above).
+    /// The largest relative difference within 1e-2 of a pole of the disk, for a method with
+    /// a tolerance of its own there ([`pole_tolerance`]; 0 for the others, whose points all
+    /// count above).
     pub max_relative_pole: f64,
 }
 
@@ -218,7 +215,7 @@ pub fn verify(
     let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
     let mut max_rel = 0f64;
     let mut max_pole = 0f64;
-    let disk_flow = blob.header().kind == SamplerKind::DiskFlow;
+    let pole_tolerance = pole_tolerance(trained.method);
     let mut points = 0;
     for _ in 0..conditions {
         let c = groundtruth::random_condition(material, &mut rng);
@@ -252,7 +249,7 @@ pub fn verify(
         for (p, m) in pts.iter().zip(&model) {
             let b = f64::from(prep.pdf_disk(*p));
             let rel = (b - m).abs() / m.max(floor);
-            if disk_flow && 1.0 - p.y.abs() < 1e-2 {
+            if pole_tolerance.is_some() && 1.0 - p.y.abs() < 1e-2 {
                 max_pole = max_pole.max(rel);
             } else if rel > max_rel {
                 max_rel = rel;
@@ -266,11 +263,12 @@ pub fn verify(
         tolerance,
         max_relative_pole: max_pole,
     };
-    if !(max_pole <= DISK_FLOW_POLE_TOLERANCE) {
+    if let Some(tol) = pole_tolerance.filter(|tol| !(max_pole <= *tol)) {
         bail!(
-            "the disk-flow blob does not reproduce the trained model near the poles: max relative pdf difference {:.3e} > {:.0e}",
+            "the {} blob does not reproduce the trained model near the poles: max relative pdf difference {:.3e} > {:.0e}",
+            trained.method.name(),
             max_pole,
-            DISK_FLOW_POLE_TOLERANCE
+            tol
         );
     }
     if !(max_rel <= tolerance) {

@@ -217,7 +217,7 @@ fn choice(per: &[(f64, Vec<f64>)]) -> AlphaChoice {
 /// α = 0), every tensor and header field kept; the result is opened before it is returned.
 pub fn with_defensive(bytes: &[u8], alpha: f32) -> Result<Vec<u8>> {
     let blob = Blob::open(bytes).context("the blob does not open")?;
-    if !blob.kind().is_sampler() {
+    if blob.kind().sampler().is_none() {
         bail!("a {} blob has no sampler to defend", blob.kind().name());
     }
     if !(alpha >= 0.0 && alpha < 1.0) {
@@ -248,7 +248,7 @@ pub fn defend_baked(
     seed: u64,
 ) -> Result<(Vec<u8>, Option<AlphaChoice>)> {
     let kind = Blob::open(&bytes).context("the blob does not open")?.kind();
-    if !is_defended(kind) {
+    if !kind.sampler().is_some_and(is_defended) {
         return Ok((bytes, None));
     }
     let c = choose_alpha(&bytes, material, DEFAULT_CONDITIONS, DEFAULT_RADIAL, seed)?;

@@ -88,9 +88,7 @@ fn core_pdf(t: &Trained, phi: &[f32; 8], wi: Vec3, p: Vec2) -> f32 {
             .expect("reparam parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
-        SamplerKind::Cosine | SamplerKind::NeuralMaterial | SamplerKind::Measured => {
-            unreachable!("not trained")
-        }
+        SamplerKind::Cosine => unreachable!("not trained"),
     }
 }
 
@@ -104,9 +102,7 @@ fn expected_len(m: SamplerKind) -> usize {
         SamplerKind::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::HistogramMixture => HistogramMixtureSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::Reparam => ReparamSampler::<&[f32]>::PARAM_COUNT,
-        SamplerKind::Cosine | SamplerKind::NeuralMaterial | SamplerKind::Measured => {
-            unreachable!("not trained")
-        }
+        SamplerKind::Cosine => unreachable!("not trained"),
     }
 }
 

@@ -79,7 +79,7 @@ typedef enum NsStatus {
   NS_ERR_BLOB_OTHER = 29,
 } NsStatus;
 
-// What a blob holds (`neusample::SamplerKind`).
+// What a blob holds (`neusample::BlobKind`; each constant is the kind's blob tag).
 typedef enum NsKind {
   // Cosine-hemisphere sampling.
   NS_KIND_COSINE = 0,

@@ -2,7 +2,7 @@
 //! views, and the opaque handles.
 
 use neusample::wavefront::AnyLane;
-use neusample::{DType, Interpolation, SamplerKind, FEATURE_DIM};
+use neusample::{BlobKind, DType, Interpolation, SamplerKind, FEATURE_DIM};
 use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedMeasuredBlob, OwnedSampler};
 
 /// The result of every call. `NS_OK` is 0; errors are positive; `NS_REFUSED` (a scalar call
@@ -70,7 +70,7 @@ pub enum NsStatus {
     NS_ERR_BLOB_OTHER = 29,
 }
 
-/// What a blob holds (`neusample::SamplerKind`).
+/// What a blob holds (`neusample::BlobKind`; each constant is the kind's blob tag).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 #[allow(non_camel_case_types)]
@@ -101,21 +101,28 @@ pub enum NsKind {
     NS_KIND_MEASURED = 10,
 }
 
+impl From<BlobKind> for NsKind {
+    /// The constant whose value is the kind's blob tag ([`BlobKind::tag`]; tested).
+    fn from(k: BlobKind) -> Self {
+        match k {
+            BlobKind::Sampler(SamplerKind::Cosine) => NsKind::NS_KIND_COSINE,
+            BlobKind::Sampler(SamplerKind::ImprovedBaseline) => NsKind::NS_KIND_IMPROVED_BASELINE,
+            BlobKind::Sampler(SamplerKind::AnalyticMixture) => NsKind::NS_KIND_ANALYTIC_MIXTURE,
+            BlobKind::Sampler(SamplerKind::Flow) => NsKind::NS_KIND_FLOW,
+            BlobKind::Sampler(SamplerKind::AffineFlow) => NsKind::NS_KIND_AFFINE_FLOW,
+            BlobKind::Sampler(SamplerKind::DirectHistogram) => NsKind::NS_KIND_DIRECT_HISTOGRAM,
+            BlobKind::Sampler(SamplerKind::HistogramMixture) => NsKind::NS_KIND_HISTOGRAM_MIXTURE,
+            BlobKind::NeuralMaterial => NsKind::NS_KIND_NEURAL_MATERIAL,
+            BlobKind::Sampler(SamplerKind::Reparam) => NsKind::NS_KIND_REPARAM,
+            BlobKind::Sampler(SamplerKind::DiskFlow) => NsKind::NS_KIND_DISK_FLOW,
+            BlobKind::Measured => NsKind::NS_KIND_MEASURED,
+        }
+    }
+}
+
 impl From<SamplerKind> for NsKind {
     fn from(k: SamplerKind) -> Self {
-        match k {
-            SamplerKind::Cosine => NsKind::NS_KIND_COSINE,
-            SamplerKind::ImprovedBaseline => NsKind::NS_KIND_IMPROVED_BASELINE,
-            SamplerKind::AnalyticMixture => NsKind::NS_KIND_ANALYTIC_MIXTURE,
-            SamplerKind::Flow => NsKind::NS_KIND_FLOW,
-            SamplerKind::AffineFlow => NsKind::NS_KIND_AFFINE_FLOW,
-            SamplerKind::DirectHistogram => NsKind::NS_KIND_DIRECT_HISTOGRAM,
-            SamplerKind::HistogramMixture => NsKind::NS_KIND_HISTOGRAM_MIXTURE,
-            SamplerKind::NeuralMaterial => NsKind::NS_KIND_NEURAL_MATERIAL,
-            SamplerKind::Reparam => NsKind::NS_KIND_REPARAM,
-            SamplerKind::DiskFlow => NsKind::NS_KIND_DISK_FLOW,
-            SamplerKind::Measured => NsKind::NS_KIND_MEASURED,
-        }
+        BlobKind::Sampler(k).into()
     }
 }
 
@@ -331,4 +338,21 @@ pub struct NsPrepared {
     pub(crate) lane: AnyLane,
     /// Address of the sampler that prepared it (0: none yet).
     pub(crate) owner: usize,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every C constant is its kind's blob tag, so a C caller can compare it with the header.
+    #[test]
+    fn ns_kind_is_the_blob_tag() {
+        let kinds = SamplerKind::ALL
+            .into_iter()
+            .map(BlobKind::Sampler)
+            .chain([BlobKind::NeuralMaterial, BlobKind::Measured]);
+        for k in kinds {
+            assert_eq!(NsKind::from(k) as u32, k.tag(), "{k:?}");
+        }
+    }
 }

@@ -24,7 +24,9 @@ pub mod measured;
 use std::path::Path;
 use std::sync::Arc;
 
-use neusample::{Blob, BlobSampler, Error, MeasuredMaterial, NeuralMaterial, SamplerKind, Tensor};
+use neusample::{
+    Blob, BlobKind, BlobSampler, Error, MeasuredMaterial, NeuralMaterial, SamplerKind, Tensor,
+};
 
 /// The blob's bytes in 16-byte aligned storage (the format aligns tensors to 16 bytes
 /// relative to the blob's start, so f32 tensors become aligned slices).
@@ -123,9 +125,9 @@ impl OwnedBlob {
         self.0.borrow_owner().bytes()
     }
 
-    /// The kind stored in the header.
+    /// What the blob holds.
     #[must_use]
-    pub fn kind(&self) -> SamplerKind {
+    pub fn kind(&self) -> BlobKind {
         self.blob().kind()
     }
 }
@@ -343,7 +345,7 @@ mod tests {
         drop(blob);
         assert_eq!(sampler.kind(), SamplerKind::Flow);
         let m = OwnedBlob::open(&fixture("materials/neural/goat_leather_neural.nsb")).unwrap();
-        assert_eq!(m.kind(), SamplerKind::NeuralMaterial);
+        assert_eq!(m.kind(), BlobKind::NeuralMaterial);
         let mat = OwnedMaterial::new(&m).unwrap();
         assert!(matches!(
             OwnedSampler::new(&m),

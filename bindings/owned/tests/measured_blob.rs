@@ -8,8 +8,8 @@
 use neusample::blob::MEASURED_SHAPE_LEN;
 use neusample::wavefront::{RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
 use neusample::{
-    Blob, BlobWriter, DType, Error, MeasuredMaterial, MeasuredShape, MeasuredTables, SamplerKind,
-    TensorRole, Vec2, Vec3, Weights,
+    Blob, BlobKind, BlobWriter, DType, Error, MeasuredMaterial, MeasuredShape, MeasuredTables,
+    SamplerKind, TensorRole, Vec2, Vec3, Weights,
 };
 use neusample_owned::measured::OwnedMeasured;
 use neusample_owned::{OwnedBlob, OwnedMeasuredBlob};
@@ -165,7 +165,7 @@ fn fixture_blobs_match_their_files_bit_for_bit() {
         let owned = OwnedMeasured::open(&fixtures().join(file)).unwrap();
         let bytes = blob_of(owned.material());
         let blob = Blob::open(&bytes).unwrap_or_else(|e| panic!("{file}: {e}"));
-        assert_eq!(blob.kind(), SamplerKind::Measured);
+        assert_eq!(blob.kind(), BlobKind::Measured);
         assert_eq!(blob.header().dtype, DType::F32);
         let m = blob.measured().unwrap();
         assert_eq!(m.shape(), owned.material().shape());
@@ -234,29 +234,25 @@ fn measured_blobs_are_not_samplers_and_other_kinds_not_measured() {
     assert_eq!(
         blob.sampler().err(),
         Some(Error::NotASampler {
-            found: SamplerKind::Measured
+            found: BlobKind::Measured
         })
     );
     assert!(matches!(
         blob.neural_material().err(),
         Some(Error::WrongKind {
-            expected: SamplerKind::NeuralMaterial,
-            found: SamplerKind::Measured
+            expected: BlobKind::NeuralMaterial,
+            found: BlobKind::Measured
         })
     ));
-    assert!(!SamplerKind::Measured.is_sampler());
-    assert!(!SamplerKind::ALL.contains(&SamplerKind::Measured));
-    assert_eq!(
-        SamplerKind::from_name("measured"),
-        Some(SamplerKind::Measured)
-    );
+    assert!(BlobKind::Measured.sampler().is_none());
+    assert_eq!(BlobKind::from_name("measured"), Some(BlobKind::Measured));
     let cosine = BlobWriter::new(SamplerKind::Cosine, DType::F32, "").to_bytes();
     let err = OwnedMeasuredBlob::new(&OwnedBlob::from_bytes(&cosine).unwrap()).err();
     assert!(matches!(
         err,
         Some(Error::WrongKind {
-            expected: SamplerKind::Measured,
-            found: SamplerKind::Cosine
+            expected: BlobKind::Measured,
+            found: BlobKind::Sampler(SamplerKind::Cosine)
         })
     ));
 }
@@ -297,7 +293,7 @@ fn parts<W: Weights>(m: &MeasuredMaterial<W>) -> (Vec<f32>, Vec<f32>) {
 }
 
 fn written(shape: &[f32], tables: &[f32]) -> Vec<u8> {
-    let mut w = BlobWriter::new(SamplerKind::Measured, DType::F32, "");
+    let mut w = BlobWriter::new(BlobKind::Measured, DType::F32, "");
     w.tensor(TensorRole::Shape, shape);
     w.tensor(TensorRole::Tables, tables);
     w.to_bytes()
@@ -434,7 +430,7 @@ fn bad_shapes_and_tables_are_typed_errors() {
 fn f16_storage_is_refused() {
     let (shape, tables) = parts(&anisotropic());
     // The header's dtype.
-    let mut w = BlobWriter::new(SamplerKind::Measured, DType::F16, "");
+    let mut w = BlobWriter::new(BlobKind::Measured, DType::F16, "");
     w.tensor(TensorRole::Shape, &shape);
     w.tensor(TensorRole::Tables, &tables);
     assert_eq!(
@@ -458,7 +454,7 @@ fn f16_storage_is_refused() {
 #[test]
 fn wrong_header_fields_and_tensors_are_refused() {
     let (shape, tables) = parts(&anisotropic());
-    let mut w = BlobWriter::new(SamplerKind::Measured, DType::F32, "");
+    let mut w = BlobWriter::new(BlobKind::Measured, DType::F32, "");
     w.tensor(TensorRole::Shape, &shape);
     w.tensor(TensorRole::Tables, &tables);
     let mut bad = w.clone();
@@ -479,13 +475,13 @@ fn wrong_header_fields_and_tensors_are_refused() {
         Error::HeaderInvalid
     );
     // A missing tensor, an unexpected one.
-    let mut only_shape = BlobWriter::new(SamplerKind::Measured, DType::F32, "");
+    let mut only_shape = BlobWriter::new(BlobKind::Measured, DType::F32, "");
     only_shape.tensor(TensorRole::Shape, &shape);
     assert_eq!(open_err(&only_shape.to_bytes()), Error::HeaderInvalid);
     let mut extra = w.clone();
     extra.tensor(TensorRole::Params, &[1.0]);
     assert_eq!(open_err(&extra.to_bytes()), Error::HeaderInvalid);
-    let mut swapped = BlobWriter::new(SamplerKind::Measured, DType::F32, "");
+    let mut swapped = BlobWriter::new(BlobKind::Measured, DType::F32, "");
     swapped.tensor(TensorRole::Shape, &shape);
     swapped.tensor(TensorRole::Params, &tables);
     assert!(matches!(

@@ -32,7 +32,6 @@ fn train_sampler<'py>(
     f16: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let method = SamplerKind::from_name(&method)
-        .filter(|k| k.is_sampler())
         .ok_or_else(|| PyValueError::new_err(format!("unknown method {method:?}")))?;
     if !(steps_scale > 0.0 && steps_scale.is_finite()) {
         return Err(PyValueError::new_err("steps_scale must be positive"));

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::kind::{DType, Interpolation, SamplerKind};
+use crate::kind::{BlobKind, DType, Interpolation};
 
 /// The 8 bytes every blob starts with.
 pub const MAGIC: [u8; 8] = *b"NEUSAMP\0";
@@ -99,13 +99,13 @@ impl TensorRole {
 /// The blob header (postcard-encoded after the preamble).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Header<'a> {
-    /// The sampler kind.
-    pub kind: SamplerKind,
+    /// What the blob holds (stored as its [`BlobKind::tag`]).
+    pub kind: BlobKind,
     /// Storage type of the network parameters and of the histogram table.
     pub dtype: DType,
     /// Length of φ the sampler was trained for (this build: [`FEATURE_DIM`](crate::FEATURE_DIM)).
     pub feature_dim: u32,
-    /// Number of network parameters ([`SamplerKind::param_count`]).
+    /// Number of network parameters ([`BlobKind::param_count`]).
     pub param_count: u32,
     /// Histogram mixture: number of bases K; 0 otherwise.
     pub basis: u32,

@@ -1,5 +1,5 @@
 //! What [`Blob::open`](super::Blob::open) checks of a measured-material blob
-//! ([`SamplerKind::Measured`](crate::SamplerKind::Measured)), and how its two tensors become a
+//! ([`BlobKind::Measured`](crate::BlobKind::Measured)), and how its two tensors become a
 //! [`MeasuredMaterial`]: the `shape` tensor read as exact integers, the `tables` tensor split
 //! into the 11 tables without copying, and the running integrals of the VNDF and luminance
 //! slices compared with their values (what [`MeasuredMaterial::new`] does not check).

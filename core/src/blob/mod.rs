@@ -1,5 +1,5 @@
 //! The blob container: one versioned, checksummed file format for every sampler, for the
-//! neural materials they sample ([`SamplerKind::NeuralMaterial`](crate::SamplerKind),
+//! neural materials they sample ([`BlobKind::NeuralMaterial`](crate::BlobKind),
 //! [`Blob::neural_material`]) and for measured materials ([`Blob::measured`]).
 //!
 //! The byte layout is specified in `core/BLOB.md`. In short:

@@ -1,14 +1,10 @@
 //! [`Blob`]: a validated blob borrowing its bytes, and the samplers built from it.
 
 use crate::error::{Error, Result};
-use crate::kind::SamplerKind;
+use crate::kind::{BlobKind, SamplerKind};
 use crate::neural_material::NeuralMaterial;
 use crate::samplers::histogram_mixture;
-use crate::samplers::{
-    AffineFlowSampler, AnalyticMixtureSampler, AnySampler, CosineSampler, Defensive,
-    DirectHistogramSampler, DiskFlowSampler, FlowSampler, HistogramMixtureSampler,
-    ImprovedBaselineSampler, ReparamSampler,
-};
+use crate::samplers::{AnySampler, BlobSource, Defensive, FromBlob};
 use crate::weights::{Tensor, Weights};
 
 use super::format::{
@@ -17,13 +13,16 @@ use super::format::{
 };
 use super::validate::{check_dims, check_finite, required, COUNT_FROM_SHAPE};
 
+/// Each role's directory entry and stored bytes, where the blob has that tensor.
+type Tensors<'a> = [Option<(TensorEntry, &'a [u8])>; ROLES];
+
 /// A validated blob, borrowing its bytes.
 #[derive(Copy, Clone, Debug)]
 pub struct Blob<'a> {
     header: Header<'a>,
     version: u32,
     extension: Extension,
-    tensors: [Option<(TensorEntry, &'a [u8])>; ROLES],
+    tensors: Tensors<'a>,
 }
 
 impl<'a> Blob<'a> {
@@ -37,136 +36,24 @@ impl<'a> Blob<'a> {
     /// [`MeasuredMaterial::new`](crate::MeasuredMaterial::new) checks and the running
     /// integrals of its VNDF and luminance slices.
     pub fn open(bytes: &'a [u8]) -> Result<Blob<'a>> {
-        let got = bytes.len() as u64;
-        let min = (PREAMBLE_LEN + CHECKSUM_LEN) as u64;
-        if got < 8 {
-            // Too short to tell anything but a prefix of the magic.
-            if bytes == &MAGIC[..bytes.len()] {
-                return Err(Error::Truncated { needed: min, got });
-            }
-            return Err(Error::BadMagic);
-        }
-        // rust-gpu: element-wise, because `[u8] == [u8; N]` lowers to the `raw_eq` intrinsic,
-        // which rust-gpu does not implement (ICE).
-        let mut k = 0;
-        while k < MAGIC.len() {
-            if bytes[k] != MAGIC[k] {
-                return Err(Error::BadMagic);
-            }
-            k += 1;
-        }
-        if got < 12 {
-            return Err(Error::Truncated { needed: min, got });
-        }
-        let version = u32_at(bytes, 8);
-        if version < MIN_FORMAT_VERSION || version > FORMAT_VERSION {
-            return Err(Error::UnsupportedVersion {
-                found: version,
-                supported: FORMAT_VERSION,
-            });
-        }
-        if got < min {
-            return Err(Error::Truncated { needed: min, got });
-        }
-        let total = u32_at(bytes, 12) as u64;
-        if total < min {
-            return Err(Error::HeaderInvalid);
-        }
-        if got < total {
-            return Err(Error::Truncated { needed: total, got });
-        }
-        if got > total {
-            // Trailing bytes after the checksum: not a blob we wrote.
-            return Err(Error::HeaderInvalid);
-        }
-        let body = bytes.len() - CHECKSUM_LEN;
-        let stored = u32_at(bytes, body);
-        let computed = crc32fast::hash(&bytes[..body]);
-        if stored != computed {
-            return Err(Error::ChecksumMismatch { stored, computed });
-        }
-
-        let header_len = u32_at(bytes, 16) as usize;
-        let header_end = PREAMBLE_LEN
-            .checked_add(header_len)
-            .filter(|&e| e <= body)
-            .ok_or(Error::HeaderInvalid)?;
-        let header_bytes = &bytes[PREAMBLE_LEN..header_end];
-        let (header, mut rest): (Header<'a>, &'a [u8]) =
-            postcard::take_from_bytes(header_bytes).map_err(|_| Error::HeaderDecode)?;
-        if header.label.len() > MAX_LABEL_LEN {
-            return Err(Error::HeaderInvalid);
-        }
-        check_dims(&header)?;
-        let mut extension = Extension::default();
-        if version >= 2 {
-            let (e, r): (Extension, &'a [u8]) =
-                postcard::take_from_bytes(rest).map_err(|_| Error::HeaderDecode)?;
-            check_defensive(header.kind, e.defensive)?;
-            extension = e;
-            rest = r;
-        }
-
-        let (req, req_count) = required(&header);
-        if header.tensor_count as usize != req_count {
-            return Err(Error::HeaderInvalid);
-        }
-        let data_start = header_end.div_ceil(DATA_ALIGN) * DATA_ALIGN;
-        let mut tensors: [Option<(TensorEntry, &'a [u8])>; ROLES] = [None; ROLES];
-        for _ in 0..req_count {
-            let (e, r): (TensorEntry, &'a [u8]) =
-                postcard::take_from_bytes(rest).map_err(|_| Error::HeaderDecode)?;
-            rest = r;
-            let slot = e.role.index();
-            let role = e.role.name();
-            let Some((_, expected, dtype)) = req[slot] else {
-                return Err(Error::TensorMissing { role });
-            };
-            if tensors[slot].is_some() {
-                return Err(Error::TensorMissing { role });
-            }
-            let want_dtype = dtype.unwrap_or(header.dtype);
-            if e.dtype != want_dtype {
-                return Err(Error::TensorDType {
-                    role,
-                    found: e.dtype,
-                });
-            }
-            if expected != COUNT_FROM_SHAPE && e.count as u64 != expected {
-                return Err(Error::TensorShape {
-                    role,
-                    expected: expected.min(u32::MAX as u64) as u32,
-                    found: e.count,
-                });
-            }
-            let start = e.offset as usize;
-            let len = (e.count as usize)
-                .checked_mul(e.dtype.size())
-                .ok_or(Error::TensorBounds { role })?;
-            let end = start.checked_add(len).ok_or(Error::TensorBounds { role })?;
-            if !start.is_multiple_of(DATA_ALIGN) || start < data_start || end > body {
-                return Err(Error::TensorBounds { role });
-            }
-            let data = &bytes[start..end];
-            check_finite(role, e.dtype, data)?;
-            tensors[slot] = Some((e, data));
-        }
-        if !rest.is_empty() {
-            return Err(Error::HeaderInvalid);
-        }
-        for (slot, r) in req.iter().enumerate() {
-            if let Some((role, _, _)) = r {
-                if tensors[slot].is_none() {
-                    return Err(Error::TensorMissing { role: role.name() });
-                }
-            }
-        }
+        let (version, body) = check_preamble(bytes)?;
+        let (header, extension, directory, header_end) = decode_header(bytes, version, body)?;
+        let tensors = read_directory(bytes, &header, directory, header_end, body)?;
         let blob = Blob {
             header,
             version,
             extension,
             tensors,
         };
+        blob.check_tables()?;
+        Ok(blob)
+    }
+
+    /// The kind's table checks, once the layout is valid: the histogram mixture's slices
+    /// and CDFs, a measured material's shape, tables and integrals.
+    fn check_tables(&self) -> Result<()> {
+        let header = self.header;
+        let blob = self;
         if header.kind == SamplerKind::HistogramMixture && blob.is_compact() {
             histogram_mixture::validate_compact_tables(
                 &blob.tensor_or_empty(TensorRole::Mass),
@@ -176,7 +63,7 @@ impl<'a> Blob<'a> {
                 header.t_levels,
                 header.resolution,
             )?;
-        } else if header.kind == SamplerKind::Measured {
+        } else if header.kind == BlobKind::Measured {
             blob.check_measured()?;
         } else if header.kind == SamplerKind::HistogramMixture {
             histogram_mixture::validate_tables(
@@ -189,7 +76,7 @@ impl<'a> Blob<'a> {
                 header.resolution,
             )?;
         }
-        Ok(blob)
+        Ok(())
     }
 
     /// The header.
@@ -198,9 +85,9 @@ impl<'a> Blob<'a> {
         &self.header
     }
 
-    /// The sampler kind.
+    /// What the blob holds.
     #[must_use]
-    pub fn kind(&self) -> SamplerKind {
+    pub fn kind(&self) -> BlobKind {
         self.header.kind
     }
 
@@ -269,7 +156,7 @@ impl<'a> Blob<'a> {
             && self.tensors[TensorRole::Table.index()].is_none()
     }
 
-    fn expect(&self, kind: SamplerKind) -> Result<()> {
+    fn expect(&self, kind: BlobKind) -> Result<()> {
         if self.header.kind == kind {
             Ok(())
         } else {
@@ -280,98 +167,19 @@ impl<'a> Blob<'a> {
         }
     }
 
-    fn params(&self) -> Tensor<'a> {
-        self.tensor_or_empty(TensorRole::Params)
-    }
-
-    /// The improved baseline sampler (with the blob's defensive weight), or
-    /// [`Error::WrongKind`].
-    pub fn improved_baseline(&self) -> Result<Defensive<ImprovedBaselineSampler<Tensor<'a>>>> {
-        self.expect(SamplerKind::ImprovedBaseline)?;
-        let s = ImprovedBaselineSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
+    /// The sampler of type `S` (with the blob's defensive weight), or [`Error::WrongKind`]
+    /// when the blob holds another kind: `blob.sampler_as::<FlowSampler<_>>()`.
+    pub fn sampler_as<S: FromBlob<'a>>(&self) -> Result<Defensive<S>> {
+        self.expect(BlobKind::Sampler(S::KIND))?;
+        let s = S::from_blob(self).ok_or(Error::HeaderInvalid)?;
         Ok(self.defend(s))
-    }
-
-    /// The analytic mixture sampler, or [`Error::WrongKind`].
-    pub fn analytic_mixture(&self) -> Result<Defensive<AnalyticMixtureSampler<Tensor<'a>>>> {
-        self.expect(SamplerKind::AnalyticMixture)?;
-        let s = AnalyticMixtureSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
-        Ok(self.defend(s))
-    }
-
-    /// The RQ-spline flow sampler, or [`Error::WrongKind`].
-    pub fn flow(&self) -> Result<Defensive<FlowSampler<Tensor<'a>>>> {
-        self.expect(SamplerKind::Flow)?;
-        let s = FlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
-        Ok(self.defend(s))
-    }
-
-    /// The disk flow sampler, or [`Error::WrongKind`].
-    pub fn disk_flow(&self) -> Result<Defensive<DiskFlowSampler<Tensor<'a>>>> {
-        self.expect(SamplerKind::DiskFlow)?;
-        let s = DiskFlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
-        Ok(self.defend(s))
-    }
-
-    /// The affine-coupling flow sampler, or [`Error::WrongKind`].
-    pub fn affine_flow(&self) -> Result<Defensive<AffineFlowSampler<Tensor<'a>>>> {
-        self.expect(SamplerKind::AffineFlow)?;
-        let s = AffineFlowSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
-        Ok(self.defend(s))
-    }
-
-    /// The reparameterization sampler (with the blob's defensive weight), or
-    /// [`Error::WrongKind`].
-    pub fn reparam(&self) -> Result<Defensive<ReparamSampler<Tensor<'a>>>> {
-        self.expect(SamplerKind::Reparam)?;
-        let s = ReparamSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
-        Ok(self.defend(s))
-    }
-
-    /// The direct histogram sampler, or [`Error::WrongKind`].
-    pub fn direct_histogram(&self) -> Result<Defensive<DirectHistogramSampler<Tensor<'a>>>> {
-        self.expect(SamplerKind::DirectHistogram)?;
-        let s = DirectHistogramSampler::new(self.params()).ok_or(Error::HeaderInvalid)?;
-        Ok(self.defend(s))
-    }
-
-    /// The histogram mixture sampler, or [`Error::WrongKind`].
-    pub fn histogram_mixture(&self) -> Result<Defensive<HistogramMixtureSampler<Tensor<'a>>>> {
-        Ok(self.defend(self.histogram_mixture_part()?))
-    }
-
-    fn histogram_mixture_part(&self) -> Result<HistogramMixtureSampler<Tensor<'a>>> {
-        self.expect(SamplerKind::HistogramMixture)?;
-        if self.is_compact() {
-            return HistogramMixtureSampler::new_compact(
-                self.params(),
-                self.tensor_or_empty(TensorRole::Mass),
-                self.tensor_or_empty(TensorRole::Marginal),
-                self.tensor_or_empty(TensorRole::Conditional),
-                self.header.t_levels,
-                self.header.resolution,
-                self.header.interpolation,
-            )
-            .ok_or(Error::HeaderInvalid);
-        }
-        HistogramMixtureSampler::new(
-            self.params(),
-            self.tensor_or_empty(TensorRole::Mass),
-            self.tensor_or_empty(TensorRole::Table),
-            self.tensor_or_empty(TensorRole::Marginal),
-            self.tensor_or_empty(TensorRole::Conditional),
-            self.header.t_levels,
-            self.header.resolution,
-            self.header.interpolation,
-        )
-        .ok_or(Error::HeaderInvalid)
     }
 
     /// The neural material (feature texture + decoder, [`crate::neural_material`]), or
     /// [`Error::WrongKind`]. Its texture is `header().resolution` texels wide and
     /// `header().t_levels` high.
     pub fn neural_material(&self) -> Result<NeuralMaterial<Tensor<'a>>> {
-        self.expect(SamplerKind::NeuralMaterial)?;
+        self.expect(BlobKind::NeuralMaterial)?;
         NeuralMaterial::new(
             self.tensor_or_empty(TensorRole::Features),
             self.params(),
@@ -388,7 +196,7 @@ impl<'a> Blob<'a> {
     /// so call it once per material.
     #[cfg(not(target_arch = "spirv"))]
     pub fn measured(&self) -> Result<crate::measured::MeasuredMaterial<Tensor<'a>>> {
-        self.expect(SamplerKind::Measured)?;
+        self.expect(BlobKind::Measured)?;
         super::measured::material(
             &self.tensor_or_empty(TensorRole::Shape),
             &self.tensor_or_empty(TensorRole::Tables),
@@ -403,8 +211,8 @@ impl<'a> Blob<'a> {
         // opens there.
         #[cfg(target_arch = "spirv")]
         Err(Error::WrongKind {
-            expected: SamplerKind::Cosine,
-            found: SamplerKind::Measured,
+            expected: BlobKind::Sampler(SamplerKind::Cosine),
+            found: BlobKind::Measured,
         })
     }
 
@@ -412,37 +220,178 @@ impl<'a> Blob<'a> {
     /// ([`Blob::defensive`]; 0, a plain pass-through, for version-1 blobs). A neural-material
     /// or measured-material blob holds no sampler: [`Error::NotASampler`].
     pub fn sampler(&self) -> Result<crate::samplers::BlobSampler<'a>> {
-        let any = match self.header.kind {
-            SamplerKind::Cosine => AnySampler::Cosine(CosineSampler),
-            SamplerKind::ImprovedBaseline => {
-                AnySampler::ImprovedBaseline(*self.improved_baseline()?.inner())
-            }
-            SamplerKind::AnalyticMixture => {
-                AnySampler::AnalyticMixture(*self.analytic_mixture()?.inner())
-            }
-            SamplerKind::Flow => AnySampler::Flow(*self.flow()?.inner()),
-            SamplerKind::DiskFlow => AnySampler::DiskFlow(*self.disk_flow()?.inner()),
-            SamplerKind::AffineFlow => AnySampler::AffineFlow(*self.affine_flow()?.inner()),
-            SamplerKind::DirectHistogram => {
-                AnySampler::DirectHistogram(*self.direct_histogram()?.inner())
-            }
-            SamplerKind::HistogramMixture => {
-                AnySampler::HistogramMixture(self.histogram_mixture_part()?)
-            }
-            SamplerKind::Reparam => AnySampler::Reparam(*self.reparam()?.inner()),
-            SamplerKind::NeuralMaterial | SamplerKind::Measured => {
-                return Err(Error::NotASampler {
-                    found: self.header.kind,
-                })
-            }
+        let BlobKind::Sampler(kind) = self.header.kind else {
+            return Err(Error::NotASampler {
+                found: self.header.kind,
+            });
         };
+        let any = AnySampler::from_blob(kind, self).ok_or(Error::HeaderInvalid)?;
         Ok(self.defend(any))
     }
 }
 
+impl<'a> BlobSource<'a> for Blob<'a> {
+    fn tensor(&self, role: TensorRole) -> Option<Tensor<'a>> {
+        Blob::tensor(self, role)
+    }
+    fn header(&self) -> &Header<'a> {
+        &self.header
+    }
+}
+
+/// The preamble (magic, version, lengths) and the checksum: the blob's version and where its
+/// body (everything before the checksum) ends.
+fn check_preamble(bytes: &[u8]) -> Result<(u32, usize)> {
+    let got = bytes.len() as u64;
+    let min = (PREAMBLE_LEN + CHECKSUM_LEN) as u64;
+    if got < 8 {
+        // Too short to tell anything but a prefix of the magic.
+        if bytes == &MAGIC[..bytes.len()] {
+            return Err(Error::Truncated { needed: min, got });
+        }
+        return Err(Error::BadMagic);
+    }
+    // rust-gpu: element-wise, because `[u8] == [u8; N]` lowers to the `raw_eq` intrinsic,
+    // which rust-gpu does not implement (ICE).
+    let mut k = 0;
+    while k < MAGIC.len() {
+        if bytes[k] != MAGIC[k] {
+            return Err(Error::BadMagic);
+        }
+        k += 1;
+    }
+    if got < 12 {
+        return Err(Error::Truncated { needed: min, got });
+    }
+    let version = u32_at(bytes, 8);
+    if version < MIN_FORMAT_VERSION || version > FORMAT_VERSION {
+        return Err(Error::UnsupportedVersion {
+            found: version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    if got < min {
+        return Err(Error::Truncated { needed: min, got });
+    }
+    let total = u32_at(bytes, 12) as u64;
+    if total < min {
+        return Err(Error::HeaderInvalid);
+    }
+    if got < total {
+        return Err(Error::Truncated { needed: total, got });
+    }
+    if got > total {
+        // Trailing bytes after the checksum: not a blob we wrote.
+        return Err(Error::HeaderInvalid);
+    }
+    let body = bytes.len() - CHECKSUM_LEN;
+    let stored = u32_at(bytes, body);
+    let computed = crc32fast::hash(&bytes[..body]);
+    if stored != computed {
+        return Err(Error::ChecksumMismatch { stored, computed });
+    }
+    Ok((version, body))
+}
+
+/// The postcard header and, from version 2, its extension: the header, the extension, the
+/// bytes of the tensor directory that follows and where the header ends.
+fn decode_header<'a>(
+    bytes: &'a [u8],
+    version: u32,
+    body: usize,
+) -> Result<(Header<'a>, Extension, &'a [u8], usize)> {
+    let header_len = u32_at(bytes, 16) as usize;
+    let header_end = PREAMBLE_LEN
+        .checked_add(header_len)
+        .filter(|&e| e <= body)
+        .ok_or(Error::HeaderInvalid)?;
+    let header_bytes = &bytes[PREAMBLE_LEN..header_end];
+    let (header, mut rest): (Header<'a>, &'a [u8]) =
+        postcard::take_from_bytes(header_bytes).map_err(|_| Error::HeaderDecode)?;
+    if header.label.len() > MAX_LABEL_LEN {
+        return Err(Error::HeaderInvalid);
+    }
+    check_dims(&header)?;
+    let mut extension = Extension::default();
+    if version >= 2 {
+        let (e, r): (Extension, &'a [u8]) =
+            postcard::take_from_bytes(rest).map_err(|_| Error::HeaderDecode)?;
+        check_defensive(header.kind, e.defensive)?;
+        extension = e;
+        rest = r;
+    }
+    Ok((header, extension, rest, header_end))
+}
+
+/// The tensor directory: every tensor the header's kind requires, with its role, type,
+/// count, alignment, bounds and finiteness checked.
+fn read_directory<'a>(
+    bytes: &'a [u8],
+    header: &Header<'a>,
+    mut rest: &'a [u8],
+    header_end: usize,
+    body: usize,
+) -> Result<Tensors<'a>> {
+    let (req, req_count) = required(header);
+    if header.tensor_count as usize != req_count {
+        return Err(Error::HeaderInvalid);
+    }
+    let data_start = header_end.div_ceil(DATA_ALIGN) * DATA_ALIGN;
+    let mut tensors: Tensors<'a> = [None; ROLES];
+    for _ in 0..req_count {
+        let (e, r): (TensorEntry, &'a [u8]) =
+            postcard::take_from_bytes(rest).map_err(|_| Error::HeaderDecode)?;
+        rest = r;
+        let slot = e.role.index();
+        let role = e.role.name();
+        let Some((_, expected, dtype)) = req[slot] else {
+            return Err(Error::TensorMissing { role });
+        };
+        if tensors[slot].is_some() {
+            return Err(Error::TensorMissing { role });
+        }
+        let want_dtype = dtype.unwrap_or(header.dtype);
+        if e.dtype != want_dtype {
+            return Err(Error::TensorDType {
+                role,
+                found: e.dtype,
+            });
+        }
+        if expected != COUNT_FROM_SHAPE && e.count as u64 != expected {
+            return Err(Error::TensorShape {
+                role,
+                expected: expected.min(u32::MAX as u64) as u32,
+                found: e.count,
+            });
+        }
+        let start = e.offset as usize;
+        let len = (e.count as usize)
+            .checked_mul(e.dtype.size())
+            .ok_or(Error::TensorBounds { role })?;
+        let end = start.checked_add(len).ok_or(Error::TensorBounds { role })?;
+        if !start.is_multiple_of(DATA_ALIGN) || start < data_start || end > body {
+            return Err(Error::TensorBounds { role });
+        }
+        let data = &bytes[start..end];
+        check_finite(role, e.dtype, data)?;
+        tensors[slot] = Some((e, data));
+    }
+    if !rest.is_empty() {
+        return Err(Error::HeaderInvalid);
+    }
+    for (slot, r) in req.iter().enumerate() {
+        if let Some((role, _, _)) = r {
+            if tensors[slot].is_none() {
+                return Err(Error::TensorMissing { role: role.name() });
+            }
+        }
+    }
+    Ok(tensors)
+}
+
 /// The defensive weight must be a number in [0, 1), and 0 for a neural material.
-fn check_defensive(kind: SamplerKind, alpha: f32) -> Result<()> {
-    let ok = if kind.is_sampler() {
+fn check_defensive(kind: BlobKind, alpha: f32) -> Result<()> {
+    let ok = if kind.sampler().is_some() {
         alpha >= 0.0 && alpha < 1.0
     } else {
         alpha == 0.0

@@ -4,7 +4,7 @@
 //! [`validate_tables`](crate::samplers::histogram_mixture::validate_tables).
 
 use crate::error::{Error, Result};
-use crate::kind::{DType, SamplerKind};
+use crate::kind::{BlobKind, DType, SamplerKind};
 use crate::neural_material;
 use crate::nn::FEATURE_DIM;
 use crate::samplers::{direct_histogram, histogram_mixture};
@@ -25,16 +25,16 @@ pub(crate) fn required(h: &Header<'_>) -> ([Requirement; ROLES], usize) {
     let p = h.param_count as u64;
     let (k, t, n) = (h.basis as u64, h.t_levels as u64, h.resolution as u64);
     let count = match h.kind {
-        SamplerKind::Cosine => 0,
+        BlobKind::Sampler(SamplerKind::Cosine) => 0,
         // Four tensors: the compact layout (no values, u16 CDFs); five: values + f32 CDFs.
-        SamplerKind::HistogramMixture if h.tensor_count == 4 => {
+        BlobKind::Sampler(SamplerKind::HistogramMixture) if h.tensor_count == 4 => {
             r[0] = Some((TensorRole::Params, p, None));
             r[1] = Some((TensorRole::Mass, k * t, Some(DType::F32)));
             r[3] = Some((TensorRole::Marginal, k * t * n, Some(DType::F32)));
             r[4] = Some((TensorRole::Conditional, k * t * n * n, Some(DType::U16)));
             4
         }
-        SamplerKind::HistogramMixture => {
+        BlobKind::Sampler(SamplerKind::HistogramMixture) => {
             r[0] = Some((TensorRole::Params, p, None));
             r[1] = Some((TensorRole::Mass, k * t, Some(DType::F32)));
             r[2] = Some((TensorRole::Table, k * t * n * n, None));
@@ -42,7 +42,7 @@ pub(crate) fn required(h: &Header<'_>) -> ([Requirement; ROLES], usize) {
             r[4] = Some((TensorRole::Conditional, k * t * n * n, Some(DType::F32)));
             5
         }
-        SamplerKind::NeuralMaterial => {
+        BlobKind::NeuralMaterial => {
             r[0] = Some((TensorRole::Params, p, None));
             r[5] = Some((
                 TensorRole::Features,
@@ -51,7 +51,7 @@ pub(crate) fn required(h: &Header<'_>) -> ([Requirement; ROLES], usize) {
             ));
             2
         }
-        SamplerKind::Measured => {
+        BlobKind::Measured => {
             r[6] = Some((
                 TensorRole::Shape,
                 MEASURED_SHAPE_LEN as u64,
@@ -104,7 +104,7 @@ pub(crate) fn check_dims(h: &Header<'_>) -> Result<()> {
     check_dim("feature_dim", h.feature_dim, FEATURE_DIM as u32)?;
     check_dim("param_count", h.param_count, h.kind.param_count() as u32)?;
     match h.kind {
-        SamplerKind::HistogramMixture => {
+        BlobKind::Sampler(SamplerKind::HistogramMixture) => {
             check_dim("basis", h.basis, histogram_mixture::BASES as u32)?;
             check_range("t_levels", h.t_levels, 1, histogram_mixture::MAX_T as u32)?;
             check_range(
@@ -114,7 +114,7 @@ pub(crate) fn check_dims(h: &Header<'_>) -> Result<()> {
                 histogram_mixture::MAX_N as u32,
             )?;
         }
-        SamplerKind::DirectHistogram => {
+        BlobKind::Sampler(SamplerKind::DirectHistogram) => {
             check_dim("basis", h.basis, 0)?;
             check_dim("t_levels", h.t_levels, 0)?;
             check_dim(
@@ -123,12 +123,12 @@ pub(crate) fn check_dims(h: &Header<'_>) -> Result<()> {
                 direct_histogram::DIRECT_N as u32,
             )?;
         }
-        SamplerKind::NeuralMaterial => {
+        BlobKind::NeuralMaterial => {
             check_dim("basis", h.basis, 0)?;
             check_range("width", h.resolution, 1, neural_material::MAX_TEXTURE_SIZE)?;
             check_range("height", h.t_levels, 1, neural_material::MAX_TEXTURE_SIZE)?;
         }
-        SamplerKind::Measured => {
+        BlobKind::Measured => {
             // Sampling tables (CDFs) must stay exact: f32 only.
             if h.dtype != DType::F32 {
                 return Err(Error::TensorDType {

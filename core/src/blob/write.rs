@@ -1,7 +1,7 @@
 //! [`BlobWriter`]: builds blobs (the `alloc` feature). The trainer and the tests use it; the
 //! runtime only reads.
 
-use crate::kind::{DType, Interpolation, SamplerKind};
+use crate::kind::{BlobKind, DType, Interpolation, SamplerKind};
 use crate::nn::FEATURE_DIM;
 use crate::samplers::{direct_histogram, histogram_mixture};
 
@@ -20,11 +20,12 @@ pub struct BlobWriter<'l> {
 }
 
 impl<'l> BlobWriter<'l> {
-    /// A writer for a sampler of `kind` whose parameters (and table) are stored as `dtype`.
-    /// Dimensions are this build's; the histogram mixture also needs
-    /// [`BlobWriter::histogram_dims`].
+    /// A writer for a blob of `kind` (a [`SamplerKind`] or a [`BlobKind`]) whose parameters
+    /// (and table) are stored as `dtype`. Dimensions are this build's; the histogram mixture
+    /// also needs [`BlobWriter::histogram_dims`].
     #[must_use]
-    pub fn new(kind: SamplerKind, dtype: DType, label: &'l str) -> Self {
+    pub fn new(kind: impl Into<BlobKind>, dtype: DType, label: &'l str) -> Self {
+        let kind = kind.into();
         let resolution = if kind == SamplerKind::DirectHistogram {
             direct_histogram::DIRECT_N as u32
         } else {
@@ -69,7 +70,7 @@ impl<'l> BlobWriter<'l> {
         }
     }
 
-    /// A writer holding a measured material ([`SamplerKind::Measured`]): its `shape` tensor
+    /// A writer holding a measured material ([`BlobKind::Measured`]): its `shape` tensor
     /// (the sizes and the jacobian flag, as exact integers) and its 11 tables concatenated
     /// in the order of [`MeasuredShape::lens`](crate::MeasuredShape::lens), all f32.
     #[cfg(not(target_arch = "spirv"))]
@@ -85,7 +86,7 @@ impl<'l> BlobWriter<'l> {
         for p in parts {
             tables.extend((0..p.len()).map(|i| p.at(i)));
         }
-        let mut w = BlobWriter::new(SamplerKind::Measured, DType::F32, label);
+        let mut w = BlobWriter::new(BlobKind::Measured, DType::F32, label);
         w.tensor(
             TensorRole::Shape,
             &super::measured::shape_values(&shape, material.jacobian()),

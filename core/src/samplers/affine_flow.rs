@@ -16,7 +16,7 @@ use crate::weights::Weights;
 
 use super::coupling::{all_finite, condition_share, density_from_log, first_layer};
 pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
-use super::traits::{params_constructors, Held};
+use super::traits::Held;
 use super::{Prepared, Sample, Sampler};
 
 #[cfg(not(target_arch = "spirv"))]
@@ -69,12 +69,12 @@ pub struct AffineFlowSampler<W> {
     params: W,
 }
 
-impl<W: Weights> AffineFlowSampler<W> {
-    /// Length of the flat parameter array: four coupling networks (9608).
-    pub const PARAM_COUNT: usize = AFFINE_PARAM_COUNT;
-
-    params_constructors!();
-}
+super::traits::flat_params_sampler!(
+    AffineFlowSampler,
+    AffineFlow,
+    AFFINE_PARAM_COUNT,
+    "Length of the flat parameter array: four coupling networks (9608)."
+);
 
 /// The affine flow at one shading point without its weights handle (the lane of the batched
 /// API): the condition's share of every coupling network's first layer.

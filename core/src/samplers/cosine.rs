@@ -17,6 +17,18 @@ pub struct CosineSampler;
 #[derive(Copy, Clone, Debug, Default)]
 pub struct CosinePrepared;
 
+impl CosineSampler {
+    /// Number of parameters: none.
+    pub const PARAM_COUNT: usize = 0;
+}
+
+impl<'a> super::FromBlob<'a> for CosineSampler {
+    const KIND: crate::SamplerKind = crate::SamplerKind::Cosine;
+    fn from_blob(_: &impl super::BlobSource<'a>) -> Option<Self> {
+        Some(CosineSampler)
+    }
+}
+
 impl Sampler for CosineSampler {
     type Prepared<'s> = CosinePrepared;
     #[inline]

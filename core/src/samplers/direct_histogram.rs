@@ -11,7 +11,6 @@ use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_D
 use crate::warp;
 use crate::weights::Weights;
 
-use super::traits::params_constructors;
 use super::{Prepared, Sample, Sampler};
 
 /// Grid resolution of the direct histogram baseline (16 × 16 cells).
@@ -36,12 +35,14 @@ pub struct DirectHistogramSampler<W> {
     params: W,
 }
 
+super::traits::flat_params_sampler!(
+    DirectHistogramSampler,
+    DirectHistogram,
+    DIRECT_END,
+    "Number of parameters: `dense(30,64) dense(64,64) dense(64,256)` = 22784."
+);
+
 impl<W: Weights> DirectHistogramSampler<W> {
-    /// Number of parameters: `dense(30,64) dense(64,64) dense(64,256)` = 22784.
-    pub const PARAM_COUNT: usize = DIRECT_END;
-
-    params_constructors!();
-
     /// The raw network outputs (cell logits, index `r·16 + c`) for an encoded condition.
     #[inline]
     #[must_use]

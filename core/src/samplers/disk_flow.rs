@@ -42,7 +42,7 @@ use crate::weights::Weights;
 use super::coupling::HIDDEN;
 use super::coupling::{all_finite, condition_share, coupling_raw, density_from_log};
 use super::coupling::{COUPLING_L0, COUPLING_L1, COUPLING_L2};
-use super::traits::{params_constructors, Held};
+use super::traits::Held;
 use super::{Prepared, Sample, Sampler};
 
 #[cfg(not(target_arch = "spirv"))]
@@ -145,12 +145,12 @@ pub struct DiskFlowSampler<W> {
     params: W,
 }
 
-impl<W: Weights> DiskFlowSampler<W> {
-    /// Length of the flat parameter array: coupling 0, coupling 1 (8698).
-    pub const PARAM_COUNT: usize = DISK_FLOW_PARAM_COUNT;
-
-    params_constructors!();
-}
+super::traits::flat_params_sampler!(
+    DiskFlowSampler,
+    DiskFlow,
+    DISK_FLOW_PARAM_COUNT,
+    "Length of the flat parameter array: coupling 0, coupling 1 (8698)."
+);
 
 /// The disk flow at one shading point without its weights handle (the lane of the batched
 /// API): the condition's share of both coupling networks' first layers.

@@ -5,13 +5,14 @@
 
 use glam::{Vec2, Vec3};
 
+use crate::blob::TensorRole;
 use crate::distrib::gaussian;
 use crate::distrib::table2d::{cell_of, in_square, Table2D, TableLayout};
-use crate::kind::Interpolation;
+use crate::kind::{Interpolation, SamplerKind};
 use crate::math::{self, clamp_logit};
 use crate::nn::{self, check_condition, raw_condition, Activation, FEATURE_DIM, RAW_CONDITION_DIM};
 use crate::warp;
-use crate::weights::Weights;
+use crate::weights::{Tensor, Weights};
 
 use super::traits::Held;
 use super::{Prepared, Sample, Sampler};
@@ -63,6 +64,38 @@ pub struct HistogramMixtureSampler<W> {
     interpolation: Interpolation,
     /// How the tables are stored (`table` is a copy of `marginal` in the compact layout).
     layout: TableLayout,
+}
+
+impl<'a> super::FromBlob<'a> for HistogramMixtureSampler<Tensor<'a>> {
+    const KIND: SamplerKind = SamplerKind::HistogramMixture;
+    /// The compact layout when the blob has no values tensor, else the full one.
+    fn from_blob(src: &impl super::BlobSource<'a>) -> Option<Self> {
+        let h = src.header();
+        let t = |role| src.tensor(role).unwrap_or(Tensor::F32(&[]));
+        let (mass, marginal) = (t(TensorRole::Mass), t(TensorRole::Marginal));
+        let conditional = t(TensorRole::Conditional);
+        match src.tensor(TensorRole::Table) {
+            None => Self::new_compact(
+                src.params(),
+                mass,
+                marginal,
+                conditional,
+                h.t_levels,
+                h.resolution,
+                h.interpolation,
+            ),
+            Some(table) => Self::new(
+                src.params(),
+                mass,
+                table,
+                marginal,
+                conditional,
+                h.t_levels,
+                h.resolution,
+                h.interpolation,
+            ),
+        }
+    }
 }
 
 impl<W: Weights> HistogramMixtureSampler<W> {

@@ -27,7 +27,6 @@ use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_D
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
 
-use super::traits::params_constructors;
 use super::{Prepared, Sample, Sampler};
 
 /// Bound applied to every predicted Gaussian mean coordinate (NaN → −bound).
@@ -66,12 +65,14 @@ pub struct ImprovedBaselineSampler<W> {
     params: W,
 }
 
+super::traits::flat_params_sampler!(
+    ImprovedBaselineSampler,
+    ImprovedBaseline,
+    BASELINE_END,
+    "Number of parameters: `dense(30,32) dense(32,32) dense(32,32) dense(32,5)` = 3269."
+);
+
 impl<W: Weights> ImprovedBaselineSampler<W> {
-    /// Number of parameters: `dense(30,32) dense(32,32) dense(32,32) dense(32,5)` = 3269.
-    pub const PARAM_COUNT: usize = BASELINE_END;
-
-    params_constructors!();
-
     /// The raw network outputs `[μx, μy, log σ, a_L, a_G]` for an encoded condition.
     #[inline]
     #[must_use]
@@ -191,12 +192,14 @@ pub struct AnalyticMixtureSampler<W> {
     params: W,
 }
 
+super::traits::flat_params_sampler!(
+    AnalyticMixtureSampler,
+    AnalyticMixture,
+    ANALYTIC_END,
+    "Number of parameters: `dense(30,32) dense(32,11)` = 1355."
+);
+
 impl<W: Weights> AnalyticMixtureSampler<W> {
-    /// Number of parameters: `dense(30,32) dense(32,11)` = 1355.
-    pub const PARAM_COUNT: usize = ANALYTIC_END;
-
-    params_constructors!();
-
     /// The raw network outputs (see [`ANALYTIC_OUTPUTS`]) for an encoded condition.
     #[inline]
     #[must_use]

@@ -16,6 +16,13 @@
 //! Each module also holds its architecture's constants (layer sizes and parameter offsets,
 //! `core/ARCHITECTURES.md`), which the trainer uses to export parameters in the runtime's
 //! layout. [`AnySampler`] dispatches over all of them.
+//!
+//! A kind is defined once: its folder (the sampler, its architecture, its batched lanes and
+//! its [`FromBlob`]), its module here and one line of the list (`kinds.rs`), from which [`SamplerKind`], its
+//! names and blob tags, [`AnySampler`], [`AnyPrepared`], `AnyLane` and the concrete visitor
+//! are generated.
+//!
+//! [`SamplerKind`]: crate::SamplerKind
 
 pub mod affine_flow;
 mod any;
@@ -25,6 +32,7 @@ pub mod defensive;
 pub mod direct_histogram;
 pub mod disk_flow;
 pub mod histogram_mixture;
+pub(crate) mod kinds;
 pub mod lobes;
 mod mixture_tables;
 pub mod reparam;
@@ -33,7 +41,7 @@ mod traits;
 
 pub use affine_flow::{AffineFlowPrepared, AffineFlowSampler, AffineLane};
 #[cfg(not(target_arch = "spirv"))]
-pub use any::AnyLane;
+pub use any::{AnyLane, SamplerVisitor};
 pub use any::{AnyPrepared, AnySampler};
 pub use cosine::{CosinePrepared, CosineSampler};
 pub use defensive::{BlobSampler, Defensive, DefensivePrepared};
@@ -47,4 +55,4 @@ pub use lobes::{
 pub use reparam::{ReparamLane, ReparamPrepared, ReparamSampler};
 pub use spline_flow::{FlowLane, FlowPrepared, FlowSampler};
 pub(crate) use traits::Held;
-pub use traits::{Prepared, Sample, Sampler};
+pub use traits::{BlobSource, FromBlob, Prepared, Sample, Sampler};

@@ -34,7 +34,7 @@ use crate::warp::inside_disk;
 use crate::weights::Weights;
 
 use super::coupling::all_finite;
-use super::traits::{params_constructors, Held};
+use super::traits::Held;
 use super::{Prepared, Sample, Sampler};
 
 #[cfg(not(target_arch = "spirv"))]
@@ -147,12 +147,12 @@ pub struct ReparamSampler<W> {
     params: W,
 }
 
-impl<W: Weights> ReparamSampler<W> {
-    /// Number of parameters: [`REPARAM_PARAM_COUNT`] (1396).
-    pub const PARAM_COUNT: usize = REPARAM_PARAM_COUNT;
-
-    params_constructors!();
-}
+super::traits::flat_params_sampler!(
+    ReparamSampler,
+    Reparam,
+    REPARAM_PARAM_COUNT,
+    "Number of parameters: [`REPARAM_PARAM_COUNT`] (1396)."
+);
 
 /// The reparameterization sampler at one shading point without its weights handle (the lane
 /// of the batched API): the condition's share of both networks' first layers.

@@ -34,7 +34,7 @@ use crate::weights::Weights;
 use super::coupling::{all_finite, condition_share, coupling_raw, density_from_log};
 pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
 use super::coupling::{COUPLING_L0, COUPLING_L1, COUPLING_L2};
-use super::traits::{params_constructors, Held};
+use super::traits::Held;
 use super::{Prepared, Sample, Sampler};
 
 #[cfg(not(target_arch = "spirv"))]
@@ -92,12 +92,12 @@ pub struct FlowSampler<W> {
     params: W,
 }
 
-impl<W: Weights> FlowSampler<W> {
-    /// Length of the flat parameter array: base, coupling 0, coupling 1 (9690).
-    pub const PARAM_COUNT: usize = FLOW_PARAM_COUNT;
-
-    params_constructors!();
-}
+super::traits::flat_params_sampler!(
+    FlowSampler,
+    Flow,
+    FLOW_PARAM_COUNT,
+    "Length of the flat parameter array: base, coupling 0, coupling 1 (9690)."
+);
 
 /// The flow at one shading point without its weights handle (the lane of the batched API):
 /// the base Gaussian and the condition's share of both coupling networks' first layers.

@@ -15,8 +15,11 @@ use core::fmt;
 
 use glam::{Vec2, Vec3};
 
+use crate::blob::{Header, TensorRole};
+use crate::kind::SamplerKind;
 use crate::nn::FEATURE_DIM;
 use crate::warp;
+use crate::weights::Tensor;
 
 /// A direction drawn by a sampler.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -152,6 +155,51 @@ impl<W> fmt::Debug for Held<W> {
         f.write_str("Held(..)")
     }
 }
+
+/// What a sampler is built from ([`FromBlob`]): a validated blob's tensors and header.
+/// [`Blob`](crate::Blob) implements it once [`Blob::open`](crate::Blob::open) has checked
+/// every dimension, count and value.
+pub trait BlobSource<'a> {
+    /// The tensor of `role`, read in place, if the blob has it.
+    fn tensor(&self, role: TensorRole) -> Option<Tensor<'a>>;
+    /// The header.
+    fn header(&self) -> &Header<'a>;
+    /// The network parameters (empty when the blob has none).
+    fn params(&self) -> Tensor<'a> {
+        self.tensor(TensorRole::Params).unwrap_or(Tensor::F32(&[]))
+    }
+}
+
+/// A sampler built from a blob of its kind: how [`Blob::sampler`](crate::Blob::sampler) and
+/// [`Blob::sampler_as`](crate::Blob::sampler_as) make it.
+pub trait FromBlob<'a>: Sized {
+    /// The kind whose blobs hold this sampler.
+    const KIND: SamplerKind;
+    /// The sampler over `src`'s tensors, or `None` when they do not fit its architecture.
+    fn from_blob(src: &impl BlobSource<'a>) -> Option<Self>;
+}
+
+/// A sampler whose blob is one flat parameter array (a struct `{ params: W }`): its
+/// `PARAM_COUNT` (documented by `$doc`), the constructors of `params_constructors!` and its
+/// [`FromBlob`] for blobs of kind `$kind`.
+macro_rules! flat_params_sampler {
+    ($sampler:ident, $kind:ident, $count:expr, $doc:literal) => {
+        impl<W: $crate::Weights> $sampler<W> {
+            #[doc = $doc]
+            pub const PARAM_COUNT: usize = $count;
+
+            $crate::samplers::traits::params_constructors!();
+        }
+
+        impl<'a> $crate::samplers::FromBlob<'a> for $sampler<$crate::Tensor<'a>> {
+            const KIND: $crate::SamplerKind = $crate::SamplerKind::$kind;
+            fn from_blob(src: &impl $crate::samplers::BlobSource<'a>) -> Option<Self> {
+                Self::new(src.params())
+            }
+        }
+    };
+}
+pub(crate) use flat_params_sampler;
 
 /// The constructors every sampler with one flat parameter array has (`new_unchecked`, `new`,
 /// `params`), for a struct `{ params: W }` with an associated `PARAM_COUNT`.

@@ -343,7 +343,7 @@ fn sampler_of(bytes: Option<&[u8]>) -> Result<BlobSampler<'_>> {
 /// Checks a method name: a trained method or cosine sampling.
 fn check_method(material: &str, method: &str) -> Result<()> {
     match SamplerKind::from_name(method) {
-        Some(k) if k.is_sampler() => Ok(()),
+        Some(_) => Ok(()),
         _ if method == MEASURED_DATA => anyhow::bail!(
             "{material}: the data's own sampler (`{MEASURED_DATA}`) is not one of the \
              scene's runtime samplers; `neusample demo` renders it"
@@ -384,7 +384,7 @@ fn table_methods(table: &Path) -> Result<Vec<(String, String)>> {
 
 /// Whether the scene can render `method`: a runtime sampler (a blob, or cosine sampling).
 fn is_runtime_sampler(method: &str) -> bool {
-    SamplerKind::from_name(method).is_some_and(SamplerKind::is_sampler)
+    SamplerKind::from_name(method).is_some()
 }
 
 /// The method the table gives a material: its verdict, or, when the verdict is a technique

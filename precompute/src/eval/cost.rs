@@ -14,11 +14,11 @@ use neusample::{Prepared, Sampler, FEATURE_DIM};
 use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
 
-use super::concrete::{with_concrete, WithSampler};
 use crate::groundtruth;
 use crate::materials::Material;
 use crate::util::json::f64_or_nan;
 use crate::util::timing::{median_of_passes, ns_per_call};
+use neusample::wavefront::SamplerVisitor;
 
 /// Lanes per batched call of [`cost()`] and [`eval_cost`] (the size the wavefront renderer's
 /// batches are at least, per surface and depth, on the evaluation scenes).
@@ -422,23 +422,20 @@ pub fn cost_any(
         n: usize,
         passes: usize,
     }
-    impl WithSampler for Measure<'_> {
+    impl SamplerVisitor for Measure<'_> {
         type Output = Cost;
-        fn run<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Cost
+        fn visit<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Cost
         where
             S::Lane: Send,
         {
             cost(&s, self.material, self.n, self.passes)
         }
     }
-    with_concrete(
-        *sampler,
-        Measure {
-            material,
-            n,
-            passes,
-        },
-    )
+    sampler.visit(Measure {
+        material,
+        n,
+        passes,
+    })
 }
 
 /// [`Cost`] through the scalar API only (a sampler without a batched path: the tabulated

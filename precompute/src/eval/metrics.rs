@@ -45,13 +45,13 @@ use neusample::{BlobSampler, MeasuredMaterial, Sampler};
 use neusample_render::{self as render, Estimator, Image, Render, RenderOptions, Scene, Surface};
 use serde::{Deserialize, Serialize};
 
-use super::concrete::{with_concrete, WithSampler};
 use super::measured_data::MeasuredDataSampler;
 use super::oracle::OracleSampler;
 use crate::materials::Material;
 use crate::util::json::f64_or_nan;
 use crate::util::stats::{bootstrap, median_of_means, ratio, Estimate};
 use crate::util::timing::median;
+use neusample::wavefront::SamplerVisitor;
 
 /// A sampling technique of the evaluation.
 #[derive(Clone, Copy, Debug)]
@@ -79,14 +79,11 @@ impl Technique<'_> {
     pub fn render(&self, scene: &Scene, material: &dyn Material, opts: &RenderOptions) -> Render {
         let o = self.options(opts);
         match self {
-            Technique::Blob(s) => with_concrete(
-                *s,
-                Wavefront {
-                    scene,
-                    material,
-                    opts: &o,
-                },
-            ),
+            Technique::Blob(s) => s.visit(Wavefront {
+                scene,
+                material,
+                opts: &o,
+            }),
             Technique::Oracle(s) => render::render(scene, &[Surface::new(material, *s)], &o),
             Technique::Measured(s) => render::render_wavefront(
                 scene,
@@ -107,15 +104,12 @@ impl Technique<'_> {
     ) -> anyhow::Result<f64> {
         let o = self.options(opts);
         Ok(match self {
-            Technique::Blob(s) => with_concrete(
-                *s,
-                WavefrontTime {
-                    scene,
-                    material,
-                    opts: &o,
-                    passes,
-                },
-            )?,
+            Technique::Blob(s) => s.visit(WavefrontTime {
+                scene,
+                material,
+                opts: &o,
+                passes,
+            })?,
             Technique::Oracle(s) => {
                 render::time_per_sample(scene, &[Surface::new(material, *s)], &o, passes)?
             }
@@ -136,9 +130,9 @@ struct Wavefront<'r> {
     opts: &'r RenderOptions,
 }
 
-impl WithSampler for Wavefront<'_> {
+impl SamplerVisitor for Wavefront<'_> {
     type Output = Render;
-    fn run<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Render
+    fn visit<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Render
     where
         S::Lane: Send,
     {
@@ -154,9 +148,9 @@ struct WavefrontTime<'r> {
     passes: usize,
 }
 
-impl WithSampler for WavefrontTime<'_> {
+impl SamplerVisitor for WavefrontTime<'_> {
     type Output = Result<f64, render::Error>;
-    fn run<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Self::Output
+    fn visit<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Self::Output
     where
         S::Lane: Send,
     {

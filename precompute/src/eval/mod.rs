@@ -5,14 +5,12 @@
 //! * `cost` — single-thread ns per shading point of a sampler's hot path, batched and scalar
 //!   ([`cost()`]), and of a material's evaluation ([`eval_cost`]), with the timing
 //!   primitives `neusample bench` shares;
-//! * `concrete` — a blob's sampler as its concrete type ([`with_concrete`]);
 //! * `oracle` — the tabulated near-optimal sampler ([`OracleSampler`], paper Fig. 10);
 //! * [`warp_inverse`] — the reparameterization sampler's exact sampling density anywhere on
 //!   the disk, by inverting its warp, and what it shows ([`warp_inverse::exact_fit`]);
 //! * [`metrics`] — rendering metrics with `neusample_render` (paper §4: MSE at equal spp and
 //!   equal time, convergence, speed-up over the improved baseline).
 
-mod concrete;
 pub mod cost;
 mod fit;
 pub mod measured_data;
@@ -20,7 +18,6 @@ pub mod metrics;
 mod oracle;
 pub mod warp_inverse;
 
-pub use concrete::{with_concrete, WithSampler};
 pub use cost::{cost, cost_any, cost_scalar, eval_cost, Cost, EvalCost, COST_BATCH};
 pub use fit::{fit, fit_report, fit_to, Fit, FitReport, SampledFit, FIT_SAMPLES};
 pub use oracle::{OraclePrepared, OracleSampler};

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::Result;
 use neusample::Weights;
-use neusample::{Blob, SamplerKind, TensorRole};
+use neusample::{Blob, BlobKind, TensorRole};
 use serde::{Deserialize, Serialize};
 
 use crate::util::io;
@@ -23,7 +23,7 @@ pub struct Inspection {
     /// The sampler's defensive weight α (`Defensive`; 0 in version-1 blobs).
     #[serde(default)]
     pub defensive: f32,
-    /// Kind name ([`SamplerKind::name`]).
+    /// Kind name ([`neusample::BlobKind::name`]).
     pub kind: String,
     /// Storage type of the parameters (`f32`, `f16`).
     pub dtype: String,
@@ -120,7 +120,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             });
         }
     }
-    let measured = if h.kind == SamplerKind::Measured {
+    let measured = if h.kind == BlobKind::Measured {
         let m = blob
             .measured()
             .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
@@ -168,13 +168,13 @@ impl Inspection {
     #[must_use]
     pub fn text(&self) -> String {
         let mut s = String::new();
-        let kind = SamplerKind::from_name(&self.kind);
+        let kind = BlobKind::from_name(&self.kind);
         let _ = writeln!(
             s,
             "{}: {} {}, {} bytes, format v{}, checksum ok",
             self.file,
             self.kind,
-            if kind.is_some_and(SamplerKind::is_sampler) {
+            if kind.and_then(BlobKind::sampler).is_some() {
                 "sampler"
             } else {
                 "blob"
@@ -225,7 +225,7 @@ impl Inspection {
             );
             let parts: Vec<String> = m.tables.iter().map(|(n, c)| format!("{n} {c}")).collect();
             let _ = writeln!(s, "  tables tensor: {}", parts.join(", "));
-        } else if kind == Some(SamplerKind::NeuralMaterial) {
+        } else if kind == Some(BlobKind::NeuralMaterial) {
             let _ = writeln!(
                 s,
                 "  neural material: feature texture {}×{}×8 (NEURAL.md)",

@@ -3,10 +3,6 @@
 //! `default()` (the default run: about a minute per method on two cores); the quick settings
 //! are written as changes to the default ones.
 
-use neusample::SamplerKind;
-
-use super::method::METHODS;
-
 /// Settings every method shares.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Common {
@@ -350,47 +346,9 @@ impl TrainConfig {
         }
     }
 
-    /// The schedule of `method`; `None` for the kinds that are not trained (cosine, the
-    /// neural material).
-    #[must_use]
-    pub fn schedule(&self, method: SamplerKind) -> Option<Schedule> {
-        self.clone().schedule_mut(method).copied()
-    }
-
-    /// The schedule of `method`, to change it; `None` for the kinds that are not trained.
-    pub fn schedule_mut(&mut self, method: SamplerKind) -> Option<&mut Schedule> {
-        match method {
-            SamplerKind::ImprovedBaseline => Some(&mut self.baseline.schedule),
-            SamplerKind::AnalyticMixture => Some(&mut self.analytic.schedule),
-            SamplerKind::Flow => Some(&mut self.flow.schedule),
-            SamplerKind::DiskFlow => Some(&mut self.disk_flow.schedule),
-            SamplerKind::AffineFlow => Some(&mut self.affine_flow.schedule),
-            SamplerKind::DirectHistogram => Some(&mut self.direct_histogram.schedule),
-            SamplerKind::HistogramMixture => Some(&mut self.histogram_mixture.schedule),
-            SamplerKind::Reparam => Some(&mut self.reparam.schedule),
-            SamplerKind::Cosine | SamplerKind::NeuralMaterial | SamplerKind::Measured => None,
-        }
-    }
-
-    /// Every method's step count multiplied by `factor` (rounded, at least 1).
-    #[must_use]
-    pub fn with_steps_scaled(mut self, factor: f64) -> Self {
-        for kind in METHODS {
-            self.scale_steps(kind, factor);
-        }
-        self
-    }
-
-    /// `method`'s step counts multiplied by `factor` (rounded, at least 1): its schedule and,
-    /// for the reparameterization sampler, the pdf network's too.
-    pub fn scale_steps(&mut self, method: SamplerKind, factor: f64) {
-        let scale =
-            |s: &mut Schedule| s.steps = ((s.steps as f64 * factor).round() as usize).max(1);
-        if let Some(s) = self.schedule_mut(method) {
-            scale(s);
-        }
-        if method == SamplerKind::Reparam {
-            scale(&mut self.reparam.density_schedule);
-        }
+    /// The settings of the flows (the spline flow's and the disk flow's), which share the
+    /// χ² fine-tuning options.
+    pub fn spline_flows_mut(&mut self) -> [&mut MaxLikelihood; 2] {
+        [&mut self.flow, &mut self.disk_flow]
     }
 }

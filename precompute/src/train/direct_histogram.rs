@@ -15,8 +15,9 @@ use neusample::nn::CONDITION_DIM;
 use neusample::samplers::direct_histogram::DIRECT_N;
 use neusample::FEATURE_DIM;
 
-use super::config::{Common, MaxLikelihood};
+use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
+use super::trainer::{Fitted, Run, Trained, Trainer};
 use crate::nn::{mlp_f64, softmax_f64, tensor2, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -77,6 +78,29 @@ fn log_pdf(net: &Mlp, batch: &Batch) -> Tensor<2> {
 /// Per-point log density `[b, s]` of the training graph for exported parameters.
 pub fn graph_log_pdf(params: &[f32], batch: &Batch) -> Tensor<2> {
     log_pdf(&Mlp::from_flat(&SIZES, params, &batch.x.device()), batch)
+}
+
+/// The direct histogram's trainer.
+pub(crate) struct DirectHistogramTrainer;
+
+/// The direct histogram's trainer.
+pub(crate) const TRAINER: DirectHistogramTrainer = DirectHistogramTrainer;
+
+impl Trainer for DirectHistogramTrainer {
+    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
+        &mut cfg.direct_histogram.schedule
+    }
+    fn train(&self, run: Run<'_, '_>) -> anyhow::Result<Fitted> {
+        let (pool, cfg) = (run.pool, run.cfg);
+        let (p, h) = train(pool, &cfg.common, &cfg.direct_histogram)?;
+        Ok((p, None, h))
+    }
+    fn pdf_f64(&self, t: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+        pdf_f64(&t.params, phi, wi, p)
+    }
+    fn graph(&self, params: &[f32], batch: &Batch) -> Option<Tensor<2>> {
+        Some(graph_log_pdf(params, batch))
+    }
 }
 
 /// Trains the direct histogram; returns `(params, loss history)`.

@@ -1,4 +1,4 @@
-//! The training entry points, dispatched by [`SamplerKind`], and the trained model seen three
+//! The training entry points, dispatched by [`SamplerKind`] to each method's trainer, and the trained model seen three
 //! ways: its f64 mirror ([`model_pdf_disk`]), its training graph ([`graph_log_pdf`]) and its
 //! fit ([`mean_kl`], [`network_mean_kl`]).
 
@@ -11,32 +11,14 @@ use neusample::FEATURE_DIM;
 use rayon::prelude::*;
 
 use super::config::TrainConfig;
-use super::data::{Batch, HostBatch, Pool};
-use super::histogram_mixture::{self, BakedTables};
+use super::data::Pool;
+use super::histogram_mixture;
+use super::method::trainer;
 use super::source::{GtCondition, MaterialSource, TargetSource};
-use super::{direct_histogram, flow, lobes, reparam};
+use super::trainer::Run;
+pub use super::trainer::Trained;
 use crate::groundtruth::TargetOptions;
 use crate::materials::Material;
-use crate::nn::{infer_device, to_host};
-
-/// Ground-truth resolution of the reparameterization sampler's pool: it trains on the
-/// integrand and uses only the pool's conditions.
-const REPARAM_POOL_RES: usize = 8;
-
-/// A trained sampler.
-#[derive(Clone, Debug)]
-pub struct Trained {
-    /// The architecture.
-    pub method: SamplerKind,
-    /// The flat parameter array in the runtime layout (`core/ARCHITECTURES.md`).
-    pub params: Vec<f32>,
-    /// The baked tables (histogram mixture only).
-    pub tables: Option<BakedTables>,
-    /// The loss of every step.
-    pub loss_history: Vec<f32>,
-    /// Wall-clock training time (including ground truth and baking), seconds.
-    pub seconds: f64,
-}
 
 /// Trains `method` on `material` (ground truth from `crate::groundtruth`).
 pub fn train(
@@ -62,18 +44,14 @@ pub fn train_with(
     let threads = rayon::ThreadPoolBuilder::new()
         .num_threads(cfg.common.threads)
         .build()?;
+    let trainer = trainer(method)
+        .ok_or_else(|| anyhow::anyhow!("`{}` is not a trainable method", method.name()))?;
     threads.install(|| {
         let c = &cfg.common;
-        // The reparameterization sampler uses the pool's conditions, not its targets.
-        let res = if method == SamplerKind::Reparam {
-            REPARAM_POOL_RES
-        } else {
-            c.gt_res
-        };
         let mut pool = Pool::new(
             source,
             c.pool_conditions,
-            res,
+            trainer.pool_res(c),
             c.seed,
             c.pool_refresh_every,
             if c.horizon_targets {
@@ -82,39 +60,11 @@ pub fn train_with(
                 TargetOptions::default()
             },
         )?;
-        let plain = |(p, h)| (p, None, h);
-        let (params, tables, loss_history) = match method {
-            SamplerKind::ImprovedBaseline => {
-                lobes::train(&mut pool, c, &cfg.baseline, false).map(plain)?
-            }
-            SamplerKind::AnalyticMixture => {
-                lobes::train(&mut pool, c, &cfg.analytic, true).map(plain)?
-            }
-            SamplerKind::Flow => flow::train_spline(&mut pool, c, &cfg.flow).map(plain)?,
-            SamplerKind::DiskFlow => flow::train_disk(&mut pool, c, &cfg.disk_flow).map(plain)?,
-            SamplerKind::AffineFlow => {
-                flow::train_affine(&mut pool, c, &cfg.affine_flow).map(plain)?
-            }
-            SamplerKind::DirectHistogram => {
-                direct_histogram::train(&mut pool, c, &cfg.direct_histogram).map(plain)?
-            }
-            SamplerKind::HistogramMixture => {
-                histogram_mixture::train(&mut pool, c, &cfg.histogram_mixture)
-                    .map(|(p, t, h)| (p, Some(t), h))?
-            }
-            SamplerKind::Reparam => {
-                let integrand = source.integrand().ok_or_else(|| {
-                    anyhow::anyhow!(
-                        "the reparameterization sampler trains on the integrand itself: it \
-                         needs a neural or measured material (or the synthetic target)"
-                    )
-                })?;
-                reparam::train(&mut pool, c, &cfg.reparam, integrand).map(plain)?
-            }
-            SamplerKind::Cosine | SamplerKind::NeuralMaterial | SamplerKind::Measured => {
-                unreachable!("schedule() is None for the kinds that are not trained")
-            }
-        };
+        let (params, tables, loss_history) = trainer.train(Run {
+            pool: &mut pool,
+            cfg,
+            source,
+        })?;
         Ok(Trained {
             method,
             params,
@@ -137,21 +87,7 @@ pub fn model_pdf_disk(trained: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: 
     let Some(wi) = check_condition(phi, wi) else {
         return 0.0;
     };
-    let w = &trained.params;
-    let v = match trained.method {
-        SamplerKind::ImprovedBaseline => lobes::pdf_f64(w, false, phi, wi, p),
-        SamplerKind::AnalyticMixture => lobes::pdf_f64(w, true, phi, wi, p),
-        SamplerKind::Flow => flow::spline_pdf_f64(w, phi, wi, p),
-        SamplerKind::DiskFlow => flow::disk_pdf_f64(w, phi, wi, p),
-        SamplerKind::AffineFlow => flow::affine_pdf_f64(w, phi, wi, p),
-        SamplerKind::DirectHistogram => direct_histogram::pdf_f64(w, phi, wi, p),
-        SamplerKind::HistogramMixture => match &trained.tables {
-            Some(t) => histogram_mixture::pdf_f64(w, t, phi, wi, p),
-            None => 0.0,
-        },
-        SamplerKind::Reparam => reparam::pdf_f64(w, phi, wi, p),
-        SamplerKind::Cosine | SamplerKind::NeuralMaterial | SamplerKind::Measured => 0.0,
-    };
+    let v = trainer(trained.method).map_or(0.0, |t| t.pdf_f64(trained, phi, wi, p));
     if v.is_finite() && v > 0.0 {
         v as f32
     } else {
@@ -172,25 +108,7 @@ pub fn graph_log_pdf(
     points: &[Vec2],
 ) -> Option<Vec<f32>> {
     let wi = check_condition(phi, wi)?;
-    if method == SamplerKind::Reparam {
-        return Some(reparam::graph_log_pdf(params, phi, wi, points));
-    }
-    let device = infer_device();
-    let batch = Batch::upload(HostBatch::single(phi, wi, points), &device);
-    let lp = match method {
-        SamplerKind::ImprovedBaseline => lobes::graph_log_pdf(params, false, &batch),
-        SamplerKind::AnalyticMixture => lobes::graph_log_pdf(params, true, &batch),
-        SamplerKind::Flow => flow::SplineFlow::from_flat(params, &device).log_pdf(&batch),
-        SamplerKind::DiskFlow => flow::DiskFlow::from_flat(params, &device).log_pdf(&batch),
-        SamplerKind::AffineFlow => flow::AffineFlow::from_flat(params, &device).log_pdf(&batch),
-        SamplerKind::DirectHistogram => direct_histogram::graph_log_pdf(params, &batch),
-        SamplerKind::HistogramMixture
-        | SamplerKind::Cosine
-        | SamplerKind::NeuralMaterial
-        | SamplerKind::Measured
-        | SamplerKind::Reparam => return None,
-    };
-    Some(to_host(lp))
+    trainer(method)?.graph_log_pdf(params, phi, wi, points)
 }
 
 /// Mean KL(p* ‖ p) in nats of a trained model over `conditions` fresh conditions of

@@ -28,10 +28,11 @@ use neusample::samplers::spline_flow::{
 };
 use neusample::FEATURE_DIM;
 
-use super::config::{Common, MaxLikelihood, Schedule};
+use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
 use super::objective;
 use super::spline::{rq_forward, rq_forward_f64, rq_forward_free, rq_forward_free_f64};
+use super::trainer::{Fitted, Run, Trained, Trainer};
 use crate::nn::{self, encode, encode_f64, mlp_f64, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -262,6 +263,76 @@ fn fit_ml_then_chi2<M: Module>(
     )?;
     history.extend(more);
     Ok((model, history))
+}
+
+/// The trainer of one of the three flows.
+pub(crate) enum FlowTrainer {
+    /// The RQ-spline flow.
+    Spline,
+    /// The disk flow.
+    Disk,
+    /// The affine-coupling flow.
+    Affine,
+}
+
+/// The RQ-spline flow's trainer.
+pub(crate) const SPLINE: FlowTrainer = FlowTrainer::Spline;
+/// The disk flow's trainer.
+pub(crate) const DISK: FlowTrainer = FlowTrainer::Disk;
+/// The affine flow's trainer.
+pub(crate) const AFFINE: FlowTrainer = FlowTrainer::Affine;
+
+/// The disk flow's blob-check tolerance within 1e-2 of a pole of the disk (`|y| > 0.99`),
+/// where `1 ± y/C(x)` cancels in f32 before the second spline sees it
+/// (`host_tests/tests/flow.rs` measures it against an f64 reference).
+pub const DISK_POLE_TOLERANCE: f64 = 1e-2;
+
+impl FlowTrainer {
+    fn settings<'c>(&self, cfg: &'c TrainConfig) -> &'c MaxLikelihood {
+        match self {
+            FlowTrainer::Spline => &cfg.flow,
+            FlowTrainer::Disk => &cfg.disk_flow,
+            FlowTrainer::Affine => &cfg.affine_flow,
+        }
+    }
+}
+
+impl Trainer for FlowTrainer {
+    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
+        match self {
+            FlowTrainer::Spline => &mut cfg.flow.schedule,
+            FlowTrainer::Disk => &mut cfg.disk_flow.schedule,
+            FlowTrainer::Affine => &mut cfg.affine_flow.schedule,
+        }
+    }
+    fn train(&self, run: Run<'_, '_>) -> anyhow::Result<Fitted> {
+        let (pool, cfg) = (run.pool, run.cfg);
+        let (c, m) = (&cfg.common, self.settings(cfg));
+        let (p, h) = match self {
+            FlowTrainer::Spline => train_spline(pool, c, m),
+            FlowTrainer::Disk => train_disk(pool, c, m),
+            FlowTrainer::Affine => train_affine(pool, c, m),
+        }?;
+        Ok((p, None, h))
+    }
+    fn pdf_f64(&self, t: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+        match self {
+            FlowTrainer::Spline => spline_pdf_f64(&t.params, phi, wi, p),
+            FlowTrainer::Disk => disk_pdf_f64(&t.params, phi, wi, p),
+            FlowTrainer::Affine => affine_pdf_f64(&t.params, phi, wi, p),
+        }
+    }
+    fn graph(&self, params: &[f32], b: &Batch) -> Option<Tensor<2>> {
+        let device = crate::nn::infer_device();
+        Some(match self {
+            FlowTrainer::Spline => SplineFlow::from_flat(params, &device).log_pdf(b),
+            FlowTrainer::Disk => DiskFlow::from_flat(params, &device).log_pdf(b),
+            FlowTrainer::Affine => AffineFlow::from_flat(params, &device).log_pdf(b),
+        })
+    }
+    fn pole_tolerance(&self) -> Option<f64> {
+        matches!(self, FlowTrainer::Disk).then_some(DISK_POLE_TOLERANCE)
+    }
 }
 
 /// Trains the RQ-spline flow; returns `(params, loss history)`.

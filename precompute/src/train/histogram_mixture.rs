@@ -44,9 +44,11 @@ use neusample::samplers::histogram_mixture::{self as histogram, BASES};
 use neusample::Interpolation;
 use neusample::{DType, FEATURE_DIM};
 
-use super::config::{Common, HistogramMixture as Config};
+use super::config::{Common, HistogramMixture as Config, Schedule, TrainConfig};
 use super::data::{fit, raw_condition_f64, Batch, HostBatch, PointKind, Pool};
 use super::objective;
+pub use super::trainer::BakedTables;
+use super::trainer::{Fitted, Run, Trained, Trainer};
 use crate::nn::{
     encode, infer_device, mlp_f64, softmax_f64, tensor2, to_host, train_device, Activation, Mlp,
 };
@@ -70,37 +72,6 @@ pub const BASIS_SIZES: [usize; 5] = [
     BASIS_HIDDEN,
     1,
 ];
-
-/// The baked tables of a histogram mixture (`core/ARCHITECTURES.md` §6), with what is needed
-/// to re-bake them.
-#[derive(Clone, Debug)]
-pub struct BakedTables {
-    /// mass, table, marginal and conditional as core builds them
-    /// ([`neusample::samplers::histogram_mixture::try_bake_slices`], f32 storage).
-    pub baked: histogram::BakedTables,
-    /// How the runtime reads the latent axis.
-    pub interpolation: Interpolation,
-    /// The raw slices `K × T × N × N` (cell means of the basis network) given to
-    /// `bake_slices`; re-bake them for another storage type (f16 rounds before the sums).
-    pub raw: Vec<f32>,
-    /// The trained basis network (runtime layout), for diagnostics.
-    pub basis_params: Vec<f32>,
-}
-
-impl BakedTables {
-    /// Re-bakes the raw slices for `storage` (f16 values and matching running sums).
-    pub fn rebake(&self, storage: DType) -> anyhow::Result<histogram::BakedTables> {
-        let b = &self.baked;
-        histogram::try_bake_slices(
-            &self.raw,
-            b.bases as usize,
-            b.t_levels as usize,
-            b.resolution as usize,
-            storage,
-        )
-        .map_err(|e| anyhow::anyhow!("baking the histogram mixture: {e}"))
-    }
-}
 
 /// The training model.
 #[derive(Module, Debug)]
@@ -292,6 +263,30 @@ fn self_normalised_nll(p: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
 fn log_normaliser(p: Tensor<2>, target: Tensor<2>) -> Tensor<2> {
     let q = target * 0.5 + 0.5 * std::f32::consts::FRAC_1_PI;
     ((p / q).mean_dim(1) + 1e-12).log()
+}
+
+/// The histogram mixture's trainer. Its training graph is the continuous model, not the
+/// baked one: no [`Trainer::graph_log_pdf`].
+pub(crate) struct HistogramMixtureTrainer;
+
+/// The histogram mixture's trainer.
+pub(crate) const TRAINER: HistogramMixtureTrainer = HistogramMixtureTrainer;
+
+impl Trainer for HistogramMixtureTrainer {
+    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
+        &mut cfg.histogram_mixture.schedule
+    }
+    fn train(&self, run: Run<'_, '_>) -> anyhow::Result<Fitted> {
+        let (pool, cfg) = (run.pool, run.cfg);
+        let (p, t, h) = train(pool, &cfg.common, &cfg.histogram_mixture)?;
+        Ok((p, Some(t), h))
+    }
+    /// The baked model; 0 without tables.
+    fn pdf_f64(&self, t: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+        t.tables
+            .as_ref()
+            .map_or(0.0, |tables| pdf_f64(&t.params, tables, phi, wi, p))
+    }
 }
 
 /// Trains the histogram mixture and bakes its tables; returns `(params, tables, history)`.

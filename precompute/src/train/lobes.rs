@@ -18,10 +18,12 @@ use neusample::distrib::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
 use neusample::nn::CONDITION_DIM;
 use neusample::FEATURE_DIM;
 
-use super::config::{Common, MaxLikelihood};
+use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
+use super::trainer::{Fitted, Run, Trained, Trainer};
 use crate::nn::{self, log_sum_exp_last, mlp_f64, softmax_f64, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
+use anyhow::Result;
 
 const LN_PI: f32 = 1.144_729_9;
 const LN_TWO_PI: f32 = 1.837_877_1;
@@ -100,6 +102,42 @@ fn analytic_log_pdf(o: Tensor<2>, batch: &Batch) -> Tensor<2> {
     ) + col(&logw, 2);
     let stacked: Tensor<3> = Tensor::stack(vec![ll, g1, g2], 2);
     log_sum_exp_last(stacked).squeeze_dim(2)
+}
+
+/// The trainer of the improved baseline (`analytic == false`) or the analytic mixture.
+pub(crate) struct Lobes {
+    analytic: bool,
+}
+
+/// The improved baseline's trainer.
+pub(crate) const BASELINE: Lobes = Lobes { analytic: false };
+/// The analytic mixture's trainer.
+pub(crate) const ANALYTIC: Lobes = Lobes { analytic: true };
+
+impl Trainer for Lobes {
+    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
+        if self.analytic {
+            &mut cfg.analytic.schedule
+        } else {
+            &mut cfg.baseline.schedule
+        }
+    }
+    fn train(&self, run: Run<'_, '_>) -> Result<Fitted> {
+        let (pool, cfg) = (run.pool, run.cfg);
+        let m = if self.analytic {
+            &cfg.analytic
+        } else {
+            &cfg.baseline
+        };
+        let (p, h) = train(pool, &cfg.common, m, self.analytic)?;
+        Ok((p, None, h))
+    }
+    fn pdf_f64(&self, t: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+        pdf_f64(&t.params, self.analytic, phi, wi, p)
+    }
+    fn graph(&self, params: &[f32], batch: &Batch) -> Option<Tensor<2>> {
+        Some(graph_log_pdf(params, self.analytic, batch))
+    }
 }
 
 /// Trains the improved baseline (`analytic == false`) or the analytic mixture.

@@ -1,21 +1,44 @@
-//! The trainable methods, named by the runtime's [`SamplerKind`] (the names of
-//! [`SamplerKind::name`]: `baseline`, `analytic`, `flow`, `affine-flow`, `direct-histogram`,
-//! `histogram-mixture`, `reparam`).
+//! The trainable methods, named by the runtime's [`SamplerKind`], and their trainers: the
+//! one list of the trainer's per-kind code ([`trainer`]). A method's trainer lives in its
+//! file (`lobes`, `flow`, `direct_histogram`, `histogram_mixture`, `reparam`); adding one is
+//! that file, its settings block in `config` and a line here.
 
 use neusample::SamplerKind;
 
-/// Every trainable method, in the paper's order (every sampler kind but cosine), then the
-/// reparameterization sampler (which needs an integrand: [`needs_integrand`]).
-pub const METHODS: [SamplerKind; 8] = [
-    SamplerKind::ImprovedBaseline,
-    SamplerKind::AnalyticMixture,
-    SamplerKind::Flow,
-    SamplerKind::DiskFlow,
-    SamplerKind::AffineFlow,
-    SamplerKind::DirectHistogram,
-    SamplerKind::HistogramMixture,
-    SamplerKind::Reparam,
-];
+use super::config::{Schedule, TrainConfig};
+use super::trainer::Trainer;
+use super::{direct_histogram, flow, histogram_mixture, lobes, reparam};
+
+/// The trainer of `kind`; `None` for cosine sampling, which has nothing to train.
+pub(crate) fn trainer(kind: SamplerKind) -> Option<&'static dyn Trainer> {
+    Some(match kind {
+        SamplerKind::Cosine => return None,
+        SamplerKind::ImprovedBaseline => &lobes::BASELINE,
+        SamplerKind::AnalyticMixture => &lobes::ANALYTIC,
+        SamplerKind::Flow => &flow::SPLINE,
+        SamplerKind::DiskFlow => &flow::DISK,
+        SamplerKind::AffineFlow => &flow::AFFINE,
+        SamplerKind::DirectHistogram => &direct_histogram::TRAINER,
+        SamplerKind::HistogramMixture => &histogram_mixture::TRAINER,
+        SamplerKind::Reparam => &reparam::TRAINER,
+    })
+}
+
+/// Every trainable method: every sampler kind but cosine, in the runtime's order (the paper's
+/// methods, the disk flow beside the flow, then the reparameterization sampler, which needs
+/// an integrand: [`needs_integrand`]).
+pub const METHODS: [SamplerKind; SamplerKind::ALL.len() - 1] = {
+    let mut out = [SamplerKind::Cosine; SamplerKind::ALL.len() - 1];
+    let (mut i, mut j) = (0, 0);
+    while i < SamplerKind::ALL.len() {
+        if !matches!(SamplerKind::ALL[i], SamplerKind::Cosine) {
+            out[j] = SamplerKind::ALL[i];
+            j += 1;
+        }
+        i += 1;
+    }
+    out
+};
 
 /// The trainable method named `name`; the error lists the names.
 pub fn parse_method(name: &str) -> anyhow::Result<SamplerKind> {
@@ -34,5 +57,60 @@ pub fn parse_method(name: &str) -> anyhow::Result<SamplerKind> {
 /// target) rather than on samples of p*: only the reparameterization sampler.
 #[must_use]
 pub fn needs_integrand(method: SamplerKind) -> bool {
-    method == SamplerKind::Reparam
+    trainer(method).is_some_and(|t| t.needs_integrand())
+}
+
+/// The blob check's tolerance within 1e-2 of a pole of the disk for `method`, where its f32
+/// runtime loses precision that its f64 mirror keeps (the disk flow); `None` for the others.
+#[must_use]
+pub fn pole_tolerance(method: SamplerKind) -> Option<f64> {
+    trainer(method).and_then(|t| t.pole_tolerance())
+}
+
+/// The per-method settings of a [`TrainConfig`], reached through the methods' trainers.
+impl TrainConfig {
+    /// The schedule of `method`; `None` for the kinds that are not trained (cosine, the
+    /// neural material).
+    #[must_use]
+    pub fn schedule(&self, method: SamplerKind) -> Option<Schedule> {
+        self.clone().schedule_mut(method).copied()
+    }
+
+    /// The schedule of `method`, to change it; `None` for the kinds that are not trained.
+    pub fn schedule_mut(&mut self, method: SamplerKind) -> Option<&mut Schedule> {
+        Some(super::method::trainer(method)?.schedule_mut(self))
+    }
+
+    /// Every method's step count multiplied by `factor` (rounded, at least 1).
+    #[must_use]
+    pub fn with_steps_scaled(mut self, factor: f64) -> Self {
+        for kind in METHODS {
+            self.scale_steps(kind, factor);
+        }
+        self
+    }
+
+    /// `method`'s step counts multiplied by `factor` (rounded, at least 1): its schedule and,
+    /// for the reparameterization sampler, the pdf network's too.
+    pub fn scale_steps(&mut self, method: SamplerKind, factor: f64) {
+        let scale =
+            |s: &mut Schedule| s.steps = ((s.steps as f64 * factor).round() as usize).max(1);
+        if let Some(t) = super::method::trainer(method) {
+            t.scale_steps(self, &scale);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_method_has_a_trainer_and_cosine_none() {
+        for k in METHODS {
+            assert!(trainer(k).is_some(), "{k:?}");
+        }
+        assert!(trainer(SamplerKind::Cosine).is_none());
+        assert_eq!(METHODS.len(), SamplerKind::ALL.len() - 1);
+    }
 }

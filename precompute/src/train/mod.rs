@@ -25,9 +25,11 @@
 //! Files: `config` (the hyper-parameters: common settings plus one block per method),
 //! `source` (where conditions come from), `data` (pool, batches, the loop feeding the
 //! optimiser), one file per method family (`lobes`: baseline and analytic; `flow` with its
-//! `spline`: both flows; `direct_histogram`; `histogram_mixture`), `dispatch` (the entry
-//! points by kind and the trained model's f64 mirror), and [`neural_material`] (fitting a
-//! neural material to a material: the same building blocks, another model).
+//! `spline`: the three flows; `direct_histogram`; `histogram_mixture`; `reparam`), each with
+//! its method's trainer (`trainer`: what a trainer provides and what training returns),
+//! `method` (the list of trainers, by kind), `dispatch` (the entry points and the trained
+//! model's f64 mirror), and [`neural_material`] (fitting a neural material to a material:
+//! the same building blocks, another model).
 //!
 //! Reproducibility: all randomness comes from PCG streams seeded by [`Common::seed`], and
 //! training runs on a private rayon pool of [`Common::threads`] threads, so a run is
@@ -40,6 +42,7 @@ mod integrand;
 mod method;
 pub mod objective;
 mod source;
+mod trainer;
 
 pub mod direct_histogram;
 pub mod flow;
@@ -58,7 +61,7 @@ pub use dispatch::{
 };
 pub use histogram_mixture::BakedTables;
 pub use integrand::{Integrand, MeasuredIntegrand, NeuralIntegrand};
-pub use method::{needs_integrand, parse_method, METHODS};
+pub use method::{needs_integrand, parse_method, pole_tolerance, METHODS};
 pub use source::{
     has_integrand, material_integrand, GtCondition, MaterialSource, SyntheticIntegrand,
     SyntheticSource, TargetSource,

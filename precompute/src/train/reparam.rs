@@ -28,10 +28,11 @@ use neusample::samplers::reparam::{
 use neusample::{ReparamSampler, Sampler, FEATURE_DIM};
 use rand::RngExt;
 
-use super::config::{Common, DensityLoss, Reparam};
+use super::config::{Common, DensityLoss, Reparam, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, Pool};
 use super::integrand::Integrand;
 use super::source::GtCondition;
+use super::trainer::{Fitted, Run, Trained, Trainer};
 use crate::nn::{
     log_sum_exp_last, mlp_f64, optimise, tensor2, to_host, train_device, Activation, Mlp,
     OptimSettings,
@@ -444,6 +445,56 @@ fn density_loss(
             let uniform = pu.mean() * (0.5 * std::f32::consts::PI);
             nll + ratio + uniform
         }
+    }
+}
+
+/// Ground-truth resolution of the reparameterization sampler's pool: it trains on the
+/// integrand and uses only the pool's conditions.
+const POOL_RES: usize = 8;
+
+/// The reparameterization sampler's trainer.
+pub(crate) struct ReparamTrainer;
+
+/// The reparameterization sampler's trainer.
+pub(crate) const TRAINER: ReparamTrainer = ReparamTrainer;
+
+impl Trainer for ReparamTrainer {
+    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
+        &mut cfg.reparam.schedule
+    }
+    /// The warp's schedule and the pdf network's.
+    fn scale_steps(&self, cfg: &mut TrainConfig, scale: &dyn Fn(&mut Schedule)) {
+        scale(&mut cfg.reparam.schedule);
+        scale(&mut cfg.reparam.density_schedule);
+    }
+    fn train(&self, run: Run<'_, '_>) -> Result<Fitted> {
+        let (pool, cfg, source) = (run.pool, run.cfg, run.source);
+        let integrand = source.integrand().ok_or_else(|| {
+            anyhow::anyhow!(
+                "the reparameterization sampler trains on the integrand itself: it needs a \
+                 neural or measured material (or the synthetic target)"
+            )
+        })?;
+        let (p, h) = train(pool, &cfg.common, &cfg.reparam, integrand)?;
+        Ok((p, None, h))
+    }
+    fn pdf_f64(&self, t: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
+        pdf_f64(&t.params, phi, wi, p)
+    }
+    fn graph_log_pdf(
+        &self,
+        params: &[f32],
+        phi: &[f32; FEATURE_DIM],
+        wi: Vec3,
+        points: &[Vec2],
+    ) -> Option<Vec<f32>> {
+        Some(graph_log_pdf(params, phi, wi, points))
+    }
+    fn pool_res(&self, _: &Common) -> usize {
+        POOL_RES
+    }
+    fn needs_integrand(&self) -> bool {
+        true
     }
 }
 

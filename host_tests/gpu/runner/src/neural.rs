@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use neusample::neural_material::{DECODER_OUTPUTS, LOG_F_MAX, LOG_F_MIN};
-use neusample::{Blob, NeuralMaterial, SamplerKind, TensorRole, Vec2, FEATURE_DIM};
+use neusample::{Blob, BlobKind, NeuralMaterial, TensorRole, Vec2, FEATURE_DIM};
 use neusample_gpu_shader::kernel::{
     Params, IN_STRIDE, NM_IN_PHI, NM_IN_UV, NM_IN_WI, NM_IN_WO, NM_OUT_EVAL, NM_OUT_EVAL_UV,
     OUT_STRIDE,
@@ -28,7 +28,7 @@ impl Material {
     pub fn from_blob(label: &'static str, path: &str) -> Result<Self, String> {
         let bytes = std::fs::read(path).map_err(|e| format!("reading {path}: {e}"))?;
         let blob = Blob::open(&bytes).map_err(|e| format!("{path}: {e}"))?;
-        if blob.kind() != SamplerKind::NeuralMaterial {
+        if blob.kind() != BlobKind::NeuralMaterial {
             return Err(format!("{path}: not a neural material ({:?})", blob.kind()));
         }
         // Validates the shape (texture = width·height·8, decoder = 9475) on the host.

@@ -82,7 +82,13 @@ pub fn run(a: &ReparamExactArgs) -> Result<()> {
         )
         .with_context(|| name.clone())?;
         let blob = Blob::open(&bytes)?;
-        let sampled: Fit = fit(&blob.reparam()?, &m, a.conditions, 32, a.seed);
+        let sampled: Fit = fit(
+            &blob.sampler_as::<neusample::ReparamSampler<_>>()?,
+            &m,
+            a.conditions,
+            32,
+            a.seed,
+        );
         let s = sampled.sampled.context("no sampled fit")?;
         let best = (0..ALPHA_GRID.len())
             .min_by(|&i, &j| e.alpha_second_moment[i].total_cmp(&e.alpha_second_moment[j]))

@@ -21,8 +21,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::bake;
 use crate::eval::cost::{self, batched_split, scalar_split, time_per, Inputs, Rows, Split};
-use crate::eval::{with_concrete, WithSampler};
 use crate::materials::neural::NeuralMaterialModel;
+use neusample::wavefront::SamplerVisitor;
 
 /// The batch sizes measured.
 pub const BATCH_SIZES: [usize; 4] = [1, 8, 64, 1024];
@@ -323,14 +323,11 @@ fn table_layouts(cfg: &BenchConfig, rows: &Rows) -> Result<Option<TableLayouts>>
     for (layout, bytes) in &candidates {
         let blob = Blob::open(bytes).with_context(|| format!("{layout} tables"))?;
         let s = blob.sampler()?;
-        let batched = with_concrete(
-            s,
-            BatchedAt {
-                rows,
-                n: 64,
-                passes: cfg.passes,
-            },
-        );
+        let batched = s.visit(BatchedAt {
+            rows,
+            n: 64,
+            passes: cfg.passes,
+        });
         let fit = crate::eval::fit(&s, &material, KL_CONDITIONS, 64, 0xF17);
         layouts.push(LayoutCost {
             layout: layout.to_string(),
@@ -356,9 +353,9 @@ struct BatchedAt<'r> {
     passes: usize,
 }
 
-impl WithSampler for BatchedAt<'_> {
+impl SamplerVisitor for BatchedAt<'_> {
     type Output = Split;
-    fn run<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Split
+    fn visit<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Split
     where
         S::Lane: Send,
     {
@@ -455,9 +452,9 @@ struct BatchedAll<'r> {
     passes: usize,
 }
 
-impl WithSampler for BatchedAll<'_> {
+impl SamplerVisitor for BatchedAll<'_> {
     type Output = Vec<Batched>;
-    fn run<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Vec<Batched>
+    fn visit<S: Sampler + BatchSampler + Copy + Sync>(self, s: S) -> Vec<Batched>
     where
         S::Lane: Send,
     {
@@ -623,13 +620,10 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
         }
         for (name, s) in variants {
             let scalar = scalar_split(&s, &inp, passes);
-            let batched = with_concrete(
-                s,
-                BatchedAll {
-                    rows: &rows,
-                    passes,
-                },
-            );
+            let batched = s.visit(BatchedAll {
+                rows: &rows,
+                passes,
+            });
             let b64 = batched
                 .iter()
                 .find(|b| b.n == 64)
@@ -836,14 +830,11 @@ pub fn profile(cfg: &BenchConfig, seconds: f64) -> Result<Vec<(String, usize)>> 
         let start = std::time::Instant::now();
         let mut passes = 0;
         while start.elapsed().as_secs_f64() < seconds {
-            with_concrete(
-                s,
-                BatchedAt {
-                    rows: &rows,
-                    n: 64,
-                    passes: 1,
-                },
-            );
+            s.visit(BatchedAt {
+                rows: &rows,
+                n: 64,
+                passes: 1,
+            });
             passes += 1;
         }
         done.push((method.clone(), passes));

@@ -21,7 +21,7 @@ use neusample::neural_material::{
 };
 use neusample::wavefront::{Features, FeaturesMut, RgbMut, Vec2s, Vec3s};
 use neusample::DType;
-use neusample::{Blob, BlobWriter, SamplerKind, TensorRole};
+use neusample::{Blob, BlobKind, BlobWriter, TensorRole};
 
 use super::model::{Material, FEATURE_DIM};
 
@@ -91,7 +91,7 @@ impl NeuralParts {
     /// Serialises as a neural-material blob (`core/BLOB.md`) with the given storage type.
     pub fn blob_bytes(&self, dtype: DType, label: &str) -> Result<Vec<u8>> {
         self.validate()?;
-        let mut w = BlobWriter::new(SamplerKind::NeuralMaterial, dtype, label)
+        let mut w = BlobWriter::new(BlobKind::NeuralMaterial, dtype, label)
             .texture_dims(self.width, self.height);
         w.tensor(TensorRole::Params, &self.params)
             .tensor(TensorRole::Features, &self.texture);
