@@ -10,8 +10,8 @@ neural route: the demo run on neural fits of the files) those columns read "—"
 import json
 import sys
 
-LEARNED = ["analytic", "flow", "disk-flow", "affine-flow", "direct-histogram",
-           "histogram-mixture", "reparam"]
+# The references; every other method of the report is a learned (or analytic) sampler.
+REFERENCES = {"cosine", "baseline", "measured-data", "oracle"}
 
 
 def main(path):
@@ -22,7 +22,7 @@ def main(path):
     for m in r["materials"]:
         by = {x["method"]: x for x in m["methods"]}
         data = by.get("measured-data")
-        cands = [by[k] for k in LEARNED if k in by and by[k].get("render")]
+        cands = [x for x in m["methods"] if x["method"] not in REFERENCES and x.get("render")]
         best = max(cands, key=lambda x: x["render"]["speedup"]["value"])
         s = best["render"]["speedup"]
         # As the report's verdict, among the learned and analytic samplers alone: the best is

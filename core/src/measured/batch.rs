@@ -1121,6 +1121,60 @@ mod tests {
         a.to_bits() == b.to_bits()
     }
 
+    /// `sample_batch`'s directions, densities and weights, and `sample_directions_batch`'s
+    /// directions and densities, for the lanes `wi`, `u` (buffers filled with 9 first).
+    #[allow(clippy::type_complexity)]
+    fn samples(
+        m: &MeasuredMaterial<Vec<f32>>,
+        wis: Vec3s<'_>,
+        u: Vec2s<'_>,
+    ) -> ([Vec<f32>; 4], [Vec<f32>; 3], [Vec<f32>; 4]) {
+        let n = wis.x.len();
+        let mut s = [vec![9.0; n], vec![9.0; n], vec![9.0; n], vec![9.0; n]];
+        let mut w = [vec![9.0; n], vec![9.0; n], vec![9.0; n]];
+        {
+            let [sx, sy, sz, sp] = &mut s;
+            let [wr, wg, wb] = &mut w;
+            m.sample_batch(
+                wis,
+                u,
+                SamplesMut {
+                    wo: Vec3sMut {
+                        x: sx,
+                        y: sy,
+                        z: sz,
+                    },
+                    pdf: sp,
+                },
+                RgbMut {
+                    r: wr,
+                    g: wg,
+                    b: wb,
+                },
+            )
+            .unwrap();
+        }
+        // Without the weights: the same directions and densities.
+        let mut d = [vec![9.0; n], vec![9.0; n], vec![9.0; n], vec![9.0; n]];
+        {
+            let [dx, dy, dz, dp] = &mut d;
+            m.sample_directions_batch(
+                wis,
+                u,
+                SamplesMut {
+                    wo: Vec3sMut {
+                        x: dx,
+                        y: dy,
+                        z: dz,
+                    },
+                    pdf: dp,
+                },
+            )
+            .unwrap();
+        }
+        (s, w, d)
+    }
+
     fn check(m: &MeasuredMaterial<Vec<f32>>, seed: u64) {
         let mut r = Rng(seed);
         let n = 1000;
@@ -1163,48 +1217,7 @@ mod tests {
         .unwrap();
         let mut pdf = vec![9.0; n];
         m.pdf_batch(wis, wos, &mut pdf).unwrap();
-        let mut s = [vec![9.0; n], vec![9.0; n], vec![9.0; n], vec![9.0; n]];
-        let mut w = [vec![9.0; n], vec![9.0; n], vec![9.0; n]];
-        {
-            let [sx, sy, sz, sp] = &mut s;
-            let [wr, wg, wb] = &mut w;
-            m.sample_batch(
-                wis,
-                Vec2s { x: &ux, y: &uy },
-                SamplesMut {
-                    wo: Vec3sMut {
-                        x: sx,
-                        y: sy,
-                        z: sz,
-                    },
-                    pdf: sp,
-                },
-                RgbMut {
-                    r: wr,
-                    g: wg,
-                    b: wb,
-                },
-            )
-            .unwrap();
-        }
-        // Without the weights: the same directions and densities.
-        let mut d = [vec![9.0; n], vec![9.0; n], vec![9.0; n], vec![9.0; n]];
-        {
-            let [dx, dy, dz, dp] = &mut d;
-            m.sample_directions_batch(
-                wis,
-                Vec2s { x: &ux, y: &uy },
-                SamplesMut {
-                    wo: Vec3sMut {
-                        x: dx,
-                        y: dy,
-                        z: dz,
-                    },
-                    pdf: dp,
-                },
-            )
-            .unwrap();
-        }
+        let (s, w, d) = samples(m, wis, Vec2s { x: &ux, y: &uy });
         for (k, (a, b)) in d.iter().zip(&s).enumerate() {
             for i in 0..n {
                 assert!(
