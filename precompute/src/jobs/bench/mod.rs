@@ -11,6 +11,7 @@
 
 pub mod library;
 
+use std::fmt::Write;
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 
@@ -845,8 +846,18 @@ pub fn profile(cfg: &BenchConfig, seconds: f64) -> Result<Vec<(String, usize)>> 
 /// The report as text tables.
 #[must_use]
 pub fn text(r: &BenchReport) -> String {
-    use std::fmt::Write;
     let mut s = String::new();
+    sampler_table(&mut s, r);
+    material_lines(&mut s, r);
+    dense_lines(&mut s, r);
+    if let Some(t) = &r.tables {
+        table_layout_lines(&mut s, t);
+    }
+    s
+}
+
+/// Every sampler's scalar and batched costs, on the chosen instruction set and portably.
+fn sampler_table(s: &mut String, r: &BenchReport) {
     let _ = writeln!(
         s,
         "neusample bench — {} (instruction set: {}), ns per shading point, single thread, medians",
@@ -903,6 +914,10 @@ pub fn text(r: &BenchReport) -> String {
             .collect();
         let _ = writeln!(s, "  {:<18} {}", m.method, t.join("  "));
     }
+}
+
+/// The neural and measured materials' costs.
+fn material_lines(s: &mut String, r: &BenchReport) {
     let nm = &r.neural_material;
     let fmt = |v: &[(usize, f64)]| {
         v.iter()
@@ -933,6 +948,10 @@ pub fn text(r: &BenchReport) -> String {
             );
         }
     }
+}
+
+/// The dense layers' throughput against the peak and against a GEMM library.
+fn dense_lines(s: &mut String, r: &BenchReport) {
     let d = &r.dense;
     let _ = writeln!(
         s,
@@ -1011,32 +1030,33 @@ pub fn text(r: &BenchReport) -> String {
             ""
         }
     );
-    if let Some(t) = &r.tables {
+}
+
+/// The histogram mixture's table layouts and row searches.
+fn table_layout_lines(s: &mut String, t: &TableLayouts) {
+    let _ = writeln!(
+        s,
+        "\nhistogram mixture, table layouts (batched N = 64; KL over {} conditions):",
+        t.kl_conditions
+    );
+    for l in &t.layouts {
         let _ = writeln!(
             s,
-            "\nhistogram mixture, table layouts (batched N = 64; KL over {} conditions):",
-            t.kl_conditions
-        );
-        for l in &t.layouts {
-            let _ = writeln!(
-                s,
-                "  {:<8} tables {:>9} B  prepare {:.0}  sample {:.0}  pdf {:.0}  total {:.0} ns  KL {:.4}",
-                l.layout,
-                l.table_bytes,
-                l.batched.prepare_ns,
-                l.batched.sample_ns,
-                l.batched.pdf_ns,
-                l.batched.total_ns,
-                l.kl
-            );
-        }
-        let _ = writeln!(
-            s,
-            "  row search ({} cells): binary {:.1} ns, guide table {:.1} ns per lookup",
-            t.search.resolution, t.search.binary_ns, t.search.guide_ns
+            "  {:<8} tables {:>9} B  prepare {:.0}  sample {:.0}  pdf {:.0}  total {:.0} ns  KL {:.4}",
+            l.layout,
+            l.table_bytes,
+            l.batched.prepare_ns,
+            l.batched.sample_ns,
+            l.batched.pdf_ns,
+            l.batched.total_ns,
+            l.kl
         );
     }
-    s
+    let _ = writeln!(
+        s,
+        "  row search ({} cells): binary {:.1} ns, guide table {:.1} ns per lookup",
+        t.search.resolution, t.search.binary_ns, t.search.guide_ns
+    );
 }
 
 fn r_total(m: &MethodCost, n: usize) -> f64 {
