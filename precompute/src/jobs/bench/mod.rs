@@ -552,7 +552,46 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
         .neural_material()
         .with_context(|| cfg.material.display().to_string())?;
 
-    // The neural material.
+    let neural_material = material_cost(&m, &inp, &rows, passes);
+    let at = |v: &[(usize, f64)], n: usize| v.iter().find(|x| x.0 == n).map_or(0.0, |x| x.1);
+    let eval_batch = &neural_material.eval_batch_ns;
+    let decoder_gmacs = DECODER_MACS / at(eval_batch, 1024);
+    let decoder_gmacs_portable = DECODER_MACS / at(&neural_material.eval_batch_portable_ns, 1024);
+    let peak = peak_gmacs(passes);
+    let measured = match &cfg.measured {
+        Some(path) => Some(measured_cost(path, &inp, passes)?),
+        None => None,
+    };
+
+    let methods = sampler_costs(cfg, &inp, &rows, at(eval_batch, 64))?;
+    Ok(BenchReport {
+        machine: Machine::this(),
+        blobs: cfg.blobs.display().to_string(),
+        material: cfg.material.display().to_string(),
+        isa: wavefront::current_isa().name().to_string(),
+        methods,
+        neural_material,
+        measured,
+        dense: DenseThroughput {
+            decoder_gmacs,
+            decoder_gmacs_portable,
+            peak_gmacs: peak,
+            fraction_of_peak: decoder_gmacs / peak,
+            peak_gmacs_x86_v3: peak_gmacs_x86_v3(passes),
+        },
+        tables: table_layouts(cfg, &rows)?,
+        library: library::run(cfg.lanes_per_pass, passes),
+    })
+}
+
+/// The neural material's feature lookup and eval, scalar and batched (on the chosen
+/// instruction set and portably) at every batch size.
+fn material_cost(
+    m: &NeuralMaterial<Tensor<'_>>,
+    inp: &Inputs,
+    rows: &Rows,
+    passes: usize,
+) -> MaterialCost {
     let features_ns = time_per(passes, inp.uvs.len(), || {
         for uv in &inp.uvs {
             black_box(m.features(*uv));
@@ -565,7 +604,7 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
     });
     let features_batch_ns = cost::features_batch_ns(
         |uv, phi| m.features_batch(uv, phi).expect("lengths agree"),
-        &rows,
+        rows,
         rows.len(),
         passes,
     );
@@ -573,21 +612,29 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
     let mut eval_portable = Vec::new();
     for &n in &BATCH_SIZES {
         wavefront::prefer_isa(Some(Isa::Portable));
-        eval_portable.push((n, eval_batch_ns(&m, &rows, n, passes)));
+        eval_portable.push((n, eval_batch_ns(m, rows, n, passes)));
         wavefront::prefer_isa(None);
-        eval_batch.push((n, eval_batch_ns(&m, &rows, n, passes)));
+        eval_batch.push((n, eval_batch_ns(m, rows, n, passes)));
     }
-    let at = |v: &[(usize, f64)], n: usize| v.iter().find(|x| x.0 == n).map_or(0.0, |x| x.1);
-    let eval64 = at(&eval_batch, 64);
-    let decoder_gmacs = DECODER_MACS / at(&eval_batch, 1024);
-    let decoder_gmacs_portable = DECODER_MACS / at(&eval_portable, 1024);
-    let peak = peak_gmacs(passes);
-    let measured = match &cfg.measured {
-        Some(path) => Some(measured_cost(path, &inp, passes)?),
-        None => None,
-    };
+    MaterialCost {
+        features_ns,
+        eval_ns,
+        features_batch_ns,
+        eval_batch_ns: eval_batch,
+        eval_batch_portable_ns: eval_portable,
+    }
+}
 
-    // The samplers.
+/// Every sampler blob of `cfg.blobs` (the `--methods` among them), scalar and batched; a
+/// blob with a defensive weight also with its learned part alone. `eval64`: the material's
+/// batched eval at N = 64, the ratio's denominator.
+fn sampler_costs(
+    cfg: &BenchConfig,
+    inp: &Inputs,
+    rows: &Rows,
+    eval64: f64,
+) -> Result<Vec<MethodCost>> {
+    let passes = cfg.passes;
     let mut methods = Vec::new();
     // The sampler blobs, by kind name (`<method>.nsb`), in `SamplerKind::ALL` order.
     for method in neusample::SamplerKind::ALL.map(neusample::SamplerKind::name) {
@@ -620,11 +667,8 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
             ));
         }
         for (name, s) in variants {
-            let scalar = scalar_split(&s, &inp, passes);
-            let batched = s.visit(BatchedAll {
-                rows: &rows,
-                passes,
-            });
+            let scalar = scalar_split(&s, inp, passes);
+            let batched = s.visit(BatchedAll { rows, passes });
             let b64 = batched
                 .iter()
                 .find(|b| b.n == 64)
@@ -637,30 +681,7 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
             });
         }
     }
-    Ok(BenchReport {
-        machine: Machine::this(),
-        blobs: cfg.blobs.display().to_string(),
-        material: cfg.material.display().to_string(),
-        isa: wavefront::current_isa().name().to_string(),
-        methods,
-        neural_material: MaterialCost {
-            features_ns,
-            eval_ns,
-            features_batch_ns,
-            eval_batch_ns: eval_batch,
-            eval_batch_portable_ns: eval_portable,
-        },
-        measured,
-        dense: DenseThroughput {
-            decoder_gmacs,
-            decoder_gmacs_portable,
-            peak_gmacs: peak,
-            fraction_of_peak: decoder_gmacs / peak,
-            peak_gmacs_x86_v3: peak_gmacs_x86_v3(passes),
-        },
-        tables: table_layouts(cfg, &rows)?,
-        library: library::run(cfg.lanes_per_pass, passes),
-    })
+    Ok(methods)
 }
 
 /// The measured material at `path` over the bench's conditions (their `wi`, `wo` and `u`).
