@@ -110,31 +110,7 @@ pub fn run(a: &DemoConfig) -> Result<()> {
             1 + 3 * techniques + 2
         };
     let pb = stages_bar((names.len() * per_material) as u64, "demo");
-    let mut report = Report {
-        schema: REPORT_SCHEMA,
-        quick: a.quick,
-        fixtures: a.use_fixtures,
-        blobs: a
-            .blobs
-            .as_ref()
-            .filter(|_| a.use_fixtures)
-            .map(|b| b.display().to_string()),
-        seed: a.seed,
-        steps_scale: (!a.quick && !a.use_fixtures).then_some(a.steps_scale),
-        eval_conditions: p.eval_conditions,
-        eval_res: p.eval_res,
-        render: (!a.no_render).then(|| RenderSetup {
-            width: p.scene.width,
-            height: p.scene.height,
-            sun_radiance: p.scene.sun_radiance,
-            sun_radius_deg: p.scene.sun_radius_deg,
-            env_map: a.envmap.as_ref().map(|e| e.display().to_string()),
-            uniform_light: p.scene.uniform_light,
-            settings: p.settings.clone(),
-        }),
-        seconds: 0.0,
-        materials: Vec::new(),
-    };
+    let mut report = new_report(a, &p);
     for name in &names {
         let material_started = Instant::now();
         let DemoMaterial {
@@ -142,91 +118,11 @@ pub fn run(a: &DemoConfig) -> Result<()> {
             source,
         } = resolve_demo_material(name, neural_defaults)?;
         let mname = m.name().to_string();
-        let neural = source.as_ref().map(|src| {
-            pb.set_message(format!("{mname}: fit to {}", src.name()));
-            NeuralReport {
-                source: src.name().to_string(),
-                fit: eval::fit_report(
-                    src.as_ref(),
-                    m.as_ref(),
-                    if a.quick { 2000 } else { 20000 },
-                    p.eval_conditions,
-                    p.eval_res,
-                    NeuralTrainConfig::default_run().epsilon,
-                    a.seed + 100,
-                ),
-                cost: eval::eval_cost(m.as_ref(), p.cost_n, p.cost_passes),
-                source_cost: eval::eval_cost(src.as_ref(), p.cost_n, p.cost_passes),
-            }
-        });
+        let neural = source
+            .as_ref()
+            .map(|src| neural_report(src.as_ref(), m.as_ref(), a, &p, &pb));
         let src = source.as_deref();
-        let mut methods = Vec::new();
-        let mut blobs: Vec<(String, Vec<u8>)> = Vec::new();
-
-        pb.set_message(format!("{mname}/{COSINE}"));
-        let (fit, kl_src) = fits(&CosineSampler, m.as_ref(), src, &p, a.seed);
-        let cost = eval::cost(&CosineSampler, m.as_ref(), p.cost_n, p.cost_passes);
-        methods.push(method_report(COSINE, 0.0, None, 0, None, fit, cost));
-        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
-        pb.inc(1);
-
-        for &method in &method_list {
-            let method_name = method.name();
-            if needs_integrand(method) && !has_integrand(m.as_ref()) {
-                // Trained on the integrand itself: neural and measured materials have one.
-                pb.inc(if a.no_render { 1 } else { 4 });
-                continue;
-            }
-            pb.set_message(format!("{mname}/{method_name}"));
-            let (bytes, secs, loss, check) = if a.use_fixtures {
-                let path = fixture_path(&a.blob_dir(&mname), &slug(&mname), method_name);
-                (io::read_blob(&path)?, 0.0, None, None)
-            } else {
-                let t = train_blob(m.as_ref(), method, a)?;
-                (t.bytes, t.seconds, t.loss, Some(t.max_relative))
-            };
-            io::atomic_write(
-                &out.join("blobs")
-                    .join(slug(&mname))
-                    .join(format!("{method_name}.nsb")),
-                &bytes,
-            )?;
-            let blob = Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
-            let sampler = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
-            let (fit, kl_src) = fits(&sampler, m.as_ref(), src, &p, a.seed);
-            let cost = eval::cost_any(&sampler, m.as_ref(), p.cost_n, p.cost_passes);
-            methods.push(method_report(
-                method_name,
-                secs,
-                loss,
-                bytes.len(),
-                check,
-                fit,
-                cost,
-            ));
-            methods.last_mut().expect("pushed").kl_vs_source = kl_src;
-            blobs.push((method_name.to_string(), bytes));
-            pb.inc(1);
-        }
-
-        pb.set_message(format!("{mname}/{ORACLE}"));
-        let oracle = OracleSampler::new(m.as_ref(), p.settings.oracle_res);
-        let (fit, kl_src) = fits(&oracle, m.as_ref(), src, &p, a.seed);
-        let cost = eval::cost_scalar(&oracle, m.as_ref(), p.oracle_cost_n, p.cost_passes.min(3));
-        methods.push(method_report(ORACLE, 0.0, None, 0, None, fit, cost));
-        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
-        pb.inc(1);
-
-        // A measured material's own sampler: the peer a user of the data would pick.
-        if let Some(data) = m.measured() {
-            pb.set_message(format!("{mname}/{MEASURED_DATA}"));
-            let s = MeasuredDataSampler(data.material().borrowed());
-            let (fit, kl_src) = fits(&s, m.as_ref(), src, &p, a.seed);
-            let cost = eval::cost(&s, m.as_ref(), p.cost_n, p.cost_passes);
-            methods.push(method_report(MEASURED_DATA, 0.0, None, 0, None, fit, cost));
-            methods.last_mut().expect("pushed").kl_vs_source = kl_src;
-        }
-
+        let (mut methods, blobs) = fit_and_cost(m.as_ref(), src, a, &p, &out, &pb)?;
         let fit_seconds = material_started.elapsed().as_secs_f64();
         let (reference, figures, budget) = if a.no_render {
             (None, None, None)
@@ -274,6 +170,143 @@ pub fn run(a: &DemoConfig) -> Result<()> {
     );
     eprintln!("output folder: {}", out.display());
     Ok(())
+}
+
+/// The report before any material: the run's settings.
+fn new_report(a: &DemoConfig, p: &Preset) -> Report {
+    Report {
+        schema: REPORT_SCHEMA,
+        quick: a.quick,
+        fixtures: a.use_fixtures,
+        blobs: a
+            .blobs
+            .as_ref()
+            .filter(|_| a.use_fixtures)
+            .map(|b| b.display().to_string()),
+        seed: a.seed,
+        steps_scale: (!a.quick && !a.use_fixtures).then_some(a.steps_scale),
+        eval_conditions: p.eval_conditions,
+        eval_res: p.eval_res,
+        render: (!a.no_render).then(|| RenderSetup {
+            width: p.scene.width,
+            height: p.scene.height,
+            sun_radiance: p.scene.sun_radiance,
+            sun_radius_deg: p.scene.sun_radius_deg,
+            env_map: a.envmap.as_ref().map(|e| e.display().to_string()),
+            uniform_light: p.scene.uniform_light,
+            settings: p.settings.clone(),
+        }),
+        seconds: 0.0,
+        materials: Vec::new(),
+    }
+}
+
+/// A neural material's fit to its source (RGB error, KL) and both materials' costs.
+fn neural_report(
+    src: &dyn Material,
+    m: &dyn Material,
+    a: &DemoConfig,
+    p: &Preset,
+    pb: &ProgressBar,
+) -> NeuralReport {
+    pb.set_message(format!("{}: fit to {}", m.name(), src.name()));
+    NeuralReport {
+        source: src.name().to_string(),
+        fit: eval::fit_report(
+            src,
+            m,
+            if a.quick { 2000 } else { 20000 },
+            p.eval_conditions,
+            p.eval_res,
+            NeuralTrainConfig::default_run().epsilon,
+            a.seed + 100,
+        ),
+        cost: eval::eval_cost(m, p.cost_n, p.cost_passes),
+        source_cost: eval::eval_cost(src, p.cost_n, p.cost_passes),
+    }
+}
+
+/// Every technique's fit and cost on `m` (cosine, each method of `a` from its fixture or
+/// trained now, the oracle and a measured material's own sampler), with the learned blobs,
+/// which are also written under `out/blobs/`.
+#[allow(clippy::type_complexity)]
+fn fit_and_cost(
+    m: &dyn Material,
+    src: Option<&dyn Material>,
+    a: &DemoConfig,
+    p: &Preset,
+    out: &Path,
+    pb: &ProgressBar,
+) -> Result<(Vec<MethodReport>, Vec<(String, Vec<u8>)>)> {
+    let mname = m.name().to_string();
+    let method_list = a.method_list();
+    let mut methods = Vec::new();
+    let mut blobs: Vec<(String, Vec<u8>)> = Vec::new();
+
+    pb.set_message(format!("{mname}/{COSINE}"));
+    let (fit, kl_src) = fits(&CosineSampler, m, src, p, a.seed);
+    let cost = eval::cost(&CosineSampler, m, p.cost_n, p.cost_passes);
+    methods.push(method_report(COSINE, 0.0, None, 0, None, fit, cost));
+    methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+    pb.inc(1);
+
+    for &method in &method_list {
+        let method_name = method.name();
+        if needs_integrand(method) && !has_integrand(m) {
+            // Trained on the integrand itself: neural and measured materials have one.
+            pb.inc(if a.no_render { 1 } else { 4 });
+            continue;
+        }
+        pb.set_message(format!("{mname}/{method_name}"));
+        let (bytes, secs, loss, check) = if a.use_fixtures {
+            let path = fixture_path(&a.blob_dir(&mname), &slug(&mname), method_name);
+            (io::read_blob(&path)?, 0.0, None, None)
+        } else {
+            let t = train_blob(m, method, a)?;
+            (t.bytes, t.seconds, t.loss, Some(t.max_relative))
+        };
+        io::atomic_write(
+            &out.join("blobs")
+                .join(slug(&mname))
+                .join(format!("{method_name}.nsb")),
+            &bytes,
+        )?;
+        let blob = Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let sampler = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
+        let (fit, kl_src) = fits(&sampler, m, src, p, a.seed);
+        let cost = eval::cost_any(&sampler, m, p.cost_n, p.cost_passes);
+        methods.push(method_report(
+            method_name,
+            secs,
+            loss,
+            bytes.len(),
+            check,
+            fit,
+            cost,
+        ));
+        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+        blobs.push((method_name.to_string(), bytes));
+        pb.inc(1);
+    }
+
+    pb.set_message(format!("{mname}/{ORACLE}"));
+    let oracle = OracleSampler::new(m, p.settings.oracle_res);
+    let (fit, kl_src) = fits(&oracle, m, src, p, a.seed);
+    let cost = eval::cost_scalar(&oracle, m, p.oracle_cost_n, p.cost_passes.min(3));
+    methods.push(method_report(ORACLE, 0.0, None, 0, None, fit, cost));
+    methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+    pb.inc(1);
+
+    // A measured material's own sampler: the peer a user of the data would pick.
+    if let Some(data) = m.measured() {
+        pb.set_message(format!("{mname}/{MEASURED_DATA}"));
+        let s = MeasuredDataSampler(data.material().borrowed());
+        let (fit, kl_src) = fits(&s, m, src, p, a.seed);
+        let cost = eval::cost(&s, m, p.cost_n, p.cost_passes);
+        methods.push(method_report(MEASURED_DATA, 0.0, None, 0, None, fit, cost));
+        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+    }
+    Ok((methods, blobs))
 }
 
 /// Renders one material with every technique, writes its images and plots, and fills the
