@@ -309,30 +309,17 @@ fn fit_and_cost(
     Ok((methods, blobs))
 }
 
-/// Renders one material with every technique, writes its images and plots, and fills the
-/// `render` part of its method reports.
-fn render_material(
-    out: &Path,
-    m: &dyn Material,
-    blobs: &[(String, Vec<u8>)],
+/// The techniques a material is rendered with: cosine, the learned blobs, a measured
+/// material's own sampler and the tabulated oracle.
+fn techniques<'m>(
+    m: &'m dyn Material,
+    blobs: &'m [(String, Vec<u8>)],
     p: &Preset,
-    pb: &ProgressBar,
-    methods: &mut [MethodReport],
-) -> Result<(ReferenceReport, FigureReport, f64)> {
-    let mname = m.name().to_string();
-    let dir = format!("images/{}", slug(&mname));
-    let opened = blobs
-        .iter()
-        .map(|(n, b)| {
-            Ok((
-                n.clone(),
-                Blob::open(b).map_err(|e| anyhow::anyhow!("{e}"))?,
-            ))
-        })
-        .collect::<Result<Vec<_>>>()?;
+) -> Result<Vec<(String, Technique<'m>)>> {
     let mut techniques: Vec<(String, Technique<'_>)> =
         vec![(COSINE.to_string(), Technique::Blob(BlobSampler::cosine()))];
-    for (n, blob) in &opened {
+    for (n, bytes) in blobs {
+        let blob = Blob::open(bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
         let s = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
         techniques.push((n.clone(), Technique::Blob(s)));
     }
@@ -346,138 +333,57 @@ fn render_material(
         ORACLE.to_string(),
         Technique::Oracle(OracleSampler::new(m, p.settings.oracle_res)),
     ));
+    Ok(techniques)
+}
 
-    let scene = demo_scene(&p.scene);
-    pb.set_message(format!("{mname}/reference"));
-    let reference = metrics::reference(&scene, m, &p.settings);
-    pb.inc(1);
-    let evals = metrics::evaluate(
-        &scene,
-        m,
-        &techniques,
-        &reference,
-        BASELINE,
-        &p.settings,
-        &|msg| {
-            pb.set_message(format!("{mname}/{msg}"));
-            pb.inc(1);
-        },
-    )?;
-
-    // Images.
-    pb.set_message(format!("{mname}/figures"));
-    let rr = &reference.render;
-    let exposure = figures::auto_exposure(&rr.image, &rr.mask);
-    let ref_png = format!("{dir}/reference.png");
-    let ref_exr = format!("{dir}/reference.exr");
-    let ref_tm = figures::tonemap(&rr.image, exposure);
-    figures::write_png(&out.join(&ref_png), &ref_tm)?;
-    figures::write_exr(&out.join(&ref_exr), &rr.image)?;
-    let ref_caption = [
-        "reference".to_string(),
-        format!("oracle + MIS, {} spp", rr.spp),
-    ];
-    let mut time_tiles: Vec<(Rgb8, [String; 2])> = vec![(ref_tm.clone(), ref_caption.clone())];
-    let mut spp_tiles: Vec<(Rgb8, [String; 2])> = vec![(ref_tm, ref_caption)];
-    let base = evals
-        .iter()
-        .position(|e| e.name == BASELINE)
-        .context("no baseline technique")?;
-    let cosine_ns = evals
-        .iter()
-        .find(|e| e.name == COSINE)
-        .map_or(f64::NAN, |e| e.ns_per_sample);
-    for e in &evals {
-        let stem = format!("{dir}/{}", e.name);
-        let et_png = format!("{stem}.equal_time.png");
-        let et_exr = format!("{stem}.equal_time.exr");
-        let es_png = format!("{stem}.equal_spp.png");
-        let t_img = figures::tonemap(&e.equal_time.image, exposure);
-        let s_img = figures::tonemap(&e.equal_spp.image, exposure);
-        figures::write_png(&out.join(&et_png), &t_img)?;
-        figures::write_exr(&out.join(&et_exr), &e.equal_time.image)?;
-        figures::write_png(&out.join(&es_png), &s_img)?;
-        time_tiles.push((
-            t_img,
-            [
-                e.name.clone(),
-                format!("{} spp · MSE {:.2e}", e.equal_time_spp, e.mse_equal_time),
-            ],
-        ));
-        spp_tiles.push((
-            s_img,
-            [
-                e.name.clone(),
-                format!("{} spp · MSE {:.2e}", e.equal_spp.spp, e.mse_equal_spp),
-            ],
-        ));
-        // The resampling stream of this method: the seed mixed with the method's name.
-        let name_key = e.name.bytes().fold(0xCBF2_9CE4_8422_2325u64, |h, b| {
-            (h ^ u64::from(b)).wrapping_mul(0x100_0000_01B3)
-        });
-        let seed = crate::util::rng::mix_seed(p.settings.seed ^ 0xB007, name_key);
-        let speedup = metrics::speedup(e, &evals[base], seed);
-        let mse_ratio = metrics::variance_ratio(e, &evals[base], seed);
-        let r = RenderReport {
-            blocks: e.equal_spp.blocks.len() as u32,
-            variance: e.variance,
-            mse_equal_spp_interval: e.mse_at(e.equal_spp.spp),
-            mse_equal_time_interval: e.mse_equal_time_estimate(seed),
-            speedup,
-            mse_ratio,
-            ns_per_sample: e.ns_per_sample,
-            time_vs_cosine: e.ns_per_sample / cosine_ns,
-            equal_spp: e.equal_spp.spp,
-            mse_equal_spp: e.mse_equal_spp,
-            equal_time_spp: e.equal_time_spp,
-            mse_equal_time: e.mse_equal_time,
-            speedup_vs_baseline: speedup.value,
-            speedup_measured_mse: metrics::speedup_measured(e, &evals[base]),
-            mse_expected_equal_spp: e.mse_expected_equal_spp,
-            mse_ratio_equal_spp: mse_ratio.value,
-            convergence: e.convergence.clone(),
-            equal_time_exr: et_exr,
-            equal_time_png: et_png,
-            equal_spp_png: es_png,
-        };
-        if let Some(mr) = methods.iter_mut().find(|x| x.method == e.name) {
-            mr.speedup_vs_baseline = Some(r.speedup_vs_baseline);
-            mr.mse_equal_spp = Some(r.mse_equal_spp);
-            mr.mse_equal_time = Some(r.mse_equal_time);
-            mr.render = Some(r);
-        }
+/// One technique's rendering figures against the baseline `base`: the intervals come from
+/// the method's own resampling stream. `paths`: its equal-time EXR and PNG, its equal-spp PNG.
+fn render_report(
+    e: &metrics::TechniqueEval,
+    base: &metrics::TechniqueEval,
+    cosine_ns: f64,
+    seed: u64,
+    paths: [String; 3],
+) -> RenderReport {
+    let [equal_time_exr, equal_time_png, equal_spp_png] = paths;
+    // The resampling stream of this method: the seed mixed with the method's name.
+    let name_key = e.name.bytes().fold(0xCBF2_9CE4_8422_2325u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x100_0000_01B3)
+    });
+    let seed = crate::util::rng::mix_seed(seed ^ 0xB007, name_key);
+    let speedup = metrics::speedup(e, base, seed);
+    let mse_ratio = metrics::variance_ratio(e, base, seed);
+    RenderReport {
+        blocks: e.equal_spp.blocks.len() as u32,
+        variance: e.variance,
+        mse_equal_spp_interval: e.mse_at(e.equal_spp.spp),
+        mse_equal_time_interval: e.mse_equal_time_estimate(seed),
+        speedup,
+        mse_ratio,
+        ns_per_sample: e.ns_per_sample,
+        time_vs_cosine: e.ns_per_sample / cosine_ns,
+        equal_spp: e.equal_spp.spp,
+        mse_equal_spp: e.mse_equal_spp,
+        equal_time_spp: e.equal_time_spp,
+        mse_equal_time: e.mse_equal_time,
+        speedup_vs_baseline: speedup.value,
+        speedup_measured_mse: metrics::speedup_measured(e, base),
+        mse_expected_equal_spp: e.mse_expected_equal_spp,
+        mse_ratio_equal_spp: mse_ratio.value,
+        convergence: e.convergence.clone(),
+        equal_time_exr,
+        equal_time_png,
+        equal_spp_png,
     }
-    let budget = evals[base].ns_per_sample
-        * f64::from(p.settings.max_spp)
-        * (scene.camera.width * scene.camera.height) as f64
-        * 1e-9;
-    let est = match p.settings.estimator {
-        Estimator::Bsdf => "BSDF sampling",
-        Estimator::Mis => "MIS",
-    };
-    let eq_time = format!("{dir}/equal_time.png");
-    figures::write_png(
-        &out.join(&eq_time),
-        &figures::labelled_grid(
-            &time_tiles,
-            3,
-            &format!(
-                "{mname}: equal time ({:.0} ms single-thread per image), {est}",
-                budget * 1e3
-            ),
-        )?,
-    )?;
-    let eq_spp = format!("{dir}/equal_spp.png");
-    figures::write_png(
-        &out.join(&eq_spp),
-        &figures::labelled_grid(
-            &spp_tiles,
-            3,
-            &format!("{mname}: equal spp ({}), {est}", p.settings.max_spp),
-        )?,
-    )?;
-    pb.inc(1);
+}
 
+/// The convergence plot (Fig. 8): MSE against spp and against time; its path under `out`.
+fn convergence_figure(
+    out: &Path,
+    mname: &str,
+    evals: &[metrics::TechniqueEval],
+    est: &str,
+) -> Result<String> {
     // Convergence plot (Fig. 8).
     let by_spp: Vec<figures::Series> = evals
         .iter()
@@ -502,7 +408,7 @@ fn render_material(
                 .collect(),
         })
         .collect();
-    let conv = format!("plots/{}_convergence.png", slug(&mname));
+    let conv = format!("plots/{}_convergence.png", slug(mname));
     figures::write_png(
         &out.join(&conv),
         &figures::convergence_plot(
@@ -512,17 +418,150 @@ fn render_material(
             "single-thread time per image (ms)",
         )?,
     )?;
+    Ok(conv)
+}
 
-    // pdf grid (Fig. 7).
+/// One technique's equal-time (PNG and EXR) and equal-spp (PNG) images under `out/dir`:
+/// their paths, and the two tone-mapped images with their captions for the grids.
+#[allow(clippy::type_complexity)]
+fn technique_images(
+    out: &Path,
+    dir: &str,
+    e: &metrics::TechniqueEval,
+    exposure: f32,
+) -> Result<([String; 3], (Rgb8, [String; 2]), (Rgb8, [String; 2]))> {
+    let stem = format!("{dir}/{}", e.name);
+    let et_png = format!("{stem}.equal_time.png");
+    let et_exr = format!("{stem}.equal_time.exr");
+    let es_png = format!("{stem}.equal_spp.png");
+    let t_img = figures::tonemap(&e.equal_time.image, exposure);
+    let s_img = figures::tonemap(&e.equal_spp.image, exposure);
+    figures::write_png(&out.join(&et_png), &t_img)?;
+    figures::write_exr(&out.join(&et_exr), &e.equal_time.image)?;
+    figures::write_png(&out.join(&es_png), &s_img)?;
+    let caption = |spp: u32, mse: f64| [e.name.clone(), format!("{spp} spp · MSE {mse:.2e}")];
+    Ok((
+        [et_exr, et_png, es_png],
+        (t_img, caption(e.equal_time_spp, e.mse_equal_time)),
+        (s_img, caption(e.equal_spp.spp, e.mse_equal_spp)),
+    ))
+}
+
+/// A labelled grid of tiles, three per row, as a PNG at `path`.
+fn write_grid(path: &Path, tiles: &[(Rgb8, [String; 2])], title: &str) -> Result<()> {
+    figures::write_png(path, &figures::labelled_grid(tiles, 3, title)?)
+}
+
+/// The reference image as a PNG and an EXR under `out/dir`: their paths and the PNG's
+/// tone-mapped image.
+fn reference_images(
+    out: &Path,
+    dir: &str,
+    rr: &neusample_render::Render,
+    exposure: f32,
+) -> Result<(String, String, Rgb8)> {
+    let ref_png = format!("{dir}/reference.png");
+    let ref_exr = format!("{dir}/reference.exr");
+    let ref_tm = figures::tonemap(&rr.image, exposure);
+    figures::write_png(&out.join(&ref_png), &ref_tm)?;
+    figures::write_exr(&out.join(&ref_exr), &rr.image)?;
+    Ok((ref_png, ref_exr, ref_tm))
+}
+
+/// Renders one material with every technique, writes its images and plots, and fills the
+/// `render` part of its method reports.
+fn render_material(
+    out: &Path,
+    m: &dyn Material,
+    blobs: &[(String, Vec<u8>)],
+    p: &Preset,
+    pb: &ProgressBar,
+    methods: &mut [MethodReport],
+) -> Result<(ReferenceReport, FigureReport, f64)> {
+    let mname = m.name().to_string();
+    let dir = format!("images/{}", slug(&mname));
+    let techniques = techniques(m, blobs, p)?;
+
+    let scene = demo_scene(&p.scene);
+    pb.set_message(format!("{mname}/reference"));
+    let reference = metrics::reference(&scene, m, &p.settings);
+    pb.inc(1);
+    let evals = metrics::evaluate(
+        &scene,
+        m,
+        &techniques,
+        &reference,
+        BASELINE,
+        &p.settings,
+        &|msg| {
+            pb.set_message(format!("{mname}/{msg}"));
+            pb.inc(1);
+        },
+    )?;
+
+    // Images.
+    pb.set_message(format!("{mname}/figures"));
+    let rr = &reference.render;
+    let exposure = figures::auto_exposure(&rr.image, &rr.mask);
+    let (ref_png, ref_exr, ref_tm) = reference_images(out, &dir, rr, exposure)?;
+    let ref_caption = [
+        "reference".to_string(),
+        format!("oracle + MIS, {} spp", rr.spp),
+    ];
+    let mut time_tiles: Vec<(Rgb8, [String; 2])> = vec![(ref_tm.clone(), ref_caption.clone())];
+    let mut spp_tiles: Vec<(Rgb8, [String; 2])> = vec![(ref_tm, ref_caption)];
+    let base = evals
+        .iter()
+        .position(|e| e.name == BASELINE)
+        .context("no baseline technique")?;
+    let cosine_ns = evals
+        .iter()
+        .find(|e| e.name == COSINE)
+        .map_or(f64::NAN, |e| e.ns_per_sample);
+    for e in &evals {
+        let (paths, time_tile, spp_tile) = technique_images(out, &dir, e, exposure)?;
+        time_tiles.push(time_tile);
+        spp_tiles.push(spp_tile);
+        let r = render_report(e, &evals[base], cosine_ns, p.settings.seed, paths);
+        if let Some(mr) = methods.iter_mut().find(|x| x.method == e.name) {
+            mr.speedup_vs_baseline = Some(r.speedup_vs_baseline);
+            mr.mse_equal_spp = Some(r.mse_equal_spp);
+            mr.mse_equal_time = Some(r.mse_equal_time);
+            mr.render = Some(r);
+        }
+    }
+    let budget = evals[base].ns_per_sample
+        * f64::from(p.settings.max_spp)
+        * (scene.camera.width * scene.camera.height) as f64
+        * 1e-9;
+    let est = match p.settings.estimator {
+        Estimator::Bsdf => "BSDF sampling",
+        Estimator::Mis => "MIS",
+    };
+    let eq_time = format!("{dir}/equal_time.png");
+    let title = format!(
+        "{mname}: equal time ({:.0} ms single-thread per image), {est}",
+        budget * 1e3
+    );
+    write_grid(&out.join(&eq_time), &time_tiles, &title)?;
+    let eq_spp = format!("{dir}/equal_spp.png");
+    let title = format!("{mname}: equal spp ({}), {est}", p.settings.max_spp);
+    write_grid(&out.join(&eq_spp), &spp_tiles, &title)?;
+    pb.inc(1);
+
+    let conv = convergence_figure(out, &mname, &evals, est)?;
+
+    // pdf grid (Fig. 7) and the worst conditions' weights.
     let pdfs = format!("{dir}/pdfs.png");
+    let seed = p.settings.seed;
     figures::write_png(
         &out.join(&pdfs),
-        &pdf_figure(m, &techniques, p, p.settings.seed + 500)?,
+        &pdf_figure(m, &techniques, p, seed + 500)?,
     )?;
     let weights = format!("{dir}/weights.png");
     figures::write_png(
         &out.join(&weights),
-        &weights_figure(m, &techniques, p, p.settings.seed + 100)?,
+        &weights_figure(m, &techniques, p, seed + 100)?,
     )?;
     pb.inc(1);
 

@@ -674,19 +674,8 @@ pub fn run(c: &ShowcaseConfig) -> Result<()> {
     let out = c.out.canonicalize()?;
     eprintln!("neusample scene: writing to {}", out.display());
 
-    let width = c.width;
-    let height = (width * 9 / 16).max(1);
-    let scene = showcase_scene(&ShowcaseParams {
-        scene: SceneParams {
-            width,
-            height,
-            sun_radiance: c.sun_radiance,
-            sun_radius_deg: c.sun_size,
-            env_map,
-            ..ShowcaseParams::default().scene
-        },
-        surfaces: loaded.len(),
-    });
+    let (width, height) = (c.width, (c.width * 9 / 16).max(1));
+    let scene = scene_of(c, width, height, env_map, loaded.len());
     let base_samplers = loaded
         .iter()
         .map(|l| sampler_of(Some(&l.baseline)).with_context(|| format!("{} baseline", l.name)))
@@ -700,52 +689,15 @@ pub fn run(c: &ShowcaseConfig) -> Result<()> {
         surfaces(&loaded, &best_samplers),
     );
 
-    let mut opts = RenderOptions::new(c.spp, c.seed);
-    opts.checkpoints.clear();
-    opts.estimator = Estimator::Mis;
-    opts.jitter = true;
-    opts.max_bounces = c.bounces;
+    let opts = render_options(c);
 
-    // Reference: the baseline with many samples, seeded apart.
-    let ref_spp = c.spp.saturating_mul(c.ref_factor).max(2);
-    eprintln!("reference: baseline, {ref_spp} spp");
-    let mut o = opts.clone();
-    o.spp = ref_spp;
-    o.seed = c.seed ^ 0x5EF0_0000_0000_5EF0;
-    let reference = render_wavefront(&scene, &base_surfaces, &o);
-    let full = Reference {
-        noise: metrics::mean_variance_of_mean(&reference, &reference.mask),
-        render: reference,
-    };
-    let reference = &full.render;
+    let full = reference_render(c, &scene, &base_surfaces, &opts);
+    let (reference, ref_spp) = (&full.render, full.render.spp);
 
-    // Single-thread time per sample, passes interleaved.
-    eprintln!("timing: {} passes per configuration", c.timing_passes);
-    let mut t = opts.clone();
-    t.spp = 1;
-    let (mut base_ns, mut best_ns) = (Vec::new(), Vec::new());
-    for _ in 0..c.timing_passes {
-        base_ns.push(time_per_sample_wavefront(&scene, &base_surfaces, &t, 1)?);
-        best_ns.push(time_per_sample_wavefront(&scene, &best_surfaces, &t, 1)?);
-    }
+    let (base_ns, best_ns) = timings(c, &scene, [&base_surfaces, &best_surfaces], &opts)?;
     let (tb, tm) = (median(base_ns.clone()), median(best_ns.clone()));
-    let best_spp = if tm > 0.0 {
-        (f64::from(c.spp) * tb / tm)
-            .round()
-            .clamp(1.0, f64::from(c.spp.saturating_mul(64))) as u32
-    } else {
-        1
-    };
-
-    eprintln!("baseline: {} spp; best per material: {best_spp} spp", c.spp);
-    let mut o = opts.clone();
-    o.blocks = metrics::DEFAULT_BLOCKS;
-    let base_render = render_wavefront(&scene, &base_surfaces, &o);
-    let mut o = opts.clone();
-    o.spp = best_spp;
-    o.seed = c.seed.wrapping_add(0x00E9_0A17);
-    o.blocks = metrics::DEFAULT_BLOCKS;
-    let best_render = render_wavefront(&scene, &best_surfaces, &o);
+    let [base_render, best_render] =
+        equal_time_renders(c, &scene, [&base_surfaces, &best_surfaces], &opts, tb / tm);
 
     // MSE over the image and per material.
     let seed = mix_seed(c.seed, 0x5C3E);
@@ -756,72 +708,14 @@ pub fn run(c: &ShowcaseConfig) -> Result<()> {
         (&best_blocks, best_render.spp),
         seed + 2,
     );
-    let hits = surface_map(&scene);
     let objects = object_names(&scene, loaded.len());
-    let mut materials = Vec::new();
-    for (k, l) in loaded.iter().enumerate() {
-        let mask: Vec<bool> = hits
-            .iter()
-            .zip(&reference.mask)
-            .map(|(h, &m)| m && *h == Some(k))
-            .collect();
-        let pixels = mask.iter().filter(|&&b| b).count();
-        let r = masked_reference(reference, mask);
-        let s = mix_seed(seed, 16 + k as u64);
-        let (b, bb) = mse_of(&base_render, &r, s);
-        let (m, mb) = mse_of(&best_render, &r, s + 1);
-        materials.push(ShowcaseMaterial {
-            material: l.name.clone(),
-            objects: objects[k].clone(),
-            method: l.method.clone(),
-            method_source: l.method_source,
-            pixels,
-            mse_ratio: mse_ratio((&bb, base_render.spp), (&mb, best_render.spp), s + 2),
-            baseline: b,
-            best: m,
-        });
-    }
+    let renders = [&base_render, &best_render];
+    let materials = per_material(&loaded, &scene, &objects, reference, renders, seed);
 
-    // Images.
-    let exposure = figures::auto_exposure(&reference.image, &reference.mask);
-    figures::write_exr(&out.join("reference.exr"), &reference.image)?;
-    figures::write_exr(&out.join("baseline.exr"), &base_render.image)?;
-    figures::write_exr(&out.join("best.exr"), &best_render.image)?;
-    let tiles = [
-        (
-            figures::tonemap(&reference.image, exposure),
-            ["reference".to_string(), format!("baseline, {ref_spp} spp")],
-        ),
-        (
-            figures::tonemap(&base_render.image, exposure),
-            [
-                "baseline, equal time".to_string(),
-                format!("{} spp · MSE {:.2e}", base_render.spp, base_mse.mse),
-            ],
-        ),
-        (
-            figures::tonemap(&best_render.image, exposure),
-            [
-                "best per material, equal time".to_string(),
-                format!("{} spp · MSE {:.2e}", best_render.spp, best_mse.mse),
-            ],
-        ),
-    ];
-    let grid = figures::labelled_grid(&tiles, 3, "")?;
-    let methods: Vec<String> = loaded
-        .iter()
-        .zip(&objects)
-        .map(|(l, o)| format!("{} ({}): {}", base_name(&l.name), o.join(", "), l.method))
-        .collect();
-    let header = [
-        format!(
-            "Equal single-thread time, MIS, {} bounces: the baseline on every object against \
-             the best sampler per material",
-            c.bounces
-        ),
-        methods.join(" · "),
-    ];
-    figures::write_png(&out.join("showcase.png"), &with_header(&grid, &header)?)?;
+    let mses = [base_mse.mse, best_mse.mse];
+    write_images(
+        &out, c, &loaded, &objects, reference, ref_spp, renders, mses,
+    )?;
 
     let pixels = (width * height) as f64;
     let side = |r: &Render, ns: f64, passes: Vec<f64>, mse: MseReport, exr: &str| ShowcaseRender {
@@ -872,6 +766,197 @@ pub fn run(c: &ShowcaseConfig) -> Result<()> {
         report.seconds,
         out.join("showcase.md").display()
     );
+    Ok(())
+}
+
+/// The reference: the baseline with `c.ref_factor` times the samples, seeded apart, and its
+/// own noise.
+fn reference_render(
+    c: &ShowcaseConfig,
+    scene: &Scene,
+    base_surfaces: &[Surface<'_, dyn Material, BlobSampler<'_>>],
+    opts: &RenderOptions,
+) -> Reference {
+    let ref_spp = c.spp.saturating_mul(c.ref_factor).max(2);
+    eprintln!("reference: baseline, {ref_spp} spp");
+    let mut o = opts.clone();
+    o.spp = ref_spp;
+    o.seed = c.seed ^ 0x5EF0_0000_0000_5EF0;
+    let reference = render_wavefront(scene, base_surfaces, &o);
+    Reference {
+        noise: metrics::mean_variance_of_mean(&reference, &reference.mask),
+        render: reference,
+    }
+}
+
+/// The baseline at `c.spp` and the best samplers at the spp of the same single-thread time
+/// (`speed`: the baseline's time per sample over theirs; NaN or ∞ give 1 spp).
+fn equal_time_renders(
+    c: &ShowcaseConfig,
+    scene: &Scene,
+    surfaces: [&[Surface<'_, dyn Material, BlobSampler<'_>>]; 2],
+    opts: &RenderOptions,
+    speed: f64,
+) -> [Render; 2] {
+    let best_spp = if speed.is_finite() && speed > 0.0 {
+        (f64::from(c.spp) * speed)
+            .round()
+            .clamp(1.0, f64::from(c.spp.saturating_mul(64))) as u32
+    } else {
+        1
+    };
+    eprintln!("baseline: {} spp; best per material: {best_spp} spp", c.spp);
+    let mut o = opts.clone();
+    o.blocks = metrics::DEFAULT_BLOCKS;
+    let base_render = render_wavefront(scene, surfaces[0], &o);
+    let mut o = opts.clone();
+    o.spp = best_spp;
+    o.seed = c.seed.wrapping_add(0x00E9_0A17);
+    o.blocks = metrics::DEFAULT_BLOCKS;
+    [base_render, render_wavefront(scene, surfaces[1], &o)]
+}
+
+/// The render settings every showcase render shares: MIS, jittered pixels, `c.bounces`.
+fn render_options(c: &ShowcaseConfig) -> RenderOptions {
+    let mut opts = RenderOptions::new(c.spp, c.seed);
+    opts.checkpoints.clear();
+    opts.estimator = Estimator::Mis;
+    opts.jitter = true;
+    opts.max_bounces = c.bounces;
+    opts
+}
+
+/// Single-thread time per sample of the baseline's and the best samplers' scenes, in
+/// `c.timing_passes` interleaved passes each.
+fn timings(
+    c: &ShowcaseConfig,
+    scene: &Scene,
+    surfaces: [&[Surface<'_, dyn Material, BlobSampler<'_>>]; 2],
+    opts: &RenderOptions,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    eprintln!("timing: {} passes per configuration", c.timing_passes);
+    let mut t = opts.clone();
+    t.spp = 1;
+    let (mut base_ns, mut best_ns) = (Vec::new(), Vec::new());
+    for _ in 0..c.timing_passes {
+        base_ns.push(time_per_sample_wavefront(scene, surfaces[0], &t, 1)?);
+        best_ns.push(time_per_sample_wavefront(scene, surfaces[1], &t, 1)?);
+    }
+    Ok((base_ns, best_ns))
+}
+
+/// The showcase scene for `surfaces` materials at `width × height`.
+fn scene_of(
+    c: &ShowcaseConfig,
+    width: usize,
+    height: usize,
+    env_map: Option<EnvMap>,
+    surfaces: usize,
+) -> Scene {
+    showcase_scene(&ShowcaseParams {
+        scene: SceneParams {
+            width,
+            height,
+            sun_radiance: c.sun_radiance,
+            sun_radius_deg: c.sun_size,
+            env_map,
+            ..ShowcaseParams::default().scene
+        },
+        surfaces,
+    })
+}
+
+/// The MSE of the baseline and of the best render (`renders`) over each material's
+/// pixels, and their ratio.
+fn per_material(
+    loaded: &[Loaded],
+    scene: &Scene,
+    objects: &[Vec<String>],
+    reference: &Render,
+    renders: [&Render; 2],
+    seed: u64,
+) -> Vec<ShowcaseMaterial> {
+    let [base_render, best_render] = renders;
+    let hits = surface_map(scene);
+    let mut materials = Vec::new();
+    for (k, l) in loaded.iter().enumerate() {
+        let mask: Vec<bool> = hits
+            .iter()
+            .zip(&reference.mask)
+            .map(|(h, &m)| m && *h == Some(k))
+            .collect();
+        let pixels = mask.iter().filter(|&&b| b).count();
+        let r = masked_reference(reference, mask);
+        let s = mix_seed(seed, 16 + k as u64);
+        let (b, bb) = mse_of(base_render, &r, s);
+        let (m, mb) = mse_of(best_render, &r, s + 1);
+        materials.push(ShowcaseMaterial {
+            material: l.name.clone(),
+            objects: objects[k].clone(),
+            method: l.method.clone(),
+            method_source: l.method_source,
+            pixels,
+            mse_ratio: mse_ratio((&bb, base_render.spp), (&mb, best_render.spp), s + 2),
+            baseline: b,
+            best: m,
+        });
+    }
+    materials
+}
+
+/// The reference, baseline and best renders as EXRs, and the labelled comparison PNG.
+#[allow(clippy::too_many_arguments)]
+fn write_images(
+    out: &Path,
+    c: &ShowcaseConfig,
+    loaded: &[Loaded],
+    objects: &[Vec<String>],
+    reference: &Render,
+    ref_spp: u32,
+    renders: [&Render; 2],
+    mses: [f64; 2],
+) -> Result<()> {
+    let [base_render, best_render] = renders;
+    let [base_mse, best_mse] = mses;
+    let exposure = figures::auto_exposure(&reference.image, &reference.mask);
+    figures::write_exr(&out.join("reference.exr"), &reference.image)?;
+    figures::write_exr(&out.join("baseline.exr"), &base_render.image)?;
+    figures::write_exr(&out.join("best.exr"), &best_render.image)?;
+    let tiles = [
+        (
+            figures::tonemap(&reference.image, exposure),
+            ["reference".to_string(), format!("baseline, {ref_spp} spp")],
+        ),
+        (
+            figures::tonemap(&base_render.image, exposure),
+            [
+                "baseline, equal time".to_string(),
+                format!("{} spp · MSE {:.2e}", base_render.spp, base_mse),
+            ],
+        ),
+        (
+            figures::tonemap(&best_render.image, exposure),
+            [
+                "best per material, equal time".to_string(),
+                format!("{} spp · MSE {:.2e}", best_render.spp, best_mse),
+            ],
+        ),
+    ];
+    let grid = figures::labelled_grid(&tiles, 3, "")?;
+    let methods: Vec<String> = loaded
+        .iter()
+        .zip(objects)
+        .map(|(l, o)| format!("{} ({}): {}", base_name(&l.name), o.join(", "), l.method))
+        .collect();
+    let header = [
+        format!(
+            "Equal single-thread time, MIS, {} bounces: the baseline on every object against \
+             the best sampler per material",
+            c.bounces
+        ),
+        methods.join(" · "),
+    ];
+    figures::write_png(&out.join("showcase.png"), &with_header(&grid, &header)?)?;
     Ok(())
 }
 
