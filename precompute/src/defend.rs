@@ -30,8 +30,8 @@ use crate::materials::Material;
 
 /// The weights [`choose_alpha`] tries. Capped at 0.2: the expectation is dominated by rare
 /// directions at the horizon, and beyond 0.2 it buys little there while every typical shading
-/// point loses a fifth of its learned samples (a demo run with the cap at 0.5 put the brushed
-/// metal's flow at α = 0.5 and its equal-time speed-up fell from 5.5× to 1.4×).
+/// point loses a fifth of its learned samples (the measured cost of a higher cap:
+/// `docs/results.md`, "Defensive mixture").
 pub const ALPHA_GRID: [f32; 7] = [0.0, 0.01, 0.02, 0.05, 0.1, 0.15, 0.2];
 
 /// How much above the smallest second moment a smaller α may be and still be chosen.
