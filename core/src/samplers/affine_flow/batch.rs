@@ -88,30 +88,6 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         }
     }
 
-    #[inline(always)]
-    fn chunk_prepare(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<AffineLane>]) {
-        let m = out.len();
-        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
-        let w = &self.params;
-        let mut share: [Soa<HIDDEN>; AFFINE_LAYERS] = [[[0.0; CHUNK]; HIDDEN]; AFFINE_LAYERS];
-        for (l, s) in share.iter_mut().enumerate() {
-            let off = (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32;
-            dense::bias::<W, COUPLING_INPUTS, HIDDEN, CHUNK>(w, off, s);
-            dense::accumulate::<W, CONDITION_DIM, HIDDEN, CHUNK>(w, off, 0, &c, s, m);
-        }
-        for l in 0..m {
-            out[l] = if valid[l] {
-                let mut sh = [[0.0f32; HIDDEN]; AFFINE_LAYERS];
-                for (dst, src) in sh.iter_mut().zip(share.iter()) {
-                    *dst = batch::column(src, l);
-                }
-                AffineLane::new(sh)
-            } else {
-                None
-            };
-        }
-    }
-
     /// The density direction (`latent_with_layer0`) of disk points `p` given layer 0's
     /// `(s, t)`: layers 1‥3 rerun where their input differs from `seen` (`reuse`) or always.
     #[inline(always)]
@@ -162,8 +138,66 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         }
     }
 
+    /// The density direction (`to_latent`) at the directions `wo`: disk points, their
+    /// validity and cos θ, the latent points and the log-dets.
     #[inline(always)]
-    fn chunk_sample(&self, lanes: &[Option<AffineLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn latent_at_chunk(
+        &self,
+        lanes: &[Option<AffineLane>],
+        wo: Vec3s<'_>,
+        ok: &mut [bool; CHUNK],
+        cos: &mut [f32; CHUNK],
+        zl: &mut [Vec2; CHUNK],
+        ld: &mut [f32; CHUNK],
+    ) {
+        let m = lanes.len();
+        let all = batch::identity_index::<CHUNK>();
+        let mut p = [Vec2::ZERO; CHUNK];
+        let mut v = [0.0f32; CHUNK];
+        for i in 0..m {
+            if let (Some(_), Some(w)) = (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
+                p[i] = warp::to_disk(w);
+                cos[i] = w.z;
+                ok[i] = inside_disk(p[i]);
+            }
+            v[i] = p[i].y;
+        }
+        let mut st0 = [(0.0f32, 0.0f32); CHUNK];
+        self.scale_shift_for(0, lanes, &all, m, &v, &mut st0);
+        self.latent_chunk(lanes, &p, &st0, None, zl, ld);
+    }
+}
+
+impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
+    type Lane = Option<AffineLane>;
+    const CHUNK: usize = CHUNK;
+
+    #[inline(always)]
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<AffineLane>]) {
+        let m = out.len();
+        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
+        let w = &self.params;
+        let mut share: [Soa<HIDDEN>; AFFINE_LAYERS] = [[[0.0; CHUNK]; HIDDEN]; AFFINE_LAYERS];
+        for (l, s) in share.iter_mut().enumerate() {
+            let off = (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32;
+            dense::bias::<W, COUPLING_INPUTS, HIDDEN, CHUNK>(w, off, s);
+            dense::accumulate::<W, CONDITION_DIM, HIDDEN, CHUNK>(w, off, 0, &c, s, m);
+        }
+        for l in 0..m {
+            out[l] = if valid[l] {
+                let mut sh = [[0.0f32; HIDDEN]; AFFINE_LAYERS];
+                for (dst, src) in sh.iter_mut().zip(share.iter()) {
+                    *dst = batch::column(src, l);
+                }
+                AffineLane::new(sh)
+            } else {
+                None
+            };
+        }
+    }
+
+    #[inline(always)]
+    fn sample_chunk(&self, lanes: &[Option<AffineLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
         let all = batch::identity_index::<CHUNK>();
         let mut ok = [false; CHUNK];
@@ -225,37 +259,8 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         }
     }
 
-    /// The density direction (`to_latent`) at the directions `wo`: disk points, their
-    /// validity and cos θ, the latent points and the log-dets.
     #[inline(always)]
-    fn latent_at_chunk(
-        &self,
-        lanes: &[Option<AffineLane>],
-        wo: Vec3s<'_>,
-        ok: &mut [bool; CHUNK],
-        cos: &mut [f32; CHUNK],
-        zl: &mut [Vec2; CHUNK],
-        ld: &mut [f32; CHUNK],
-    ) {
-        let m = lanes.len();
-        let all = batch::identity_index::<CHUNK>();
-        let mut p = [Vec2::ZERO; CHUNK];
-        let mut v = [0.0f32; CHUNK];
-        for i in 0..m {
-            if let (Some(_), Some(w)) = (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
-                p[i] = warp::to_disk(w);
-                cos[i] = w.z;
-                ok[i] = inside_disk(p[i]);
-            }
-            v[i] = p[i].y;
-        }
-        let mut st0 = [(0.0f32, 0.0f32); CHUNK];
-        self.scale_shift_for(0, lanes, &all, m, &v, &mut st0);
-        self.latent_chunk(lanes, &p, &st0, None, zl, ld);
-    }
-
-    #[inline(always)]
-    fn chunk_pdf(&self, lanes: &[Option<AffineLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(&self, lanes: &[Option<AffineLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
         let mut ok = [false; CHUNK];
         let mut cos = [0.0f32; CHUNK];
         let mut zl = [Vec2::ZERO; CHUNK];
@@ -272,7 +277,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn chunk_invert(
+    fn invert_chunk(
         &self,
         lanes: &[Option<AffineLane>],
         wo: Vec3s<'_>,
@@ -296,30 +301,5 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
                 u.set(i, x);
             }
         }
-    }
-}
-
-impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
-    type Lane = Option<AffineLane>;
-    const CHUNK: usize = CHUNK;
-
-    #[inline(always)]
-    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
-        self.chunk_prepare(phi, wi, lanes);
-    }
-
-    #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) {
-        self.chunk_sample(lanes, u, out);
-    }
-
-    #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) {
-        self.chunk_pdf(lanes, wo, pdf);
-    }
-
-    #[inline(always)]
-    fn invert_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, u: Vec2sMut<'_>, ok: &mut [bool]) {
-        self.chunk_invert(lanes, wo, u, ok);
     }
 }

@@ -69,8 +69,75 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
         );
     }
 
+    /// The base points and log-dets of the disk points `p` (density direction,
+    /// `DiskFlowPrepared::to_base`) of a chunk's lanes.
     #[inline(always)]
-    fn chunk_prepare(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<DiskFlowLane>]) {
+    fn base_chunk(
+        &self,
+        lanes: &[Option<DiskFlowLane>],
+        px: &[f32; CHUNK],
+        py: &[f32; CHUNK],
+        b: &mut [Vec2; CHUNK],
+        ld: &mut [f32; CHUNK],
+    ) {
+        let m = lanes.len();
+        let groups = m.div_ceil(8);
+        let all = batch::identity_index::<CHUNK>();
+        let mut k = [Knots::<DISK_FLOW_BINS, V8>::zeroed(); GROUPS];
+        self.knots_for(1, lanes, &all, m, px, &mut k);
+        let mut yb = [0.0f32; CHUNK];
+        let mut cb = [0.0f32; CHUNK];
+        let mut ld1 = [0.0f32; CHUNK];
+        for g in 0..groups {
+            let (x, y) = (V8::load(&px[8 * g..]), V8::load(&py[8 * g..]));
+            let (a, d, c) = chord_forward_next(&k[g], y, x);
+            a.store(&mut yb[8 * g..]);
+            d.store(&mut ld1[8 * g..]);
+            c.store(&mut cb[8 * g..]);
+        }
+        self.knots_for(0, lanes, &all, m, &yb, &mut k);
+        for g in 0..groups {
+            let (x, c) = (V8::load(&px[8 * g..]), V8::load(&cb[8 * g..]));
+            let (s0, d) = k[g].forward_lanes(in_chord_lanes(x, c));
+            let bx = c * s0;
+            for i in 0..8 {
+                let l = 8 * g + i;
+                if l < m {
+                    b[l] = Vec2::new(bx.0[i], yb[l]);
+                    ld[l] = d.0[i] + ld1[l];
+                }
+            }
+        }
+    }
+
+    /// The disk points of a chunk's `wo` (0 where refused) and whether each is usable.
+    #[inline(always)]
+    fn disk_points(
+        lanes: &[Option<DiskFlowLane>],
+        wo: Vec3s<'_>,
+    ) -> ([f32; CHUNK], [f32; CHUNK], [f32; CHUNK], [bool; CHUNK]) {
+        let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
+        let mut cos = [0.0f32; CHUNK];
+        let mut ok = [false; CHUNK];
+        for l in 0..lanes.len() {
+            if let (Some(_), Some(w)) = (&lanes[l], warp::upper_hemisphere(wo.at(l))) {
+                (px[l], py[l]) = (w.x, w.y);
+                cos[l] = w.z;
+                ok[l] = inside_disk(warp::to_disk(w));
+            }
+        }
+        (px, py, cos, ok)
+    }
+}
+
+impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
+    type Lane = Option<DiskFlowLane>;
+    const CHUNK: usize = CHUNK;
+    // The splines run in eight-lane groups.
+    const WIDEST: Isa = Isa::X86V3;
+
+    #[inline(always)]
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<DiskFlowLane>]) {
         let m = out.len();
         let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
@@ -98,7 +165,7 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn chunk_sample(&self, lanes: &[Option<DiskFlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn sample_chunk(&self, lanes: &[Option<DiskFlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
         let all = batch::identity_index::<CHUNK>();
@@ -180,68 +247,8 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
         }
     }
 
-    /// The base points and log-dets of the disk points `p` (density direction,
-    /// `DiskFlowPrepared::to_base`) of a chunk's lanes.
     #[inline(always)]
-    fn base_chunk(
-        &self,
-        lanes: &[Option<DiskFlowLane>],
-        px: &[f32; CHUNK],
-        py: &[f32; CHUNK],
-        b: &mut [Vec2; CHUNK],
-        ld: &mut [f32; CHUNK],
-    ) {
-        let m = lanes.len();
-        let groups = m.div_ceil(8);
-        let all = batch::identity_index::<CHUNK>();
-        let mut k = [Knots::<DISK_FLOW_BINS, V8>::zeroed(); GROUPS];
-        self.knots_for(1, lanes, &all, m, px, &mut k);
-        let mut yb = [0.0f32; CHUNK];
-        let mut cb = [0.0f32; CHUNK];
-        let mut ld1 = [0.0f32; CHUNK];
-        for g in 0..groups {
-            let (x, y) = (V8::load(&px[8 * g..]), V8::load(&py[8 * g..]));
-            let (a, d, c) = chord_forward_next(&k[g], y, x);
-            a.store(&mut yb[8 * g..]);
-            d.store(&mut ld1[8 * g..]);
-            c.store(&mut cb[8 * g..]);
-        }
-        self.knots_for(0, lanes, &all, m, &yb, &mut k);
-        for g in 0..groups {
-            let (x, c) = (V8::load(&px[8 * g..]), V8::load(&cb[8 * g..]));
-            let (s0, d) = k[g].forward_lanes(in_chord_lanes(x, c));
-            let bx = c * s0;
-            for i in 0..8 {
-                let l = 8 * g + i;
-                if l < m {
-                    b[l] = Vec2::new(bx.0[i], yb[l]);
-                    ld[l] = d.0[i] + ld1[l];
-                }
-            }
-        }
-    }
-
-    /// The disk points of a chunk's `wo` (0 where refused) and whether each is usable.
-    #[inline(always)]
-    fn disk_points(
-        lanes: &[Option<DiskFlowLane>],
-        wo: Vec3s<'_>,
-    ) -> ([f32; CHUNK], [f32; CHUNK], [f32; CHUNK], [bool; CHUNK]) {
-        let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
-        let mut cos = [0.0f32; CHUNK];
-        let mut ok = [false; CHUNK];
-        for l in 0..lanes.len() {
-            if let (Some(_), Some(w)) = (&lanes[l], warp::upper_hemisphere(wo.at(l))) {
-                (px[l], py[l]) = (w.x, w.y);
-                cos[l] = w.z;
-                ok[l] = inside_disk(warp::to_disk(w));
-            }
-        }
-        (px, py, cos, ok)
-    }
-
-    #[inline(always)]
-    fn chunk_pdf(&self, lanes: &[Option<DiskFlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(&self, lanes: &[Option<DiskFlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
         let (px, py, cos, ok) = Self::disk_points(lanes, wo);
         let mut b = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
@@ -256,7 +263,7 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn chunk_invert(
+    fn invert_chunk(
         &self,
         lanes: &[Option<DiskFlowLane>],
         wo: Vec3s<'_>,
@@ -274,32 +281,5 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
                 u.set(l, v);
             }
         }
-    }
-}
-
-impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
-    type Lane = Option<DiskFlowLane>;
-    const CHUNK: usize = CHUNK;
-    // The splines run in eight-lane groups.
-    const WIDEST: Isa = Isa::X86V3;
-
-    #[inline(always)]
-    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
-        self.chunk_prepare(phi, wi, lanes);
-    }
-
-    #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) {
-        self.chunk_sample(lanes, u, out);
-    }
-
-    #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) {
-        self.chunk_pdf(lanes, wo, pdf);
-    }
-
-    #[inline(always)]
-    fn invert_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, u: Vec2sMut<'_>, ok: &mut [bool]) {
-        self.chunk_invert(lanes, wo, u, ok);
     }
 }

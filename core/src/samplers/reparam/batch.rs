@@ -53,9 +53,15 @@ fn stacked_bias<W: Weights, const I: usize, const O: usize>(
     acc
 }
 
-impl<W: Weights + Copy> ReparamSampler<W> {
+impl<W: Weights + Copy> ReparamSampler<W> {}
+
+impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
+    type Lane = Option<ReparamLane>;
+    const CHUNK: usize = CHUNK;
+    const EXACT_PDF: bool = false;
+
     #[inline(always)]
-    fn chunk_prepare(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<ReparamLane>]) {
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<ReparamLane>]) {
         let m = out.len();
         let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
@@ -91,7 +97,7 @@ impl<W: Weights + Copy> ReparamSampler<W> {
     }
 
     #[inline(always)]
-    fn chunk_sample(&self, lanes: &[Option<ReparamLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn sample_chunk(&self, lanes: &[Option<ReparamLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
         let w = &self.params;
@@ -170,7 +176,7 @@ impl<W: Weights + Copy> ReparamSampler<W> {
     }
 
     #[inline(always)]
-    fn chunk_pdf(&self, lanes: &[Option<ReparamLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(&self, lanes: &[Option<ReparamLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
         let m = lanes.len();
         let w = &self.params;
         let mut ok = [false; CHUNK];
@@ -203,27 +209,6 @@ impl<W: Weights + Copy> ReparamSampler<W> {
                 0.0
             };
         }
-    }
-}
-
-impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
-    type Lane = Option<ReparamLane>;
-    const CHUNK: usize = CHUNK;
-    const EXACT_PDF: bool = false;
-
-    #[inline(always)]
-    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
-        self.chunk_prepare(phi, wi, lanes);
-    }
-
-    #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) {
-        self.chunk_sample(lanes, u, out);
-    }
-
-    #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) {
-        self.chunk_pdf(lanes, wo, pdf);
     }
 
     /// No lane has an inverse (the warp need not be injective).

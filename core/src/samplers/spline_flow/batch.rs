@@ -113,8 +113,51 @@ impl<W: Weights + Copy> FlowSampler<W> {
         );
     }
 
+    /// The latent points and log-dets of the disk points `p` (density direction,
+    /// `FlowPrepared::to_latent`) of a chunk's lanes.
     #[inline(always)]
-    fn chunk_prepare(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<FlowLane>]) {
+    fn latent_chunk(
+        &self,
+        lanes: &[Option<FlowLane>],
+        px: &[f32; CHUNK],
+        py: &[f32; CHUNK],
+        zl: &mut [Vec2; CHUNK],
+        ld: &mut [f32; CHUNK],
+    ) {
+        let m = lanes.len();
+        let groups = m.div_ceil(8);
+        let all = batch::identity_index::<CHUNK>();
+        let mut k = [Knots::<SPLINE_BINS, V8>::zeroed(); GROUPS];
+        self.knots_for(FLOW_COUPLING1, lanes, &all, m, px, &mut k);
+        let mut yl = [0.0f32; CHUNK];
+        let mut ld1 = [0.0f32; CHUNK];
+        for g in 0..groups {
+            let (a, d) = k[g].forward_lanes(V8::load(&py[8 * g..]));
+            a.store(&mut yl[8 * g..]);
+            d.store(&mut ld1[8 * g..]);
+        }
+        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &yl, &mut k);
+        for g in 0..groups {
+            let (a, d) = k[g].forward_lanes(V8::load(&px[8 * g..]));
+            for i in 0..8 {
+                let l = 8 * g + i;
+                if l < m {
+                    zl[l] = Vec2::new(a.0[i], yl[l]);
+                    ld[l] = d.0[i] + ld1[l];
+                }
+            }
+        }
+    }
+}
+
+impl<W: Weights + Copy> ChunkedSampler for FlowSampler<W> {
+    type Lane = Option<FlowLane>;
+    const CHUNK: usize = CHUNK;
+    // The splines run in eight-lane groups.
+    const WIDEST: Isa = Isa::X86V3;
+
+    #[inline(always)]
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<FlowLane>]) {
         let m = out.len();
         let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
@@ -158,7 +201,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 
     #[inline(always)]
-    fn chunk_sample(&self, lanes: &[Option<FlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn sample_chunk(&self, lanes: &[Option<FlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
         let all = batch::identity_index::<CHUNK>();
@@ -254,44 +297,8 @@ impl<W: Weights + Copy> FlowSampler<W> {
         }
     }
 
-    /// The latent points and log-dets of the disk points `p` (density direction,
-    /// `FlowPrepared::to_latent`) of a chunk's lanes.
     #[inline(always)]
-    fn latent_chunk(
-        &self,
-        lanes: &[Option<FlowLane>],
-        px: &[f32; CHUNK],
-        py: &[f32; CHUNK],
-        zl: &mut [Vec2; CHUNK],
-        ld: &mut [f32; CHUNK],
-    ) {
-        let m = lanes.len();
-        let groups = m.div_ceil(8);
-        let all = batch::identity_index::<CHUNK>();
-        let mut k = [Knots::<SPLINE_BINS, V8>::zeroed(); GROUPS];
-        self.knots_for(FLOW_COUPLING1, lanes, &all, m, px, &mut k);
-        let mut yl = [0.0f32; CHUNK];
-        let mut ld1 = [0.0f32; CHUNK];
-        for g in 0..groups {
-            let (a, d) = k[g].forward_lanes(V8::load(&py[8 * g..]));
-            a.store(&mut yl[8 * g..]);
-            d.store(&mut ld1[8 * g..]);
-        }
-        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &yl, &mut k);
-        for g in 0..groups {
-            let (a, d) = k[g].forward_lanes(V8::load(&px[8 * g..]));
-            for i in 0..8 {
-                let l = 8 * g + i;
-                if l < m {
-                    zl[l] = Vec2::new(a.0[i], yl[l]);
-                    ld[l] = d.0[i] + ld1[l];
-                }
-            }
-        }
-    }
-
-    #[inline(always)]
-    fn chunk_pdf(&self, lanes: &[Option<FlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(&self, lanes: &[Option<FlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
         let m = lanes.len();
         let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         let mut cos = [0.0f32; CHUNK];
@@ -322,7 +329,7 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 
     #[inline(always)]
-    fn chunk_invert(
+    fn invert_chunk(
         &self,
         lanes: &[Option<FlowLane>],
         wo: Vec3s<'_>,
@@ -351,32 +358,5 @@ impl<W: Weights + Copy> FlowSampler<W> {
                 u.set(l, v);
             }
         }
-    }
-}
-
-impl<W: Weights + Copy> ChunkedSampler for FlowSampler<W> {
-    type Lane = Option<FlowLane>;
-    const CHUNK: usize = CHUNK;
-    // The splines run in eight-lane groups.
-    const WIDEST: Isa = Isa::X86V3;
-
-    #[inline(always)]
-    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
-        self.chunk_prepare(phi, wi, lanes);
-    }
-
-    #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) {
-        self.chunk_sample(lanes, u, out);
-    }
-
-    #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) {
-        self.chunk_pdf(lanes, wo, pdf);
-    }
-
-    #[inline(always)]
-    fn invert_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, u: Vec2sMut<'_>, ok: &mut [bool]) {
-        self.chunk_invert(lanes, wo, u, ok);
     }
 }
