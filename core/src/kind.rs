@@ -1,8 +1,8 @@
 //! The names the format and the API share: what a blob holds ([`BlobKind`], [`SamplerKind`]), how
 //! a tensor is stored ([`DType`]) and how the histogram mixture reads its latent axis
 //! ([`Interpolation`]). It depends on nothing else in the crate but the list of kinds
-//! ([`sampler_kinds!`](crate::samplers)). Lookups are loops over bytes, as rust-gpu compiles
-//! them (no slice equality, no iterators).
+//! ([`sampler_kinds!`](crate::samplers)). Lookups are loops, as rust-gpu compiles them (no
+//! iterators).
 
 use serde::{Deserialize, Serialize};
 
@@ -57,7 +57,7 @@ impl SamplerKind {
     pub fn from_name(name: &str) -> Option<SamplerKind> {
         let mut i = 0;
         while i < Self::ALL.len() {
-            if same_bytes(Self::ALL[i].name().as_bytes(), name.as_bytes()) {
+            if Self::ALL[i].name().as_bytes() == name.as_bytes() {
                 return Some(Self::ALL[i]);
             }
             i += 1;
@@ -77,21 +77,6 @@ impl SamplerKind {
         }
         None
     }
-}
-
-/// Byte-wise equality (rust-gpu lowers slice equality to an intrinsic it lacks).
-fn same_bytes(a: &[u8], b: &[u8]) -> bool {
-    if a.len() != b.len() {
-        return false;
-    }
-    let mut i = 0;
-    while i < a.len() {
-        if a[i] != b[i] {
-            return false;
-        }
-        i += 1;
-    }
-    true
 }
 
 /// What a blob holds: a sampler of some [`SamplerKind`], or a material. Stored in a blob's
@@ -150,10 +135,10 @@ impl BlobKind {
     /// The kind with the given [`BlobKind::name`].
     #[must_use]
     pub fn from_name(name: &str) -> Option<BlobKind> {
-        if same_bytes(name.as_bytes(), BlobKind::NeuralMaterial.name().as_bytes()) {
+        if name.as_bytes() == BlobKind::NeuralMaterial.name().as_bytes() {
             return Some(BlobKind::NeuralMaterial);
         }
-        if same_bytes(name.as_bytes(), BlobKind::Measured.name().as_bytes()) {
+        if name.as_bytes() == BlobKind::Measured.name().as_bytes() {
             return Some(BlobKind::Measured);
         }
         SamplerKind::from_name(name).map(BlobKind::Sampler)

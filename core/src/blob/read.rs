@@ -52,25 +52,24 @@ impl<'a> Blob<'a> {
     /// The kind's table checks, once the layout is valid: the histogram mixture's slices
     /// and CDFs, a measured material's shape, tables and integrals.
     fn check_tables(&self) -> Result<()> {
-        let header = self.header;
-        let blob = self;
-        if header.kind == SamplerKind::HistogramMixture && blob.is_compact() {
+        let header = &self.header;
+        if header.kind == SamplerKind::HistogramMixture && self.is_compact() {
             histogram_mixture::validate_compact_tables(
-                &blob.tensor_or_empty(TensorRole::Mass),
-                &blob.tensor_or_empty(TensorRole::Marginal),
-                &blob.tensor_or_empty(TensorRole::Conditional),
+                &self.tensor_or_empty(TensorRole::Mass),
+                &self.tensor_or_empty(TensorRole::Marginal),
+                &self.tensor_or_empty(TensorRole::Conditional),
                 header.basis,
                 header.t_levels,
                 header.resolution,
             )?;
         } else if header.kind == BlobKind::Measured {
-            blob.check_measured()?;
+            self.check_measured()?;
         } else if header.kind == SamplerKind::HistogramMixture {
             histogram_mixture::validate_tables(
-                &blob.tensor_or_empty(TensorRole::Mass),
-                &blob.tensor_or_empty(TensorRole::Table),
-                &blob.tensor_or_empty(TensorRole::Marginal),
-                &blob.tensor_or_empty(TensorRole::Conditional),
+                &self.tensor_or_empty(TensorRole::Mass),
+                &self.tensor_or_empty(TensorRole::Table),
+                &self.tensor_or_empty(TensorRole::Marginal),
+                &self.tensor_or_empty(TensorRole::Conditional),
                 header.basis,
                 header.t_levels,
                 header.resolution,
@@ -123,10 +122,6 @@ impl<'a> Blob<'a> {
     #[must_use]
     pub fn tensor(&self, role: TensorRole) -> Option<Tensor<'a>> {
         self.tensors[role.index()].map(|(e, d)| Tensor::from_bytes(e.dtype, d))
-    }
-
-    fn tensor_or_empty(&self, role: TensorRole) -> Tensor<'a> {
-        self.tensor(role).unwrap_or(Tensor::F32(&[]))
     }
 
     /// Copies a tensor, widened to f32, into `out` (which must have exactly its length):

@@ -77,18 +77,7 @@ impl<W: Weights> MeasuredMaterial<W> {
         out: SamplesMut<'_>,
         weight: RgbMut<'_>,
     ) -> Result<()> {
-        let n = wi.len();
-        wi.check(n)?;
-        u.check(n)?;
-        out.check(n)?;
-        check_rgb(&weight, n)?;
-        self.run(Op::Sample {
-            wi,
-            u,
-            out,
-            weight: Some(weight),
-        });
-        Ok(())
+        self.sample_op(wi, u, out, Some(weight))
     }
 
     /// [`Self::sample_batch`] without the weights: the directions and densities only, for a
@@ -103,16 +92,25 @@ impl<W: Weights> MeasuredMaterial<W> {
         u: Vec2s<'_>,
         out: SamplesMut<'_>,
     ) -> Result<()> {
+        self.sample_op(wi, u, out, None)
+    }
+
+    /// [`Self::sample_batch`] with or without the weights, after the length checks.
+    fn sample_op(
+        &self,
+        wi: Vec3s<'_>,
+        u: Vec2s<'_>,
+        out: SamplesMut<'_>,
+        weight: Option<RgbMut<'_>>,
+    ) -> Result<()> {
         let n = wi.len();
         wi.check(n)?;
         u.check(n)?;
         out.check(n)?;
-        self.run(Op::Sample {
-            wi,
-            u,
-            out,
-            weight: None,
-        });
+        if let Some(w) = &weight {
+            check_rgb(w, n)?;
+        }
+        self.run(Op::Sample { wi, u, out, weight });
         Ok(())
     }
 

@@ -71,9 +71,9 @@ impl<'a> super::FromBlob<'a> for HistogramMixtureSampler<Tensor<'a>> {
     /// The compact layout when the blob has no values tensor, else the full one.
     fn from_blob(src: &impl super::BlobSource<'a>) -> Option<Self> {
         let h = src.header();
-        let t = |role| src.tensor(role).unwrap_or(Tensor::F32(&[]));
-        let (mass, marginal) = (t(TensorRole::Mass), t(TensorRole::Marginal));
-        let conditional = t(TensorRole::Conditional);
+        let mass = src.tensor_or_empty(TensorRole::Mass);
+        let marginal = src.tensor_or_empty(TensorRole::Marginal);
+        let conditional = src.tensor_or_empty(TensorRole::Conditional);
         match src.tensor(TensorRole::Table) {
             None => Self::new_compact(
                 src.params(),

@@ -164,9 +164,13 @@ pub trait BlobSource<'a> {
     fn tensor(&self, role: TensorRole) -> Option<Tensor<'a>>;
     /// The header.
     fn header(&self) -> &Header<'a>;
+    /// The tensor of `role`, or an empty one when the blob has none.
+    fn tensor_or_empty(&self, role: TensorRole) -> Tensor<'a> {
+        self.tensor(role).unwrap_or(Tensor::F32(&[]))
+    }
     /// The network parameters (empty when the blob has none).
     fn params(&self) -> Tensor<'a> {
-        self.tensor(TensorRole::Params).unwrap_or(Tensor::F32(&[]))
+        self.tensor_or_empty(TensorRole::Params)
     }
 }
 
