@@ -44,14 +44,6 @@ macro_rules! sampler_kind_enum {
 crate::samplers::kinds::sampler_kinds!(sampler_kind_enum);
 
 impl SamplerKind {
-    /// Whether a sample's density is the kind's `pdf` at the sampled direction (every kind
-    /// but [`SamplerKind::Reparam`], whose samples carry the warp's exact density and whose
-    /// `pdf` is its pdf network's: see [`Prepared::mis_pdf`](crate::Prepared::mis_pdf)).
-    #[must_use]
-    pub const fn exact_pdf(self) -> bool {
-        !matches!(self, SamplerKind::Reparam)
-    }
-
     /// The kind with the given [`SamplerKind::name`].
     #[must_use]
     pub fn from_name(name: &str) -> Option<SamplerKind> {

@@ -13,7 +13,7 @@
 use std::path::PathBuf;
 
 use neusample::wavefront::{BatchSampler, Features, SamplesMut, Vec2s, Vec3s, Vec3sMut};
-use neusample::{Blob, Sampler, Vec3, FEATURE_DIM};
+use neusample::{Blob, Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
 use neusample_host_tests::{
     bonferroni, chi2_test, chi2_test_samples, fixture_blobs_dir, fixture_conditions, full_tests,
     rng, uniform2, Condition,
@@ -57,7 +57,10 @@ fn every_fixture_blob_passes_chi2() {
         if let Ok(only) = std::env::var("NEUSAMPLE_CHI2_ONLY") {
             blobs.retain(|b| only.split(',').any(|o| b.to_string_lossy().contains(o)));
         }
-        for b in blobs.into_iter().filter(|b| exact(b)) {
+        for b in blobs
+            .into_iter()
+            .filter(|b| samples_carry_pdf(b, &conds[0]))
+        {
             jobs.push((b, conds[..per_blob].to_vec()));
         }
     }
@@ -137,24 +140,31 @@ fn fixture_jobs(per_blob: usize) -> Vec<(PathBuf, Vec<Condition>)> {
             .filter(|p| p.extension().is_some_and(|x| x == "nsb"))
             .collect();
         blobs.sort();
-        for b in blobs.into_iter().filter(|b| exact(b)) {
+        for b in blobs
+            .into_iter()
+            .filter(|b| samples_carry_pdf(b, &conds[0]))
+        {
             jobs.push((b, conds[..per_blob].to_vec()));
         }
     }
     jobs
 }
 
-/// Whether the blob's samples carry its pdf: a χ² test of samples against the pdf is the
-/// test of those kinds. The reparameterization sampler's pdf is a network's approximation
-/// of its samples' density by design; `tests/reparam.rs` tests its fixtures (Jacobian
-/// consistency, unbiasedness).
-fn exact(path: &std::path::Path) -> bool {
+/// Whether the blob's samples are drawn with its pdf (their `mis_pdf` is their `pdf`, on 16
+/// samples at `cond`): a χ² test of samples against the pdf is the test of those kinds. The
+/// reparameterization sampler's pdf is a network's approximation of its samples' density by
+/// design; `tests/reparam.rs` tests its fixtures (Jacobian consistency, unbiasedness).
+fn samples_carry_pdf(path: &std::path::Path, (phi, wi): &Condition) -> bool {
     let bytes = std::fs::read(path).unwrap();
-    Blob::open(&bytes)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .kind()
-        .sampler()
-        .is_some_and(|k| k.exact_pdf())
+    let blob = Blob::open(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let sampler = blob.sampler().unwrap();
+    let p = sampler
+        .prepare(phi, *wi)
+        .expect("fixture condition refused");
+    (0..16).all(|i| {
+        let u = Vec2::new((i % 4) as f32 * 0.25 + 0.125, (i / 4) as f32 * 0.25 + 0.125);
+        p.sample(u).is_none_or(|s| s.mis_pdf == s.pdf)
+    })
 }
 
 #[test]
@@ -194,7 +204,7 @@ fn every_fixture_blob_passes_chi2_on_the_batched_path() {
                 )
                 .unwrap();
             let mut wo = [0, 1, 2].map(|_| vec![0.0f32; samples]);
-            let mut pdf = vec![0.0f32; samples];
+            let (mut pdf, mut mis) = (vec![0.0f32; samples], vec![0.0f32; samples]);
             let [x, y, z] = &mut wo;
             sampler
                 .sample_batch(
@@ -206,9 +216,11 @@ fn every_fixture_blob_passes_chi2_on_the_batched_path() {
                     SamplesMut {
                         wo: Vec3sMut { x, y, z },
                         pdf: &mut pdf,
+                        mis_pdf: &mut mis,
                     },
                 )
                 .unwrap();
+            assert_eq!(pdf, mis, "{}: samples carry their pdf", path.display());
             let drawn: Vec<Option<Vec3>> = (0..samples)
                 .map(|i| (pdf[i] > 0.0).then(|| Vec3::new(wo[0][i], wo[1][i], wo[2][i])))
                 .collect();

@@ -244,12 +244,12 @@ fn mis_pdf_is_the_pdf_network_and_samples_carry_the_warp_density() {
     let inj = hand_warp(0.0, 0.0, 1.0, -0.3);
     let s = ReparamSampler::new(inj.as_slice()).unwrap();
     let p = s.prepare(&PHI, wi()).unwrap();
-    assert!(!p.exact_pdf() && !SamplerKind::Reparam.exact_pdf());
     let mut r = rng(9);
     for _ in 0..100 {
         let smp = p.sample(uniform2(&mut r)).unwrap();
         let want = (-0.3f32).exp() * smp.wo.z;
-        assert_eq!(p.mis_pdf(&smp), p.pdf(smp.wo));
+        assert_eq!(smp.mis_pdf, p.pdf(smp.wo));
+        assert_ne!(smp.mis_pdf, smp.pdf);
         assert!((p.pdf(smp.wo) - want).abs() < 1e-5 * want);
         // The sample's own density is the warp's: z/√(1 + |z|²) has q = N(z)(1 + |z|²)².
         let pt = Vec2::new(smp.wo.x, smp.wo.y);
@@ -268,8 +268,7 @@ fn mis_pdf_is_the_pdf_network_and_samples_carry_the_warp_density() {
     let a = blob.sampler().unwrap();
     let pa = a.prepare(&PHI, wi()).unwrap();
     let smp = pa.sample(Vec2::new(0.3, 0.6)).unwrap();
-    assert!(pa.exact_pdf());
-    assert_eq!(pa.mis_pdf(&smp), smp.pdf);
+    assert_eq!(smp.mis_pdf, smp.pdf);
 }
 
 #[test]
@@ -302,8 +301,8 @@ fn degenerate_and_extreme_warps_never_give_nan_or_infinite_weights() {
     }
 }
 
-/// Batched sample, pdf and `mis_pdf_batch` against the scalar calls, bit for bit, with and
-/// without the defensive mixture.
+/// Batched samples with their MIS densities against the scalar calls, with and without the
+/// defensive mixture.
 #[test]
 fn batched_equals_scalar_with_mis_densities() {
     let mut r = rng(12);
@@ -359,8 +358,7 @@ fn check<S: Sampler + BatchSampler>(s: &S, r: &mut neusample_host_tests::TestRng
     let (ux, uy): (Vec<f32>, Vec<f32>) = u.iter().map(|v| (v.x, v.y)).unzip();
     let mut lanes = vec![S::Lane::default(); n];
     s.prepare_batch(features, wis, &mut lanes).unwrap();
-    let (mut ox, mut oy, mut oz, mut pdf) =
-        (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let [mut ox, mut oy, mut oz, mut pdf, mut mis] = [(); 5].map(|_| vec![0.0; n]);
     s.sample_batch(
         &lanes,
         Vec2s { x: &ux, y: &uy },
@@ -371,26 +369,32 @@ fn check<S: Sampler + BatchSampler>(s: &S, r: &mut neusample_host_tests::TestRng
                 z: &mut oz,
             },
             pdf: &mut pdf,
+            mis_pdf: &mut mis,
         },
     )
     .unwrap();
-    let mut mis = pdf.clone();
-    s.mis_pdf_batch(
+    // The MIS density is the batched pdf at the sample, bit for bit.
+    let mut again = vec![0.0; n];
+    s.pdf_batch(
         &lanes,
         Vec3s {
             x: &ox,
             y: &oy,
             z: &oz,
         },
-        &mut mis,
+        &mut again,
     )
     .unwrap();
-    assert!(!s.exact_pdf());
+    assert_eq!(mis, again);
+    assert!((0..n).any(|i| pdf[i] > 0.0 && pdf[i] != mis[i]));
     for i in 0..n {
         let p = s.prepare(&phi[i], wi[i]);
         let smp = p.as_ref().and_then(|p| p.sample(u[i]));
         let (wo, sp, mp) = match (&p, smp) {
-            (Some(p), Some(x)) => (x.wo, x.pdf, p.mis_pdf(&x)),
+            (Some(p), Some(x)) => {
+                assert_eq!(x.mis_pdf, p.pdf(x.wo), "lane {i}: scalar MIS density");
+                (x.wo, x.pdf, x.mis_pdf)
+            }
             _ => (Vec3::ZERO, 0.0, 0.0),
         };
         // The batched dense layers fuse multiply-adds where the scalar path rounds each

@@ -114,6 +114,7 @@ impl Soa {
 struct Out {
     wo: [Vec<f32>; 3],
     pdf: Vec<f32>,
+    mis: Vec<f32>,
 }
 
 impl Out {
@@ -121,6 +122,7 @@ impl Out {
         Out {
             wo: [0, 1, 2].map(|_| vec![-7.0; n]),
             pdf: vec![-7.0; n],
+            mis: vec![-7.0; n],
         }
     }
     fn view(&mut self) -> SamplesMut<'_> {
@@ -128,6 +130,7 @@ impl Out {
         SamplesMut {
             wo: Vec3sMut { x, y, z },
             pdf: &mut self.pdf,
+            mis_pdf: &mut self.mis,
         }
     }
 }
@@ -184,9 +187,9 @@ impl Deviation {
 }
 
 /// Checks every batched call of `s` against its scalar API on `lanes`: within one batched
-/// path exactly (a sample's pdf is `pdf_batch` at its direction bit for bit; fused calls equal
-/// unfused ones; no lane is disturbed by another), against the scalar path within the
-/// tolerances (returned, for the caller to bound).
+/// path exactly (a sample's MIS density is `pdf_batch` at its direction bit for bit; fused
+/// calls equal unfused ones; no lane is disturbed by another), against the scalar path within
+/// the tolerances (returned, for the caller to bound).
 fn check_sampler<S>(s: &S, lanes: &[Lane], what: &str) -> Deviation
 where
     S: Sampler + BatchSampler,
@@ -229,18 +232,7 @@ where
         &mut again,
     )
     .unwrap();
-    // The MIS density of every sample (`Prepared::mis_pdf`).
-    let mut mis = out.pdf.clone();
-    s.mis_pdf_batch(
-        &states,
-        Vec3s {
-            x: &out.wo[0],
-            y: &out.wo[1],
-            z: &out.wo[2],
-        },
-        &mut mis,
-    )
-    .unwrap();
+    let mis = &out.mis;
 
     let mut dev = Deviation {
         lanes: n,
@@ -249,8 +241,14 @@ where
     for (i, l) in lanes.iter().enumerate() {
         let ctx = || format!("{what}: lane {i} of {n}: {l:?}");
         // Inside the batched path: exact.
-        let got = [out.wo[0][i], out.wo[1][i], out.wo[2][i], out.pdf[i]];
-        let got_fused = [fused.wo[0][i], fused.wo[1][i], fused.wo[2][i], fused.pdf[i]];
+        let got = [out.wo[0][i], out.wo[1][i], out.wo[2][i], out.pdf[i], mis[i]];
+        let got_fused = [
+            fused.wo[0][i],
+            fused.wo[1][i],
+            fused.wo[2][i],
+            fused.pdf[i],
+            fused.mis[i],
+        ];
         assert_eq!(
             got.map(bits),
             got_fused.map(bits),
@@ -266,14 +264,8 @@ where
         );
         assert!(mis[i] >= 0.0 && mis[i].is_finite(), "mis_pdf {}", ctx());
         if out.pdf[i] > 0.0 {
-            // An exact kind's sample carries pdf(wo); an inexact one's MIS density is its pdf.
-            let at_sample = if s.exact_pdf() { out.pdf[i] } else { mis[i] };
-            assert_eq!(
-                bits(again[i]),
-                bits(at_sample),
-                "pdf at the sample {}",
-                ctx()
-            );
+            // Every kind's MIS density is its pdf at the sample.
+            assert_eq!(bits(again[i]), bits(mis[i]), "pdf at the sample {}", ctx());
             let len = got[..3].iter().map(|v| f64::from(*v).powi(2)).sum::<f64>();
             assert!(
                 (len - 1.0).abs() < 1e-5 && got[2] > 0.0,
@@ -282,6 +274,7 @@ where
             );
         } else {
             assert_eq!(&got[..3], &[0.0; 3], "refused sample {}", ctx());
+            assert_eq!(mis[i], 0.0, "refused sample's MIS density {}", ctx());
         }
         if !ok[i] {
             assert_eq!(
@@ -295,9 +288,6 @@ where
         let p = s.prepare(&l.phi, l.wi);
         assert_eq!(states[i].is_prepared(), p.is_some(), "prepared {}", ctx());
         let sample = p.as_ref().and_then(|p| p.sample(l.u));
-        if let Some(p) = &p {
-            assert_eq!(s.exact_pdf(), p.exact_pdf(), "exact_pdf {}", ctx());
-        }
         // u = 1 is clamped below 1 and mapped to the far tail of a lobe or spline, where the
         // sample moves by far more than its inputs' rounding: only its validity is compared.
         let edge = l.u.x >= 1.0 || l.u.y >= 1.0;
@@ -305,10 +295,10 @@ where
             (Some(p), Some(x)) if out.pdf[i] > 0.0 => {
                 let wo = Vec3::new(got[0], got[1], got[2]);
                 // The scalar density at the batched sample: the sample's own pdf, well
-                // conditioned wherever the density is continuous. An inexact kind's sampling
-                // density exists only at its own draws: the scalar sample's, where the two
-                // samples coincide.
-                let r = if p.exact_pdf() {
+                // conditioned wherever the density is continuous. A density other than the
+                // MIS density (the reparameterization sampler's warp) exists only at its own
+                // draws: the scalar sample's, where the two samples coincide.
+                let r = if x.pdf == x.mis_pdf {
                     rel(got[3], p.pdf(wo))
                 } else if edge {
                     0.0
@@ -319,7 +309,7 @@ where
                     .map(|k| (f64::from(got[k]) - f64::from(x.wo[k])).abs())
                     .fold(0.0, f64::max);
                 // The MIS density of the batched sample is the scalar `pdf` there, for every
-                // kind (`Prepared::mis_pdf`).
+                // kind.
                 let r = r.max(rel(mis[i], p.pdf(wo)));
                 if r > PDF_RTOL || (!edge && d > DIR_ATOL) {
                     dev.discrete

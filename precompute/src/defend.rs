@@ -83,7 +83,12 @@ pub fn choose_alpha(
     let sampler = *blob.sampler()?.inner();
     let conds = groundtruth::conditions(material, conditions, seed);
     let nodes = rim_quadrature(radial, RIM_ANGULAR);
-    if !sampler.kind().exact_pdf() {
+    let carries_pdf = conds.iter().all(|c| {
+        sampler
+            .prepare(&c.phi, c.wi)
+            .is_none_or(|p| crate::eval::samples_carry_pdf(&p))
+    });
+    if !carries_pdf {
         let per = sampled_moments(&sampler, material, &conds, &nodes, seed);
         return Ok(choice(&per));
     }

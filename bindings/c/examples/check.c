@@ -53,8 +53,9 @@ static int checks = 0;
 
 static const char *MATERIALS[] = {"goat_leather_neural", "brushed_metal_neural",
                                   "victorian_fabric_neural"};
-static const char *METHODS[] = {"baseline", "analytic", "flow", "affine-flow",
-                                "direct-histogram", "histogram-mixture"};
+static const char *METHODS[] = {"baseline",         "analytic",          "flow",
+                                "affine-flow",      "disk-flow",         "direct-histogram",
+                                "histogram-mixture", "reparam"};
 
 /* A small deterministic generator (xorshift32) for u in [0, 1). */
 static unsigned rng_state = 0x9e3779b9u;
@@ -82,7 +83,8 @@ static int close_pdfs(float a, float b) { return fabsf(a - b) <= 5e-4f * fmaxf(a
 static int close_samples(const NsSample *a, const NsSample *b) {
   float d = fmaxf(fabsf(a->wo.x - b->wo.x),
                   fmaxf(fabsf(a->wo.y - b->wo.y), fabsf(a->wo.z - b->wo.z)));
-  return (a->pdf > 0.0f) == (b->pdf > 0.0f) && d <= 1e-3f;
+  return (a->pdf > 0.0f) == (b->pdf > 0.0f) && (a->mis_pdf > 0.0f) == (b->mis_pdf > 0.0f) &&
+         d <= 1e-3f;
 }
 
 /* Checks one sampler against one material at a few shading points. */
@@ -115,15 +117,17 @@ static void check_sampler(const char *label, const NsSampler *s, const NsMateria
         if (st2 == NS_OK) {
           float p3 = -1.0f, p4 = -1.0f;
           EXPECT_STATUS(ns_prepared_pdf(s, prep, smp2.wo, &p3), NS_OK);
-          CHECK(p3 == smp2.pdf, "%s: prepared pdf(sample.wo) = %.9g but sample.pdf = %.9g",
-                label, p3, smp2.pdf);
+          CHECK(p3 == smp2.mis_pdf,
+                "%s: prepared pdf(sample.wo) = %.9g but sample.mis_pdf = %.9g", label, p3,
+                smp2.mis_pdf);
           EXPECT_STATUS(ns_pdf(s, &phi, wi, smp2.wo, &p4), NS_OK);
           CHECK(close_pdfs(p4, p3), "%s: prepared pdf %.9g != fused pdf %.9g", label, p3, p4);
         }
         scalar[i] = smp;
         if (st != NS_OK) {
           ++refused;
-          CHECK(smp.pdf == 0.0f && smp.wo.z == 0.0f, "%s: refused sample not zeroed", label);
+          CHECK(smp.pdf == 0.0f && smp.mis_pdf == 0.0f && smp.wo.z == 0.0f,
+                "%s: refused sample not zeroed", label);
           continue;
         }
         ++samples;
@@ -132,8 +136,12 @@ static void check_sampler(const char *label, const NsSampler *s, const NsMateria
         float p = -1.0f, p2 = -1.0f;
         EXPECT_STATUS(ns_pdf(s, &phi, wi, smp.wo, &p), NS_OK);
         EXPECT_STATUS(ns_prepared_pdf(s, prep, smp.wo, &p2), NS_OK);
-        CHECK(p == smp.pdf, "%s: pdf(sample.wo) = %.9g but sample.pdf = %.9g", label, p,
-              smp.pdf);
+        /* Every kind's MIS density is its pdf at the sample; the density the sample was
+         * drawn with is that too except for the reparameterization sampler's warp. */
+        CHECK(p == smp.mis_pdf, "%s: pdf(sample.wo) = %.9g but sample.mis_pdf = %.9g", label,
+              p, smp.mis_pdf);
+        CHECK(smp.pdf == smp.mis_pdf || strcmp(label, "reparam") == 0,
+              "%s: sample.pdf %.9g != sample.mis_pdf %.9g", label, smp.pdf, smp.mis_pdf);
         CHECK(close_pdfs(p2, p), "%s: prepared pdf %.9g != fused pdf %.9g", label, p2, p);
         NsRgb f;
         EXPECT_STATUS(ns_material_eval(m, &phi, wi, smp.wo, &f), NS_OK);
@@ -141,7 +149,7 @@ static void check_sampler(const char *label, const NsSampler *s, const NsMateria
       }
       /* Batched = scalar, lane by lane. */
       float phi_rows[NS_FEATURE_DIM][LANES], wi_rows[3][LANES];
-      float wo_rows[3][LANES], pdf[LANES], pdf_again[LANES];
+      float wo_rows[3][LANES], pdf[LANES], mis[LANES], pdf_again[LANES];
       for (int i = 0; i < LANES; ++i) {
         for (int k = 0; k < NS_FEATURE_DIM; ++k) phi_rows[k][i] = phi.v[k];
         wi_rows[0][i] = wi.x;
@@ -151,26 +159,30 @@ static void check_sampler(const char *label, const NsSampler *s, const NsMateria
       NsFeatures fphi = ns_features_rows(&phi_rows[0][0], LANES);
       NsVec3s vwi = ns_vec3s_rows(&wi_rows[0][0], LANES);
       EXPECT_STATUS(ns_sample_batch(s, LANES, fphi, vwi, ns_vec2s_rows(&lane_u[0][0], LANES),
-                                    ns_samples_mut_rows(&wo_rows[0][0], pdf, LANES)),
+                                    ns_samples_mut_rows(&wo_rows[0][0], pdf, mis, LANES)),
                     NS_OK);
       for (int i = 0; i < LANES; ++i) {
-        NsSample b = {{wo_rows[0][i], wo_rows[1][i], wo_rows[2][i]}, pdf[i]};
+        NsSample b = {{wo_rows[0][i], wo_rows[1][i], wo_rows[2][i]}, pdf[i], mis[i]};
         CHECK(close_samples(&b, &scalar[i]),
               "%s: batched sample lane %d at %.9g %.9g, scalar at %.9g %.9g", label, i, b.wo.x,
               b.wo.y, scalar[i].wo.x, scalar[i].wo.y);
         if (b.pdf > 0.0f) {
           float p = -1.0f;
           EXPECT_STATUS(ns_pdf(s, &phi, wi, b.wo, &p), NS_OK);
-          CHECK(close_pdfs(b.pdf, p), "%s: batched sample lane %d: pdf %.9g, scalar pdf %.9g",
-                label, i, b.pdf, p);
+          CHECK(close_pdfs(b.mis_pdf, p),
+                "%s: batched sample lane %d: mis_pdf %.9g, scalar pdf %.9g", label, i,
+                b.mis_pdf, p);
+          CHECK(close_pdfs(b.pdf, scalar[i].pdf),
+                "%s: batched sample lane %d: pdf %.9g, scalar sample's %.9g", label, i, b.pdf,
+                scalar[i].pdf);
         }
       }
       EXPECT_STATUS(
           ns_pdf_batch(s, LANES, fphi, vwi, ns_vec3s_rows(&wo_rows[0][0], LANES), pdf_again),
           NS_OK);
       for (int i = 0; i < LANES; ++i) {
-        CHECK(pdf_again[i] == pdf[i], "%s: batched pdf lane %d = %.9g, sample said %.9g",
-              label, i, pdf_again[i], pdf[i]);
+        CHECK(pdf_again[i] == mis[i], "%s: batched pdf lane %d = %.9g, sample's mis_pdf %.9g",
+              label, i, pdf_again[i], mis[i]);
       }
     }
   }
@@ -242,18 +254,18 @@ static void check_bad_input(const char *root, const NsMaterial *m, const NsSampl
   CHECK(p == 0.0f, "pdf below the horizon = %g", p);
   {
     float phis[NS_FEATURE_DIM][2], wis[3][2] = {{NAN, 0.0f}, {0.0f, 0.0f}, {1.0f, 1.0f}};
-    float us[2][2] = {{0.3f, 0.3f}, {0.6f, 0.6f}}, wos[3][2], pdfs[2];
+    float us[2][2] = {{0.3f, 0.3f}, {0.6f, 0.6f}}, wos[3][2], pdfs[2], mises[2];
     for (int k = 0; k < NS_FEATURE_DIM; ++k) phis[k][0] = phis[k][1] = phi.v[k];
     EXPECT_STATUS(ns_sample_batch(s, 2, ns_features_rows(&phis[0][0], 2),
                                   ns_vec3s_rows(&wis[0][0], 2), ns_vec2s_rows(&us[0][0], 2),
-                                  ns_samples_mut_rows(&wos[0][0], pdfs, 2)),
+                                  ns_samples_mut_rows(&wos[0][0], pdfs, mises, 2)),
                   NS_OK);
-    CHECK(pdfs[0] == 0.0f && wos[2][0] == 0.0f, "NaN lane not refused");
+    CHECK(pdfs[0] == 0.0f && mises[0] == 0.0f && wos[2][0] == 0.0f, "NaN lane not refused");
     CHECK(pdfs[1] > 0.0f, "a NaN lane disturbed its neighbour");
     /* Outputs overlapping an input or each other. */
     EXPECT_STATUS(ns_sample_batch(s, 2, ns_features_rows(&phis[0][0], 2),
                                   ns_vec3s_rows(&wis[0][0], 2), ns_vec2s_rows(&us[0][0], 2),
-                                  ns_samples_mut_rows(&wis[0][0], pdfs, 2)),
+                                  ns_samples_mut_rows(&wis[0][0], pdfs, mises, 2)),
                   NS_ERR_INVALID_ARGUMENT);
     EXPECT_STATUS(ns_pdf_batch(s, 2, ns_features_rows(&phis[0][0], 2),
                                ns_vec3s_rows(&wis[0][0], 2), ns_vec3s_rows(&wos[0][0], 2),
@@ -275,7 +287,7 @@ static void check_bad_input(const char *root, const NsMaterial *m, const NsSampl
     for (int k = 0; k < NS_FEATURE_DIM; ++k) none_phi.c[k] = NULL;
     NsVec3s none3 = {NULL, NULL, NULL};
     NsVec2s none2 = {NULL, NULL};
-    NsSamplesMut none_out = {NULL, NULL, NULL, NULL};
+    NsSamplesMut none_out = {NULL, NULL, NULL, NULL, NULL};
     EXPECT_STATUS(ns_sample_batch(s, 0, none_phi, none3, none2, none_out), NS_OK);
     EXPECT_STATUS(ns_pdf_batch(s, 0, none_phi, none3, none3, NULL), NS_OK);
   }
@@ -391,17 +403,18 @@ static void check_measured_file(const char *root) {
   CHECK(sampled > N / 2, "only %d of %d lanes sampled", sampled, N);
 
   /* The batched calls on the same lanes, bit for bit. */
-  float bf[3][N], bpdf[N], bwo[3][N], bspdf[N], bw[3][N];
+  float bf[3][N], bpdf[N], bwo[3][N], bspdf[N], bsmis[N], bw[3][N];
   NsVec3s wi_s = {ix, iy, iz}, wo_s = {ox, oy, oz};
   NsVec2s u_s = {ux, uy};
   NsRgbMut f_out = {bf[0], bf[1], bf[2]}, w_out = {bw[0], bw[1], bw[2]};
-  NsSamplesMut s_out = {bwo[0], bwo[1], bwo[2], bspdf};
+  NsSamplesMut s_out = {bwo[0], bwo[1], bwo[2], bspdf, bsmis};
   EXPECT_STATUS(ns_measured_eval_batch(m, N, wi_s, wo_s, f_out), NS_OK);
   EXPECT_STATUS(ns_measured_pdf_batch(m, N, wi_s, wo_s, bpdf), NS_OK);
   EXPECT_STATUS(ns_measured_sample_batch(m, N, wi_s, u_s, s_out, w_out), NS_OK);
   CHECK(same_bits(&f[0][0], &bf[0][0], 3 * N), "batched eval differs from scalar");
   CHECK(same_bits(pdf, bpdf, N), "batched pdf differs from scalar");
   CHECK(same_bits(&swo[0][0], &bwo[0][0], 3 * N) && same_bits(spdf, bspdf, N) &&
+            same_bits(spdf, bsmis, N) &&
             same_bits(&sw[0][0], &bw[0][0], 3 * N),
         "batched sample differs from scalar");
   ns_measured_free(m);

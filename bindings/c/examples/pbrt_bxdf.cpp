@@ -56,17 +56,17 @@ std::unique_ptr<NsBlob, BlobDel> OpenBlob(const std::string &path) {
 
 // The BxDF of one shading point: φ from the texture at uv; the sampler prepared for pbrt's
 // `wo` by one helper that both Sample_f and PDF call, so they cannot disagree. pbrt's
-// integrators weigh a sample by f·cos/pdf and use the same pdf for MIS; for a sampler whose
-// samples carry another density than its PDF (ns_sampler_exact_pdf false: the
-// reparameterization sampler), Sample_f returns PDF's value and scales f by PDF/q, so that
-// f·cos/pdf is still the sample's exact weight f·cos/q.
+// integrators weigh a sample by f·cos/pdf and use the same pdf for MIS; a sample carries
+// both the density it was drawn with (pdf, q) and its MIS density (mis_pdf, PDF's value at
+// its direction), which differ for the reparameterization sampler only. Sample_f returns
+// mis_pdf and scales f by mis_pdf/q, so that f·cos/pdf is still the sample's exact weight
+// f·cos/q.
 class NeuralBxDF {
  public:
   NeuralBxDF(const NsMaterial *material, const NsSampler *sampler, NsPrepared *scratch,
              Point2f uv)
       : material_(material), sampler_(sampler), scratch_(scratch) {
     Check(ns_material_features(material_, {uv.x, uv.y}, &phi_), "features");
-    Check(ns_sampler_exact_pdf(sampler_, &exact_), "exact_pdf");
   }
 
   // BRDF value (no cosine).
@@ -84,11 +84,10 @@ class NeuralBxDF {
     Check(st, "sample");
     Vector3f wi{s.wo.x, s.wo.y, s.wo.z};
     RGB value = f(wo, wi);
-    if (exact_) return BSDFSample{value, wi, s.pdf};
-    float pdf = PDF(wo, wi);
-    if (!(pdf > 0.0f)) return std::nullopt;
-    float k = pdf / s.pdf;
-    return BSDFSample{{value.r * k, value.g * k, value.b * k}, wi, pdf};
+    if (s.mis_pdf == s.pdf) return BSDFSample{value, wi, s.pdf};
+    if (!(s.mis_pdf > 0.0f)) return std::nullopt;
+    float k = s.mis_pdf / s.pdf;
+    return BSDFSample{{value.r * k, value.g * k, value.b * k}, wi, s.mis_pdf};
   }
 
   float PDF(Vector3f wo, Vector3f wi) const {
@@ -114,7 +113,6 @@ class NeuralBxDF {
   const NsSampler *sampler_;
   NsPrepared *scratch_;
   NsPhi phi_{};
-  bool exact_ = true;
   mutable bool prepared_ = false, ok_ = false;
   mutable Vector3f wo_{};
 };

@@ -98,7 +98,7 @@ typedef enum NsKind {
   // A neural material (not a sampler).
   NS_KIND_NEURAL_MATERIAL = 7,
   // Reparameterization sampler (Wu et al. 2025): its samples carry the warp's exact
-  // density, its pdf is a network's approximation (`ns_sampler_exact_pdf` is false).
+  // density, its pdf is a network's approximation (a sample's `mis_pdf`).
   NS_KIND_REPARAM = 8,
   // Disk flow: spline couplings on chords, uniform base, every mass inside the disk.
   NS_KIND_DISK_FLOW = 9,
@@ -185,15 +185,17 @@ typedef struct NsRgb {
   float b;
 } NsRgb;
 
-// A sampled direction and its density with respect to solid angle (the number a renderer
-// divides `f · cos θo` by). A refused sample is `wo = 0, pdf = 0`. For a sampler whose
-// `ns_sampler_exact_pdf` is false (the reparameterization sampler), MIS weights use
-// `ns_prepared_pdf` at `wo` instead of `pdf`.
+// A sampled direction and its two solid-angle densities: `pdf`, the density it was drawn
+// with (the number a renderer divides `f · cos θo` by), and `mis_pdf`, the density MIS
+// weighs it with (`ns_prepared_pdf` at `wo`, as for every other strategy). They are equal
+// for every kind but the reparameterization sampler. A refused sample is all zeros.
 typedef struct NsSample {
   // The direction (local shading frame, unit length, `wo.z > 0`).
   struct NsVec3 wo;
   // Its solid-angle density.
   float pdf;
+  // Its MIS density (solid angle).
+  float mis_pdf;
 } NsSample;
 
 // The feature vectors of `n` points, one array per channel. A `(8, n)` row-major array `a`
@@ -222,8 +224,8 @@ typedef struct NsVec2s {
   const float *y;
 } NsVec2s;
 
-// Where `ns_sample_batch` writes: directions and solid-angle densities (refused lanes:
-// `wo = 0`, `pdf = 0`).
+// Where `ns_sample_batch` writes: directions, their solid-angle densities and MIS
+// densities (as `NsSample`; refused lanes: all zeros).
 typedef struct NsSamplesMut {
   // x components of `wo`.
   float *x;
@@ -233,6 +235,8 @@ typedef struct NsSamplesMut {
   float *z;
   // Densities (solid angle).
   float *pdf;
+  // MIS densities (solid angle).
+  float *mis_pdf;
 } NsSamplesMut;
 
 // Where `ns_material_features_batch` writes φ, one array per channel.
@@ -339,15 +343,6 @@ void ns_sampler_free(struct NsSampler *sampler);
 // `sampler` is NULL or a live handle; `out` is NULL or writable.
 enum NsStatus ns_sampler_kind(const struct NsSampler *sampler, enum NsKind *out);
 
-// Whether the sampler's samples carry its pdf (`*out = true`: `ns_prepared_pdf(wo)` equals
-// a sample's `pdf`, every kind but one). `false` for the reparameterization sampler: a
-// sample's `pdf` is the density it was drawn with (divide `f·cos θo` by it), and MIS
-// weights must use `ns_prepared_pdf` at its direction, as every other strategy's do.
-//
-// # Safety
-// `sampler` is NULL or a live handle; `out` is NULL or writable.
-enum NsStatus ns_sampler_exact_pdf(const struct NsSampler *sampler, bool *out);
-
 // Builds the neural material of a neural-material blob and stores a new handle in `*out`
 // (free it with `ns_material_free`). `NS_ERR_WRONG_KIND` for a sampler blob.
 //
@@ -452,7 +447,7 @@ enum NsStatus ns_prepared_pdf(const struct NsSampler *sampler,
                               float *pdf);
 
 // Prepare + sample for `n` lanes (structure of arrays; fused: no lane state to keep).
-// Lane `i` draws from `u[i]` at `(phi[i], wi[i])` and writes `out.{x,y,z,pdf}[i]`.
+// Lane `i` draws from `u[i]` at `(phi[i], wi[i])` and writes `out.{x,y,z,pdf,mis_pdf}[i]`.
 // `n == 0` is a no-op (any pointers).
 //
 // # Safety
@@ -617,8 +612,9 @@ static inline NsFeaturesMut ns_features_mut_rows(float *rows, size_t n) {
   for (size_t k = 0; k < NS_FEATURE_DIM; ++k) f.c[k] = rows + k * n;
   return f;
 }
-static inline NsSamplesMut ns_samples_mut_rows(float *wo_rows, float *pdf, size_t n) {
-  NsSamplesMut s = {wo_rows, wo_rows + n, wo_rows + 2 * n, pdf};
+static inline NsSamplesMut ns_samples_mut_rows(float *wo_rows, float *pdf, float *mis_pdf,
+                                               size_t n) {
+  NsSamplesMut s = {wo_rows, wo_rows + n, wo_rows + 2 * n, pdf, mis_pdf};
   return s;
 }
 static inline NsRgbMut ns_rgb_mut_rows(float *rows, size_t n) {

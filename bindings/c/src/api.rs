@@ -63,6 +63,7 @@ pub(crate) fn sample(
     *out = NsSample {
         wo: ns_vec3(smp.wo),
         pdf: smp.pdf,
+        mis_pdf: smp.mis_pdf,
     };
     Ok(())
 }
@@ -129,7 +130,7 @@ pub(crate) fn prepared_sample(
     check_owner(s, p)?;
     *out = NsSample::default();
     let (ux, uy) = ([u.x], [u.y]);
-    let (mut x, mut y, mut z, mut pdf) = ([0.0f32], [0.0f32], [0.0f32], [0.0f32]);
+    let [mut x, mut y, mut z, mut pdf, mut mis] = [[0.0f32]; 5];
     let dst = SamplesMut {
         wo: Vec3sMut {
             x: &mut x,
@@ -137,6 +138,7 @@ pub(crate) fn prepared_sample(
             z: &mut z,
         },
         pdf: &mut pdf,
+        mis_pdf: &mut mis,
     };
     s.0.get().sample_batch(
         core::slice::from_ref(&p.lane),
@@ -153,6 +155,7 @@ pub(crate) fn prepared_sample(
             z: z[0],
         },
         pdf: pdf[0],
+        mis_pdf: mis[0],
     };
     Ok(())
 }

@@ -366,28 +366,6 @@ pub unsafe extern "C" fn ns_sampler_kind(sampler: *const NsSampler, out: *mut Ns
     })
 }
 
-/// Whether the sampler's samples carry its pdf (`*out = true`: `ns_prepared_pdf(wo)` equals
-/// a sample's `pdf`, every kind but one). `false` for the reparameterization sampler: a
-/// sample's `pdf` is the density it was drawn with (divide `f·cos θo` by it), and MIS
-/// weights must use `ns_prepared_pdf` at its direction, as every other strategy's do.
-///
-/// # Safety
-/// `sampler` is NULL or a live handle; `out` is NULL or writable.
-#[no_mangle]
-pub unsafe extern "C" fn ns_sampler_exact_pdf(
-    sampler: *const NsSampler,
-    out: *mut bool,
-) -> NsStatus {
-    guard(|| {
-        // SAFETY: live handle or NULL (contract).
-        let s = unsafe { get(sampler, "sampler") }?;
-        // SAFETY: writable or NULL (contract).
-        let out = unsafe { get_mut(out, "out") }?;
-        *out = s.0.kind().exact_pdf();
-        Ok(())
-    })
-}
-
 /// Builds the neural material of a neural-material blob and stores a new handle in `*out`
 /// (free it with `ns_material_free`). `NS_ERR_WRONG_KIND` for a sampler blob.
 ///
@@ -660,8 +638,36 @@ fn vec2s<'a>(arr: &mut Arrays, v: &NsVec2s, what: &'static str) -> Result<Vec2s<
     Ok(Vec2s { x, y })
 }
 
+/// `out`'s five arrays as `n`-float outputs of `arr`.
+fn samples_output(arr: &mut Arrays, out: &NsSamplesMut) -> Result<(), CallError> {
+    arr.output(out.x, "out.x")?;
+    arr.output(out.y, "out.y")?;
+    arr.output(out.z, "out.z")?;
+    arr.output(out.pdf, "out.pdf")?;
+    arr.output(out.mis_pdf, "out.mis_pdf")
+}
+
+/// `out`'s arrays as slices of `n` floats.
+///
+/// # Safety
+/// `samples_output` accepted `out` for `n` floats in an `Arrays` whose overlap check passed.
+unsafe fn samples_mut<'a>(out: &NsSamplesMut, n: usize) -> SamplesMut<'a> {
+    // SAFETY: checked for `n` floats each and overlapping nothing else (contract).
+    unsafe {
+        SamplesMut {
+            wo: Vec3sMut {
+                x: slice_mut(out.x, n),
+                y: slice_mut(out.y, n),
+                z: slice_mut(out.z, n),
+            },
+            pdf: slice_mut(out.pdf, n),
+            mis_pdf: slice_mut(out.mis_pdf, n),
+        }
+    }
+}
+
 /// Prepare + sample for `n` lanes (structure of arrays; fused: no lane state to keep).
-/// Lane `i` draws from `u[i]` at `(phi[i], wi[i])` and writes `out.{x,y,z,pdf}[i]`.
+/// Lane `i` draws from `u[i]` at `(phi[i], wi[i])` and writes `out.{x,y,z,pdf,mis_pdf}[i]`.
 /// `n == 0` is a no-op (any pointers).
 ///
 /// # Safety
@@ -683,22 +689,10 @@ pub unsafe extern "C" fn ns_sample_batch(
         let phi = features(&mut arr, &phi)?;
         let wi = vec3s(&mut arr, &wi, "wi")?;
         let u = vec2s(&mut arr, &u, "u")?;
-        arr.output(out.x, "out.x")?;
-        arr.output(out.y, "out.y")?;
-        arr.output(out.z, "out.z")?;
-        arr.output(out.pdf, "out.pdf")?;
+        samples_output(&mut arr, &out)?;
         arr.check_overlap()?;
         // SAFETY: checked for `n` floats each and overlapping nothing else.
-        let dst = unsafe {
-            SamplesMut {
-                wo: Vec3sMut {
-                    x: slice_mut(out.x, n),
-                    y: slice_mut(out.y, n),
-                    z: slice_mut(out.z, n),
-                },
-                pdf: slice_mut(out.pdf, n),
-            }
-        };
+        let dst = unsafe { samples_mut(&out, n) };
         api::sample_batch(s, phi, wi, u, dst)
     })
 }
@@ -1009,10 +1003,7 @@ pub unsafe extern "C" fn ns_measured_sample_batch(
         let mut arr = Arrays::new(n);
         let wi = vec3s(&mut arr, &wi, "wi")?;
         let u = vec2s(&mut arr, &u, "u")?;
-        arr.output(out.x, "out.x")?;
-        arr.output(out.y, "out.y")?;
-        arr.output(out.z, "out.z")?;
-        arr.output(out.pdf, "out.pdf")?;
+        samples_output(&mut arr, &out)?;
         arr.output(weight.r, "weight.r")?;
         arr.output(weight.g, "weight.g")?;
         arr.output(weight.b, "weight.b")?;
@@ -1020,14 +1011,7 @@ pub unsafe extern "C" fn ns_measured_sample_batch(
         // SAFETY: checked for `n` floats each and overlapping nothing else.
         let (dst, w) = unsafe {
             (
-                SamplesMut {
-                    wo: Vec3sMut {
-                        x: slice_mut(out.x, n),
-                        y: slice_mut(out.y, n),
-                        z: slice_mut(out.z, n),
-                    },
-                    pdf: slice_mut(out.pdf, n),
-                },
+                samples_mut(&out, n),
                 RgbMut {
                     r: slice_mut(weight.r, n),
                     g: slice_mut(weight.g, n),

@@ -92,7 +92,7 @@ pub enum NsKind {
     /// A neural material (not a sampler).
     NS_KIND_NEURAL_MATERIAL = 7,
     /// Reparameterization sampler (Wu et al. 2025): its samples carry the warp's exact
-    /// density, its pdf is a network's approximation (`ns_sampler_exact_pdf` is false).
+    /// density, its pdf is a network's approximation (a sample's `mis_pdf`).
     NS_KIND_REPARAM = 8,
     /// Disk flow: spline couplings on chords, uniform base, every mass inside the disk.
     NS_KIND_DISK_FLOW = 9,
@@ -172,10 +172,10 @@ pub struct NsRgb {
     pub b: f32,
 }
 
-/// A sampled direction and its density with respect to solid angle (the number a renderer
-/// divides `f · cos θo` by). A refused sample is `wo = 0, pdf = 0`. For a sampler whose
-/// `ns_sampler_exact_pdf` is false (the reparameterization sampler), MIS weights use
-/// `ns_prepared_pdf` at `wo` instead of `pdf`.
+/// A sampled direction and its two solid-angle densities: `pdf`, the density it was drawn
+/// with (the number a renderer divides `f · cos θo` by), and `mis_pdf`, the density MIS
+/// weighs it with (`ns_prepared_pdf` at `wo`, as for every other strategy). They are equal
+/// for every kind but the reparameterization sampler. A refused sample is all zeros.
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq)]
 pub struct NsSample {
@@ -183,6 +183,8 @@ pub struct NsSample {
     pub wo: NsVec3,
     /// Its solid-angle density.
     pub pdf: f32,
+    /// Its MIS density (solid angle).
+    pub mis_pdf: f32,
 }
 
 /// A direction drawn by a measured material's own sampler: its density with respect to
@@ -301,8 +303,8 @@ pub struct NsRgbMut {
     pub b: *mut f32,
 }
 
-/// Where `ns_sample_batch` writes: directions and solid-angle densities (refused lanes:
-/// `wo = 0`, `pdf = 0`).
+/// Where `ns_sample_batch` writes: directions, their solid-angle densities and MIS
+/// densities (as `NsSample`; refused lanes: all zeros).
 #[repr(C)]
 #[derive(Copy, Clone, Debug)]
 pub struct NsSamplesMut {
@@ -314,6 +316,8 @@ pub struct NsSamplesMut {
     pub z: *mut f32,
     /// Densities (solid angle).
     pub pdf: *mut f32,
+    /// MIS densities (solid angle).
+    pub mis_pdf: *mut f32,
 }
 
 /// A validated blob that owns a copy of its bytes. Opaque.

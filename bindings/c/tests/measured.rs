@@ -185,8 +185,8 @@ fn measured_blob_through_the_c_abi() {
         x: cols[6].as_ptr(),
         y: uy.as_ptr(),
     };
-    let mut out: [Vec<f32>; 11] = std::array::from_fn(|_| vec![0.0; N]);
-    let [fr, fg, fb, pdf, sx, sy, sz, sp, wr, wg, wb] = &mut out;
+    let mut out: [Vec<f32>; 12] = std::array::from_fn(|_| vec![0.0; N]);
+    let [fr, fg, fb, pdf, sx, sy, sz, sp, sm, wr, wg, wb] = &mut out;
     // SAFETY: every array holds N floats; outputs are distinct vectors.
     unsafe {
         let rgb = NsRgbMut {
@@ -204,6 +204,7 @@ fn measured_blob_through_the_c_abi() {
             y: sy.as_mut_ptr(),
             z: sz.as_mut_ptr(),
             pdf: sp.as_mut_ptr(),
+            mis_pdf: sm.as_mut_ptr(),
         };
         let w = NsRgbMut {
             r: wr.as_mut_ptr(),
@@ -239,7 +240,7 @@ fn measured_blob_through_the_c_abi() {
         );
     }
     // The runtime's batched calls on the same lanes (the ABI adds nothing to them).
-    let mut want: [Vec<f32>; 11] = std::array::from_fn(|_| vec![0.0; N]);
+    let mut want: [Vec<f32>; 12] = std::array::from_fn(|_| vec![0.0; N]);
     {
         use neusample::wavefront::{RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
         let wi = Vec3s {
@@ -252,7 +253,7 @@ fn measured_blob_through_the_c_abi() {
             y: &cols[4],
             z: &cols[5],
         };
-        let [fr, fg, fb, pdf, sx, sy, sz, sp, wr, wg, wb] = &mut want;
+        let [fr, fg, fb, pdf, sx, sy, sz, sp, sm, wr, wg, wb] = &mut want;
         m.eval_batch(
             wi,
             wo,
@@ -271,6 +272,7 @@ fn measured_blob_through_the_c_abi() {
                 z: sz,
             },
             pdf: sp,
+            mis_pdf: sm,
         };
         let u = Vec2s {
             x: &cols[6],
@@ -288,7 +290,7 @@ fn measured_blob_through_the_c_abi() {
         )
         .unwrap();
     }
-    let bits = |a: &[Vec<f32>; 11]| -> Vec<Vec<u32>> {
+    let bits = |a: &[Vec<f32>; 12]| -> Vec<Vec<u32>> {
         a.iter()
             .map(|v| v.iter().map(|x| x.to_bits()).collect())
             .collect()
@@ -298,6 +300,10 @@ fn measured_blob_through_the_c_abi() {
         "batched calls differ from the runtime's"
     );
     assert!(out[7].iter().filter(|p| **p > 0.0).count() > N / 2);
+    assert!(
+        out[7] == out[8],
+        "the data's sampler: its MIS density is its density"
+    );
 
     // Bad scalar input.
     let up = NsVec3 {

@@ -478,7 +478,7 @@ fn batched_is_scalar_bit_for_bit() {
         let mat = m.material();
         let mut f = vec![vec![0.0f32; n]; 3];
         let mut pdf = vec![0.0f32; n];
-        let mut s = vec![vec![0.0f32; n]; 7];
+        let mut s = vec![vec![0.0f32; n]; 8];
         for batch in [1usize, 13, 64, 1000] {
             for a in (0..n).step_by(batch) {
                 let b = (a + batch).min(n);
@@ -502,7 +502,7 @@ fn batched_is_scalar_bit_for_bit() {
                 };
                 mat.eval_batch(wis, wos, out).unwrap();
                 mat.pdf_batch(wis, wos, &mut pdf[a..b]).unwrap();
-                let [x, y, z, p, wr, wg, wb] = &mut s[..] else {
+                let [x, y, z, p, q, wr, wg, wb] = &mut s[..] else {
                     unreachable!()
                 };
                 let samples = SamplesMut {
@@ -512,6 +512,7 @@ fn batched_is_scalar_bit_for_bit() {
                         z: &mut z[a..b],
                     },
                     pdf: &mut p[a..b],
+                    mis_pdf: &mut q[a..b],
                 };
                 let weight = RgbMut {
                     r: &mut wr[a..b],
@@ -538,18 +539,20 @@ fn batched_is_scalar_bit_for_bit() {
                 let want = p
                     .as_ref()
                     .and_then(|p| p.sample(u[i]))
-                    .map_or([0.0; 7], |s| {
+                    .map_or([0.0; 8], |s| {
+                        // The data's sampler draws from its pdf: its MIS density is `pdf`.
                         [
                             s.wo.x,
                             s.wo.y,
                             s.wo.z,
+                            s.pdf,
                             s.pdf,
                             s.weight[0],
                             s.weight[1],
                             s.weight[2],
                         ]
                     });
-                let got: [f32; 7] = std::array::from_fn(|k| s[k][i]);
+                let got: [f32; 8] = std::array::from_fn(|k| s[k][i]);
                 assert_eq!(
                     got.map(f32::to_bits),
                     want.map(f32::to_bits),

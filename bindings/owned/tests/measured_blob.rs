@@ -103,7 +103,7 @@ fn assert_identical<A: Weights, B: Weights>(a: &MeasuredMaterial<A>, b: &Measure
     };
     let run = |m: &dyn BatchMaterial| {
         batched(&|o: &mut [Vec<f32>; 12]| {
-            let [f_r, f_g, f_b, pdf, x, y, z, spdf, w_r, w_g, w_b, _] = o;
+            let [f_r, f_g, f_b, pdf, x, y, z, spdf, w_r, w_g, w_b, smis] = o;
             m.eval(
                 view(&wi3),
                 view(&wo3),
@@ -120,6 +120,7 @@ fn assert_identical<A: Weights, B: Weights>(a: &MeasuredMaterial<A>, b: &Measure
                 SamplesMut {
                     wo: Vec3sMut { x, y, z },
                     pdf: spdf,
+                    mis_pdf: smis,
                 },
                 RgbMut {
                     r: w_r,

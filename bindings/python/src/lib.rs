@@ -263,20 +263,14 @@ impl Sampler {
         self.inner.get().alpha()
     }
 
-    /// Whether a sample's `pdf` is `pdf(wo)` at its direction (every kind but
-    /// `"reparam"`, whose samples carry the density of its warp while `pdf` is its pdf
-    /// network: divide by the sample's pdf, weigh MIS with `pdf(wo)`).
-    #[getter]
-    fn exact_pdf(&self) -> bool {
-        self.inner.kind().exact_pdf()
-    }
-
     /// Prepares the sampler for each lane's `(phi, wi)` and draws one direction from `u`.
     ///
-    /// `phi`: (8, N), `wi`: (3, N), `u`: (2, N) float32 in [0, 1). Returns `(wo, pdf)`:
-    /// (3, N) directions and (N,) solid-angle densities (the densities they were drawn with:
-    /// divide `f·cos` by them); a refused lane (`wi` below the horizon, NaN input, sample
-    /// outside the support) has `wo = 0`, `pdf = 0`.
+    /// `phi`: (8, N), `wi`: (3, N), `u`: (2, N) float32 in [0, 1). Returns
+    /// `(wo, pdf, mis_pdf)`: (3, N) directions, (N,) solid-angle densities they were drawn
+    /// with (divide `f·cos` by them) and (N,) solid-angle densities MIS weighs them with
+    /// (`pdf(wo)`; equal to `pdf` for every kind but `"reparam"`, whose samples carry the
+    /// density of its warp). A refused lane (`wi` below the horizon, NaN input, sample
+    /// outside the support) is all zeros.
     #[pyo3(signature = (phi, wi, u, *, threads = 1))]
     fn sample<'py>(
         &self,
@@ -292,13 +286,18 @@ impl Sampler {
         let n = same_n(&[("phi", phi.n()), ("wi", wi.n()), ("u", u.n())])?;
         let wo_arr = output(py, 3, n);
         let pdf_arr = output1(py, n);
+        let mis_arr = output1(py, n);
         {
             let mut wo_rw = wo_arr.readwrite();
             let mut pdf_rw = pdf_arr.readwrite();
+            let mut mis_rw = mis_arr.readwrite();
             let wo_flat = wo_rw
                 .as_slice_mut()
                 .map_err(|e| batch_error_s(e.to_string()))?;
             let pdf_flat = pdf_rw
+                .as_slice_mut()
+                .map_err(|e| batch_error_s(e.to_string()))?;
+            let mis_flat = mis_rw
                 .as_slice_mut()
                 .map_err(|e| batch_error_s(e.to_string()))?;
             let (phi, wi, u) = (phi.rows()?, wi.rows()?, u.rows()?);
@@ -309,29 +308,34 @@ impl Sampler {
                 .zip(split(wi, len))
                 .zip(split(u, len))
                 .zip(split_mut(rows_mut::<3>(wo_flat, n), len))
-                .zip(split_mut([pdf_flat], len))
+                .zip(split_mut([pdf_flat, mis_flat], len))
                 .collect();
             py.detach(|| {
-                run(jobs, parallel, |((((phi, wi), u), [x, y, z]), [pdf])| {
-                    let out = SamplesMut {
-                        wo: Vec3sMut { x, y, z },
-                        pdf,
-                    };
-                    sampler.sample_fused(
-                        Features { channels: phi },
-                        Vec3s {
-                            x: wi[0],
-                            y: wi[1],
-                            z: wi[2],
-                        },
-                        Vec2s { x: u[0], y: u[1] },
-                        out,
-                    )
-                })
+                run(
+                    jobs,
+                    parallel,
+                    |((((phi, wi), u), [x, y, z]), [pdf, mis_pdf])| {
+                        let out = SamplesMut {
+                            wo: Vec3sMut { x, y, z },
+                            pdf,
+                            mis_pdf,
+                        };
+                        sampler.sample_fused(
+                            Features { channels: phi },
+                            Vec3s {
+                                x: wi[0],
+                                y: wi[1],
+                                z: wi[2],
+                            },
+                            Vec2s { x: u[0], y: u[1] },
+                            out,
+                        )
+                    },
+                )
             })
             .map_err(batch_error)?;
         }
-        Ok((wo_arr, pdf_arr))
+        Ok((wo_arr, pdf_arr, mis_arr))
     }
 
     /// The solid-angle density with which `sample` draws `wo` at each lane's `(phi, wi)`.
@@ -407,18 +411,20 @@ impl Sampler {
         let sampler = self.inner.get();
         let mut wo = vec![0.0f32; 3 * n];
         let mut pdf = vec![0.0f32; n];
+        let mut mis = vec![0.0f32; n];
         for i in 0..n {
             let s = sampler
                 .prepare(&lane_phi(&phi, i), Vec3::new(wi[0][i], wi[1][i], wi[2][i]))
                 .and_then(|p| p.sample(Vec2::new(u[0][i], u[1][i])));
             if let Some(s) = s {
                 (wo[i], wo[n + i], wo[2 * n + i]) = (s.wo.x, s.wo.y, s.wo.z);
-                pdf[i] = s.pdf;
+                (pdf[i], mis[i]) = (s.pdf, s.mis_pdf);
             }
         }
         Ok((
             PyArray1::from_vec(py, wo).reshape([3, n])?,
             PyArray1::from_vec(py, pdf),
+            PyArray1::from_vec(py, mis),
         ))
     }
 
@@ -453,7 +459,11 @@ impl Sampler {
 }
 
 /// `(wo, pdf)` of [`Sampler::sample`].
-type SampleArrays<'py> = (Bound<'py, PyArray2<f32>>, Bound<'py, PyArray1<f32>>);
+type SampleArrays<'py> = (
+    Bound<'py, PyArray2<f32>>,
+    Bound<'py, PyArray1<f32>>,
+    Bound<'py, PyArray1<f32>>,
+);
 
 /// Lane `i` of a `(8, N)` feature array.
 fn lane_phi(phi: &[&[f32]; FEATURE_DIM], i: usize) -> [f32; FEATURE_DIM] {

@@ -331,6 +331,8 @@ impl MeasuredMaterial {
             let wo_flat = wo_rw.as_slice_mut().map_err(value_error)?;
             let pdf_flat = pdf_rw.as_slice_mut().map_err(value_error)?;
             let w_flat = w_rw.as_slice_mut().map_err(value_error)?;
+            // The data's sampler draws from its pdf: the MIS densities are `pdf` again.
+            let mut mis = vec![0.0f32; n];
             let (wi, u) = (wi.rows()?, u.rows()?);
             let m = self.material();
             let (len, parallel) = plan(n, threads);
@@ -338,20 +340,21 @@ impl MeasuredMaterial {
                 .into_iter()
                 .zip(split(u, len))
                 .zip(split_mut(rows_mut::<3>(wo_flat, n), len))
-                .zip(split_mut([pdf_flat], len))
+                .zip(split_mut([pdf_flat, &mut mis], len))
                 .zip(split_mut(rows_mut::<3>(w_flat, n), len))
                 .collect();
             py.detach(|| {
                 run(
                     jobs,
                     parallel,
-                    |((((wi, [ux, uy]), [x, y, z]), [pdf]), [r, g, b])| {
+                    |((((wi, [ux, uy]), [x, y, z]), [pdf, mis_pdf]), [r, g, b])| {
                         m.sample(
                             vec3s(wi),
                             Vec2s { x: ux, y: uy },
                             SamplesMut {
                                 wo: Vec3sMut { x, y, z },
                                 pdf,
+                                mis_pdf,
                             },
                             RgbMut { r, g, b },
                         )

@@ -53,7 +53,7 @@ def test_golden_values_from_the_rust_scalar_api():
         # The batched runtime agrees with the scalar API within its tolerances (fused
         # multiply-adds in the networks): 5e-4 relative on a pdf at one direction, 1e-3 on a
         # sampled direction, 1e-4 relative on the material's eval.
-        wo, pdf = s.sample(phi, col(r["wi"]), col(r["u"]))
+        wo, pdf, _ = s.sample(phi, col(r["wi"]), col(r["u"]))
         np.testing.assert_allclose(wo[:, 0], r["wo"], rtol=0, atol=1e-3)
         golden_wo = col(r["wo"])
         np.testing.assert_allclose(s.pdf(phi, col(r["wi"]), golden_wo)[0], r["pdf"], rtol=5e-4)
@@ -77,13 +77,13 @@ def test_sample_pdf_agree_and_threads_are_bit_identical(method):
     s = neusample.Sampler(sampler_path("goat_leather_neural", method))
     uv, wi, u = random_lanes(3000)
     phi = m.features(uv)
-    wo, pdf = s.sample(phi, wi, u)
+    wo, pdf, _ = s.sample(phi, wi, u)
     ok = pdf > 0
     assert ok.mean() > 0.9
     np.testing.assert_array_equal(s.pdf(phi, wi, wo)[ok], pdf[ok])
     assert np.all(wo[:, ~ok] == 0)
     np.testing.assert_allclose(np.linalg.norm(wo[:, ok], axis=0), 1, atol=1e-5)
-    wo2, pdf2 = s.sample(phi, wi, u, threads=2)
+    wo2, pdf2, _ = s.sample(phi, wi, u, threads=2)
     np.testing.assert_array_equal(wo2, wo)
     np.testing.assert_array_equal(pdf2, pdf)
     np.testing.assert_array_equal(s.pdf(phi, wi, wo, threads=0), s.pdf(phi, wi, wo))
@@ -95,7 +95,7 @@ def test_cosine_is_cos_over_pi():
     s = neusample.Sampler.cosine()
     _, wi, u = random_lanes(500)
     phi = np.zeros((8, 500), np.float32)
-    wo, pdf = s.sample(phi, wi, u)
+    wo, pdf, _ = s.sample(phi, wi, u)
     np.testing.assert_allclose(pdf, wo[2] / np.pi, rtol=1e-6)
 
 
@@ -104,13 +104,13 @@ def test_nan_and_below_horizon_lanes_are_refused_without_disturbing_others():
     s = neusample.Sampler(sampler_path("brushed_metal_neural", "flow"))
     uv, wi, u = random_lanes(64)
     phi = m.features(uv)
-    _, ref_pdf = s.sample(phi, wi, u)
+    _, ref_pdf, _ = s.sample(phi, wi, u)
     wi_bad = wi.copy()
     wi_bad[0, 3] = np.nan
     wi_bad[2, 5] = -0.5
     phi_bad = phi.copy()
     phi_bad[4, 7] = np.inf
-    wo, pdf = s.sample(phi_bad, wi_bad, u)
+    wo, pdf, _ = s.sample(phi_bad, wi_bad, u)
     assert pdf[3] == 0 and pdf[5] == 0 and pdf[7] == 0
     assert np.all(wo[:, [3, 5, 7]] == 0)
     keep = np.setdiff1d(np.arange(64), [3, 5, 7])
@@ -124,7 +124,7 @@ def test_empty_batches():
     s = neusample.Sampler.cosine()
     phi = m.features(np.zeros((2, 0), np.float32))
     assert phi.shape == (8, 0) and phi.dtype == np.float32
-    wo, pdf = s.sample(phi, np.zeros((3, 0), np.float32), np.zeros((2, 0), np.float32))
+    wo, pdf, _ = s.sample(phi, np.zeros((3, 0), np.float32), np.zeros((2, 0), np.float32))
     assert wo.shape == (3, 0) and pdf.shape == (0,)
 
 
@@ -208,25 +208,30 @@ def test_inspect_and_header():
 
 def test_reparam_samples_carry_their_own_density():
     """The reparameterization sampler divides by its warp's density and reports its pdf
-    network for MIS: `exact_pdf` is False (True for every other kind), the two densities
-    differ, and the sample weights estimate the albedo that cosine sampling estimates."""
+    network for MIS (`mis_pdf`: its pdf at the sample, `pdf` for every other kind), the two
+    densities differ, and the sample weights estimate the albedo that cosine sampling
+    estimates."""
     m = neusample.NeuralMaterial(material_path("goat_leather_neural"))
     s = neusample.Sampler(sampler_path("goat_leather_neural", "reparam"))
-    assert s.kind == "reparam" and not s.exact_pdf
-    assert neusample.Sampler(sampler_path("goat_leather_neural", "flow")).exact_pdf
-    assert neusample.Sampler.cosine().exact_pdf
+    assert s.kind == "reparam"
     n = 200_000
     rng = np.random.default_rng(3)
     uv = np.tile(np.array([[0.3], [0.6]], np.float32), n)
     wi = np.tile(col([0.36, -0.48, 0.8]), n)
     phi = m.features(uv)
-    wo, pdf = s.sample(phi, wi, rng.random((2, n), dtype=np.float32))
+    for exact in (neusample.Sampler(sampler_path("goat_leather_neural", "flow")),
+                  neusample.Sampler.cosine()):
+        few = np.ascontiguousarray(phi[:, :64]), np.ascontiguousarray(wi[:, :64])
+        _, e_pdf, e_mis = exact.sample(*few, np.full((2, 64), 0.3, np.float32))
+        assert np.array_equal(e_pdf, e_mis)
+    wo, pdf, mis = s.sample(phi, wi, rng.random((2, n), dtype=np.float32))
     ok = pdf > 0
     assert ok.mean() > 0.95
-    assert not np.array_equal(s.pdf(phi, wi, wo)[ok], pdf[ok])
+    assert np.array_equal(s.pdf(phi, wi, wo), mis)
+    assert not np.array_equal(mis[ok], pdf[ok])
     w = np.where(ok, m.eval(phi, wi, wo)[1] * wo[2] / np.where(ok, pdf, 1.0), 0.0)
     c = neusample.Sampler.cosine()
-    wo_c, pdf_c = c.sample(phi, wi, rng.random((2, n), dtype=np.float32))
+    wo_c, pdf_c, _ = c.sample(phi, wi, rng.random((2, n), dtype=np.float32))
     w_c = m.eval(phi, wi, wo_c)[1] * wo_c[2] / pdf_c
     se = np.hypot(w.std() / np.sqrt(n), w_c.std() / np.sqrt(n))
     assert abs(w.mean() - w_c.mean()) < 5 * se, (w.mean(), w_c.mean(), se)

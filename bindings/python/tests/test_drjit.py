@@ -122,7 +122,7 @@ def test_sampler_matches_the_rust_scalar_runtime(path, conditions):
     rust = neusample.Sampler(path) if path else neusample.Sampler()
     d = nd.Sampler(path, Float)
     assert d.alpha == pytest.approx(rust.alpha)
-    wo_r, pdf_r = rust.sample_scalar(phi, wi, u)
+    wo_r, pdf_r, mis_r = rust.sample_scalar(phi, wi, u)
     st, ok = d.prepare(jit(phi), jit(wi))
     wo_d, pdf_d, ok_d, mis_d = d.sample_mis(st, ok, jit(u))
     wo_d, pdf_d, ok_d, mis_d = numpy(wo_d), np.array(pdf_d), np.array(ok_d), np.array(mis_d)
@@ -143,8 +143,10 @@ def test_sampler_matches_the_rust_scalar_runtime(path, conditions):
     far = np.max(np.abs(wo_d - wo_r), axis=0)[both] > SAMPLE_ATOL
     pdf_at_own = rust.pdf_scalar(phi, wi, np.ascontiguousarray(wo_d))
     mis_err = rel_errs(np.where(ok_d, mis_d, 0), pdf_at_own)
-    assert d.kind.exact == rust.exact_pdf
-    if rust.exact_pdf:
+    # Rust's samples say whether the kind's samples carry its pdf (every kind but reparam).
+    exact = np.array_equal(pdf_r, mis_r)
+    assert d.kind.exact == exact
+    if exact:
         assert np.array_equal(mis_d, pdf_d), "an exact kind's MIS density is its sample's"
         at_own = rel_errs(np.where(ok_d, pdf_d, 0), pdf_at_own)
     else:
@@ -188,7 +190,7 @@ def f64_errors(path):
 
     _, phi, wi, u = lanes()
     rust = neusample.Sampler(path)
-    wo, pdf = rust.sample_scalar(phi, wi, u)
+    wo, pdf, _ = rust.sample_scalar(phi, wi, u)
     q32 = np.array(nd.Sampler(path, Float).pdf(jit(phi), jit(wi), jit(wo)))
     j64 = lambda a: [Float64(np.asarray(r, dtype=np.float64)) for r in a]  # noqa: E731
     q64 = np.array(nd.Sampler(path, Float64, precision="plain").pdf(j64(phi), j64(wi), j64(wo)))
@@ -239,7 +241,7 @@ def test_a_wrong_weight_is_detected():
     params = neusample.Blob(path).tensor("params").copy()
     params[-2] += 0.01  # the logit of the first Gaussian
     d.kind = nd.AnalyticMixture(d.t, params, "f32")  # an array stands for the blob's params
-    wo_r, _ = neusample.Sampler(path).sample_scalar(phi, wi, u)
+    wo_r, _, _ = neusample.Sampler(path).sample_scalar(phi, wi, u)
     q = np.array(d.pdf(jit(phi), jit(wi), jit(wo_r)))
     with pytest.raises(AssertionError):
         assert rel_err(q, neusample.Sampler(path).pdf_scalar(phi, wi, wo_r)) <= PDF_RTOL

@@ -20,7 +20,7 @@ def test_train_sampler_quick_writes_a_verified_blob(tmp_path):
     assert s.kind == "analytic"
     phi = np.zeros((8, 4), np.float32)
     wi = np.tile(np.array([[0], [0], [1]], np.float32), 4)
-    wo, pdf = s.sample(phi, wi, np.full((2, 4), 0.5, np.float32))
+    wo, pdf, _ = s.sample(phi, wi, np.full((2, 4), 0.5, np.float32))
     assert np.all(pdf > 0)
 
 

@@ -17,8 +17,6 @@ pub trait ChunkedSampler {
     type Lane: super::LaneState;
     /// Lanes per chunk.
     const CHUNK: usize;
-    /// See [`BatchSampler::exact_pdf`].
-    const EXACT_PDF: bool = true;
     /// The widest instruction set its chunks are compiled for ([`Kernel::WIDEST`]).
     const WIDEST: Isa = Isa::X86V4;
     /// [`BatchSampler::prepare_batch`] of one chunk.
@@ -139,11 +137,6 @@ impl<S: ChunkedSampler> Kernel for Invert<'_, '_, S> {
 
 impl<S: ChunkedSampler> BatchSampler for S {
     type Lane = S::Lane;
-
-    #[inline]
-    fn exact_pdf(&self) -> bool {
-        S::EXACT_PDF
-    }
 
     fn prepare_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [S::Lane]) -> Result<()> {
         check_prepare_args(&phi, &wi, lanes)?;

@@ -33,7 +33,8 @@ pub trait BatchSampler {
         lanes: &mut [Self::Lane],
     ) -> Result<()>;
 
-    /// Draws one direction per lane from `u[i]` (as [`Prepared::sample`](crate::Prepared::sample)).
+    /// Draws one direction per lane from `u[i]` (as [`Prepared::sample`](crate::Prepared::sample)),
+    /// with its density and its MIS density ([`crate::Sample`]).
     fn sample_batch(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) -> Result<()>;
 
     /// The solid-angle density of `wo[i]` at lane `i` (as [`Prepared::pdf`](crate::Prepared::pdf)).
@@ -49,26 +50,6 @@ pub trait BatchSampler {
         u: Vec2sMut<'_>,
         ok: &mut [bool],
     ) -> Result<()>;
-
-    /// Whether `sample_batch`'s densities are `pdf_batch`'s at the sampled directions (as
-    /// [`Prepared::exact_pdf`](crate::Prepared::exact_pdf): every kind but the
-    /// reparameterization sampler).
-    #[inline]
-    fn exact_pdf(&self) -> bool {
-        true
-    }
-
-    /// Turns the densities `pdf[i]` that [`BatchSampler::sample_batch`] wrote for the
-    /// directions `wo[i]` into the densities MIS weights must use (as
-    /// [`Prepared::mis_pdf`](crate::Prepared::mis_pdf)): unchanged where
-    /// [`BatchSampler::exact_pdf`], else `pdf_batch` at `wo` (0 for refused lanes).
-    fn mis_pdf_batch(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
-        if self.exact_pdf() {
-            check_pdf_args(lanes, &wo, pdf).map(|_| ())
-        } else {
-            self.pdf_batch(lanes, wo, pdf)
-        }
-    }
 
     /// [`BatchSampler::prepare_batch`] then [`BatchSampler::sample_batch`], in chunks of
     /// [`FUSED_CHUNK`] lanes whose states stay on the stack.

@@ -62,13 +62,16 @@ pub struct FeaturesMut<'a> {
 }
 
 /// Where [`BatchSampler::sample_batch`](super::BatchSampler::sample_batch) writes: the sampled directions and their
-/// solid-angle densities (`pdf = 0` and `wo = 0` for a refused sample).
+/// solid-angle densities (`wo = 0`, `pdf = mis_pdf = 0` for a refused sample).
 #[derive(Debug)]
 pub struct SamplesMut<'a> {
     /// Sampled directions (local shading frame, unit length).
     pub wo: Vec3sMut<'a>,
-    /// Their densities with respect to solid angle ([`Sample::pdf`]).
+    /// Their densities with respect to solid angle ([`Sample::pdf`]): what `f · cos θo` is
+    /// divided by.
     pub pdf: &'a mut [f32],
+    /// Their MIS densities with respect to solid angle ([`Sample::mis_pdf`]).
+    pub mis_pdf: &'a mut [f32],
 }
 
 /// Where [`NeuralMaterial::eval_batch`](crate::NeuralMaterial::eval_batch) writes: the BRDF (no cosine) per RGB channel.
@@ -350,30 +353,34 @@ impl<'a> FeaturesMut<'a> {
 }
 
 impl<'a> SamplesMut<'a> {
-    /// Writes lane `i`: the sample, or a refusal (`wo = 0`, `pdf = 0`).
+    /// Writes lane `i`: the sample, or a refusal (`wo = 0`, `pdf = mis_pdf = 0`).
     #[inline(always)]
     pub(crate) fn set(&mut self, i: usize, s: Option<Sample>) {
         match s {
             Some(s) => {
                 self.wo.set(i, s.wo);
                 self.pdf[i] = s.pdf;
+                self.mis_pdf[i] = s.mis_pdf;
             }
             None => {
                 self.wo.set(i, Vec3::ZERO);
                 self.pdf[i] = 0.0;
+                self.mis_pdf[i] = 0.0;
             }
         }
     }
 
     pub(crate) fn check(&self, n: usize) -> Result<()> {
         self.wo.check(n)?;
-        check_len("pdf", self.pdf.len(), n)
+        check_len("pdf", self.pdf.len(), n)?;
+        check_len("mis_pdf", self.mis_pdf.len(), n)
     }
 
     pub(crate) fn range(&mut self, a: usize, b: usize) -> SamplesMut<'_> {
         SamplesMut {
             wo: self.wo.range(a, b),
             pdf: &mut self.pdf[a..b],
+            mis_pdf: &mut self.mis_pdf[a..b],
         }
     }
 }

@@ -995,6 +995,7 @@ impl Ctx<'_> {
             };
             out.wo.set(a + l, w);
             out.pdf[a + l] = d;
+            out.mis_pdf[a + l] = d;
         }
     }
 }
@@ -1126,12 +1127,12 @@ mod tests {
         m: &MeasuredMaterial<Vec<f32>>,
         wis: Vec3s<'_>,
         u: Vec2s<'_>,
-    ) -> ([Vec<f32>; 4], [Vec<f32>; 3], [Vec<f32>; 4]) {
+    ) -> ([Vec<f32>; 5], [Vec<f32>; 3], [Vec<f32>; 5]) {
         let n = wis.x.len();
-        let mut s = [vec![9.0; n], vec![9.0; n], vec![9.0; n], vec![9.0; n]];
+        let mut s = [(); 5].map(|_| vec![9.0; n]);
         let mut w = [vec![9.0; n], vec![9.0; n], vec![9.0; n]];
         {
-            let [sx, sy, sz, sp] = &mut s;
+            let [sx, sy, sz, sp, sm] = &mut s;
             let [wr, wg, wb] = &mut w;
             m.sample_batch(
                 wis,
@@ -1143,6 +1144,7 @@ mod tests {
                         z: sz,
                     },
                     pdf: sp,
+                    mis_pdf: sm,
                 },
                 RgbMut {
                     r: wr,
@@ -1153,9 +1155,9 @@ mod tests {
             .unwrap();
         }
         // Without the weights: the same directions and densities.
-        let mut d = [vec![9.0; n], vec![9.0; n], vec![9.0; n], vec![9.0; n]];
+        let mut d = [(); 5].map(|_| vec![9.0; n]);
         {
-            let [dx, dy, dz, dp] = &mut d;
+            let [dx, dy, dz, dp, dm] = &mut d;
             m.sample_directions_batch(
                 wis,
                 u,
@@ -1166,6 +1168,7 @@ mod tests {
                         z: dz,
                     },
                     pdf: dp,
+                    mis_pdf: dm,
                 },
             )
             .unwrap();
@@ -1246,10 +1249,11 @@ mod tests {
                 (s.wo, s.pdf, s.weight)
             });
             let got = [
-                s[0][i], s[1][i], s[2][i], s[3][i], w[0][i], w[1][i], w[2][i],
+                s[0][i], s[1][i], s[2][i], s[3][i], s[4][i], w[0][i], w[1][i], w[2][i],
             ];
-            let want = [wo_s.x, wo_s.y, wo_s.z, pdf_s, w_s[0], w_s[1], w_s[2]];
-            for k in 0..7 {
+            // The data's sampler draws from its pdf: its MIS density is its density.
+            let want = [wo_s.x, wo_s.y, wo_s.z, pdf_s, pdf_s, w_s[0], w_s[1], w_s[2]];
+            for k in 0..8 {
                 assert!(
                     same(got[k], want[k]),
                     "lane {i} sample {k}: {got:?} vs {want:?}"

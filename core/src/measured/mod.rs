@@ -732,6 +732,7 @@ pub(crate) fn runtime_sample(s: MeasuredSample) -> crate::Sample {
         wo: s.wo,
         pdf: s.pdf,
         pdf_disk: math::finite_density(s.pdf / s.wo.z),
+        mis_pdf: s.pdf,
     }
 }
 

@@ -46,11 +46,6 @@ macro_rules! batch_impl {
         impl BatchSampler for AnySampler<'_> {
             type Lane = AnyLane;
 
-            #[inline]
-            fn exact_pdf(&self) -> bool {
-                self.kind().exact_pdf()
-            }
-
             fn prepare_batch(
                 &self,
                 phi: Features<'_>,
@@ -252,10 +247,6 @@ impl Prepared for AnyPrepared<'_, '_> {
             #[inline]
             fn invert(&self, wo: Vec3) -> Option<Vec2> {
                 dispatch!(self, p => p.invert(wo))
-            }
-            #[inline]
-            fn exact_pdf(&self) -> bool {
-                dispatch!(self, p => p.exact_pdf())
             }
         }
 

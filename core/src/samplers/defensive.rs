@@ -17,18 +17,20 @@
 //! With α = 0 every call is the learned sampler's own, bit for bit: version-1 blobs, which
 //! have no α, behave as before.
 //!
-//! A learned part whose samples carry a density other than its `pdf`
-//! ([`Prepared::exact_pdf`] false: the reparameterization sampler, exact density `q`, pdf
-//! network `p̂`) cannot give the mixture's density at a cosine sample (`q` is unknown
-//! there). The two parts are then combined as one-sample MIS with the balance heuristic
-//! over `p̂` (Veach 1997, §9.2.4), which stays unbiased because the weights sum to one:
+//! A learned part whose samples carry a density other than its `pdf` (a
+//! [`Sample::mis_pdf`] other than [`Sample::pdf`]: the reparameterization sampler, exact
+//! density `q`, pdf network `p̂`) cannot give the mixture's density at a cosine sample (`q`
+//! is unknown there). The two parts are then combined as one-sample MIS with the balance
+//! heuristic over `p̂` (Veach 1997, §9.2.4), which stays unbiased because the weights sum
+//! to one:
 //!
 //! ```text
 //! cosine sample:   divide by (1 − α)·p̂ + α·cos θo/π          (= pdf(wo), as before)
 //! learned sample:  divide by ((1 − α)·p̂ + α·cos θo/π) · q/p̂  (q where p̂ = q)
 //! ```
 //!
-//! and MIS with other strategies uses `pdf(wo) = (1 − α)·p̂ + α·cos θo/π`.
+//! and every sample's MIS density is `pdf(wo) = (1 − α)·p̂ + α·cos θo/π`. Where the learned
+//! part's samples carry their `pdf` (`p̂ = q`) both are `(1 − α)·q + α·cos θo/π`.
 
 use glam::{Vec2, Vec3};
 
@@ -128,31 +130,20 @@ fn mix(alpha: f32, p_learned: f32, cos_theta: f32) -> f32 {
     (1.0 - alpha) * p_learned + alpha * (cos_theta * INV_PI)
 }
 
-/// The density a learned sample of an inexact part ([`Prepared::exact_pdf`] false) is
-/// divided by in the mixture (module docs): `mix(p̂)·q/p̂`, with `q` its own solid-angle
-/// density and `p̂` the part's `pdf` there; 0 (refused: its MIS weight is 0) where `p̂` is not
-/// positive.
+/// The mixture's sample of a learned sample drawn with solid-angle density `q` whose MIS
+/// density is `p̂` (module docs): divided by `mix(p̂)·q/p̂`, weighed with `mix(p̂)`; with
+/// `p̂ = q` (bit for bit) that is `mix(q)` for both. `None` (refused: its MIS weight is 0)
+/// where `p̂` is not positive or a density is not finite.
 #[inline(always)]
-fn mis_divisor(alpha: f32, q: f32, p_hat: f32, cos_theta: f32) -> f32 {
+fn mixed_learned(alpha: f32, wo: Vec3, q: f32, p_hat: f32) -> Option<Sample> {
+    let mis = mix(alpha, p_hat, wo.z);
+    if q == p_hat {
+        return Sample::from_solid_angle(wo, mis);
+    }
     if !(p_hat > 0.0) {
-        return 0.0;
+        return None;
     }
-    mix(alpha, p_hat, cos_theta) / p_hat * q
-}
-
-/// The mixture's sample from its solid-angle density, or `None` when it is not finite and
-/// positive.
-#[inline(always)]
-fn mixed_sample(wo: Vec3, pdf: f32) -> Option<Sample> {
-    if pdf > 0.0 && math::is_finite(pdf) {
-        Some(Sample {
-            wo,
-            pdf,
-            pdf_disk: warp::solid_angle_to_disk(pdf, wo.z),
-        })
-    } else {
-        None
-    }
+    Some(Sample::from_solid_angle(wo, mis / p_hat * q)?.with_mis_pdf(mis))
 }
 
 /// Which part `u` chooses and the uniform it hands that part: `(true, u')` for cosine.
@@ -212,21 +203,11 @@ impl<P: Prepared> Prepared for DefensivePrepared<P> {
         let (cosine, u) = split(self.alpha, u);
         if cosine {
             let wo = cosine_direction(u)?;
-            mixed_sample(wo, mix(self.alpha, self.inner.pdf(wo), wo.z))
+            Sample::from_solid_angle(wo, mix(self.alpha, self.inner.pdf(wo), wo.z))
         } else {
             let s = self.inner.sample(u)?;
-            if self.inner.exact_pdf() {
-                mixed_sample(s.wo, mix(self.alpha, s.pdf, s.wo.z))
-            } else {
-                let p_hat = self.inner.pdf(s.wo);
-                mixed_sample(s.wo, mis_divisor(self.alpha, s.pdf, p_hat, s.wo.z))
-            }
+            mixed_learned(self.alpha, s.wo, s.pdf, s.mis_pdf)
         }
-    }
-
-    #[inline]
-    fn exact_pdf(&self) -> bool {
-        self.inner.exact_pdf()
     }
 
     #[inline]
@@ -276,11 +257,6 @@ mod batch {
 
     impl<S: BatchSampler> BatchSampler for Defensive<S> {
         type Lane = S::Lane;
-
-        #[inline]
-        fn exact_pdf(&self) -> bool {
-            self.inner.exact_pdf()
-        }
 
         #[inline]
         fn prepare_batch(
@@ -350,32 +326,14 @@ mod batch {
                     },
                     chunk.range(0, m),
                 )?;
-                // An inexact learned part: its pdf at its own samples (module docs).
-                let exact = self.inner.exact_pdf();
-                let mut p_hat = [0.0f32; FUSED_CHUNK];
-                if !exact {
-                    self.inner.pdf_batch(
-                        &lanes[a..b],
-                        Vec3s {
-                            x: &chunk.wo.x[..m],
-                            y: &chunk.wo.y[..m],
-                            z: &chunk.wo.z[..m],
-                        },
-                        &mut p_hat[..m],
-                    )?;
-                }
                 for i in 0..m {
-                    // Learned lanes: the mixture's density; refused and cosine lanes: refused
-                    // here, the cosine ones filled in below.
+                    // Learned lanes: the mixture's densities; refused and cosine lanes:
+                    // refused here, the cosine ones filled in below.
                     let s = if ux[i].is_nan() || !(chunk.pdf[i] > 0.0) {
                         None
                     } else {
                         let wo = Vec3::new(chunk.wo.x[i], chunk.wo.y[i], chunk.wo.z[i]);
-                        if exact {
-                            mixed_sample(wo, mix(alpha, chunk.pdf[i], wo.z))
-                        } else {
-                            mixed_sample(wo, mis_divisor(alpha, chunk.pdf[i], p_hat[i], wo.z))
-                        }
+                        mixed_learned(alpha, wo, chunk.pdf[i], chunk.mis_pdf[i])
                     };
                     chunk.set(i, s);
                 }
@@ -392,7 +350,7 @@ mod batch {
                     )?;
                     for j in 0..c {
                         let wo = Vec3::new(cx[j], cy[j], cz[j]);
-                        chunk.set(at[j], mixed_sample(wo, mix(alpha, pl[j], wo.z)));
+                        chunk.set(at[j], Sample::from_solid_angle(wo, mix(alpha, pl[j], wo.z)));
                     }
                 }
                 a = b;

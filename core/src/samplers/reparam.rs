@@ -10,7 +10,7 @@
 //! p̂(ω⊥) = exp(clamp(pdf_net(c, ω⊥), −16, 16))            dense(32,16) ReLU, dense(16,1)
 //! ```
 //!
-//! Two densities, two roles ([`Prepared::exact_pdf`] is `false`):
+//! Two densities, two roles, both on every [`Sample`]:
 //!
 //! * [`Sample::pdf`] is `q·cos θo`, the density the warp drew the sample with (forward-mode
 //!   Jacobian alongside the forward pass): `f·cos θo / Sample::pdf` is the sample's exact
@@ -18,7 +18,8 @@
 //!   orientation-reversing (`det ≤ 0`: the warp folds there) is refused, so no weight is
 //!   infinite.
 //! * [`Prepared::pdf`] is `p̂·cos θo`, the pdf network, which MIS weights must use for every
-//!   strategy (light samples cannot know `q`): [`Prepared::mis_pdf`] gives it for a sample.
+//!   strategy (light samples cannot know `q`); a sample carries it as [`Sample::mis_pdf`]
+//!   (one evaluation of the pdf network per sample).
 //!   MIS stays unbiased with an approximate `p̂` because the strategies' weights still sum
 //!   to one; a poor `p̂` costs variance only.
 
@@ -320,15 +321,16 @@ impl<W: Weights + Copy> ReparamPrepared<'_, W> {
 }
 
 impl<W: Weights + Copy> Prepared for ReparamPrepared<'_, W> {
-    /// `z` by Box–Muller from `u`, then the warp; the reported density is the warp's own,
-    /// `N(z)/det ∂T/∂z` (times `cos θo` for [`Sample::pdf`]), not the pdf network's.
+    /// `z` by Box–Muller from `u`, then the warp; [`Sample::pdf`] is the warp's own density,
+    /// `N(z)/det ∂T/∂z` times `cos θo`, and [`Sample::mis_pdf`] the pdf network's there.
     /// `None` where `det ≤ 0` (a fold) or the density is not finite and positive.
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
         let u = math::sanitize_u2(u)?;
         let z = gaussian::box_muller(u);
         let t = self.warp(z);
-        warp_sample(t.point, t.wo.z, sample_density(z.x, z.y, t.det))
+        let s = warp_sample(t.point, t.wo.z, sample_density(z.x, z.y, t.det))?;
+        Some(s.with_mis_pdf(self.pdf(s.wo)))
     }
 
     /// The pdf network `p̂` on the projected disk (area measure); 0 outside the open disk.
@@ -338,11 +340,5 @@ impl<W: Weights + Copy> Prepared for ReparamPrepared<'_, W> {
             return 0.0;
         }
         density_lane(&self.params.get(), &self.lane, p)
-    }
-
-    /// `false`: samples carry the warp's exact density, [`Prepared::pdf`] the pdf network's.
-    #[inline]
-    fn exact_pdf(&self) -> bool {
-        false
     }
 }

@@ -21,32 +21,73 @@ use crate::nn::FEATURE_DIM;
 use crate::warp;
 use crate::weights::Tensor;
 
-/// A direction drawn by a sampler.
+/// A direction drawn by a sampler, with the two densities a renderer needs (pbrt's
+/// `BSDFSample` with `pdfIsProportional`, Mitsuba's weight and `BSDFSample3f::pdf`).
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct Sample {
     /// The sampled direction in the local shading frame (unit length, `wo.z > 0`).
     pub wo: Vec3,
-    /// Its density with respect to **solid angle**: `pdf_disk · wo.z`. This is what a
-    /// renderer divides by (pbrt `Sample_f().pdf`, Mitsuba `BSDFSample3f::pdf`): the density
-    /// the sample was drawn with. MIS weights use [`Prepared::mis_pdf`], which is this
-    /// number for every kind but the reparameterization sampler.
+    /// Its density with respect to **solid angle**: `pdf_disk · wo.z`, the density the
+    /// sample was drawn with. This is what a renderer divides `f · cos θo` by (pbrt
+    /// `Sample_f().pdf`, Mitsuba's `weight = f · cos θo / pdf`).
     pub pdf: f32,
     /// Its density with respect to **area on the projected unit disk**.
     pub pdf_disk: f32,
+    /// The density MIS weighs the sample with, with respect to **solid angle**:
+    /// [`Prepared::pdf`] at `wo`, the function every other strategy's MIS weight evaluates
+    /// too, so that the weights sum to one. It is `pdf` for every sampler whose `pdf` is the
+    /// density of its samples; the reparameterization sampler's samples carry the warp's
+    /// exact density in `pdf` and its pdf network's value here (`core/ARCHITECTURES.md` §8).
+    /// Mitsuba's `BSDFSample3f::pdf`.
+    pub mis_pdf: f32,
 }
 
 impl Sample {
-    /// A sample at disk point `p` with disk density `pdf_disk`, or `None` when `p` is not
-    /// strictly inside the unit disk or the density is not finite and positive.
+    /// A sample at disk point `p` with disk density `pdf_disk` (and the same MIS density),
+    /// or `None` when `p` is not strictly inside the unit disk or the density is not finite
+    /// and positive.
     #[inline]
     #[must_use]
     pub fn from_disk(p: Vec2, pdf_disk: f32) -> Option<Sample> {
         let wo = warp::from_disk(p)?;
         let pdf = warp::disk_to_solid_angle(pdf_disk, wo.z);
         if pdf > 0.0 && crate::math::is_finite(pdf) {
-            Some(Sample { wo, pdf, pdf_disk })
+            Some(Sample {
+                wo,
+                pdf,
+                pdf_disk,
+                mis_pdf: pdf,
+            })
         } else {
             None
+        }
+    }
+
+    /// A sample at direction `wo` (`wo.z > 0`) drawn with solid-angle density `pdf` (and the
+    /// same MIS density), or `None` when `pdf` is not finite and positive.
+    #[inline]
+    #[must_use]
+    pub fn from_solid_angle(wo: Vec3, pdf: f32) -> Option<Sample> {
+        if pdf > 0.0 && crate::math::is_finite(pdf) {
+            Some(Sample {
+                wo,
+                pdf,
+                pdf_disk: warp::solid_angle_to_disk(pdf, wo.z),
+                mis_pdf: pdf,
+            })
+        } else {
+            None
+        }
+    }
+
+    /// The sample with MIS density `mis_pdf` (solid angle; a non-finite or negative value
+    /// gives 0: the sample then has MIS weight 0 against any other strategy).
+    #[inline]
+    #[must_use]
+    pub fn with_mis_pdf(self, mis_pdf: f32) -> Sample {
+        Sample {
+            mis_pdf: crate::math::finite_density(mis_pdf),
+            ..self
         }
     }
 }
@@ -79,34 +120,12 @@ pub trait Prepared {
 
     /// Density of direction `wo` (local frame; normalised here) with respect to **solid
     /// angle**: `pdf_disk(wo⊥) · cos θo`. 0 at or below the horizon and for non-finite `wo`.
-    /// Equal to [`Sample::pdf`] for every direction [`Prepared::sample`] returns, unless
-    /// [`Prepared::exact_pdf`] is false ([`Prepared::mis_pdf`]).
+    /// Equal to [`Sample::mis_pdf`] for every direction [`Prepared::sample`] returns.
     #[inline]
     fn pdf(&self, wo: Vec3) -> f32 {
         match warp::upper_hemisphere(wo) {
             Some(w) => warp::disk_to_solid_angle(self.pdf_disk(warp::to_disk(w)), w.z),
             None => 0.0,
-        }
-    }
-
-    /// Whether [`Sample::pdf`] is [`Prepared::pdf`] at the sampled direction (true for every
-    /// kind but the reparameterization sampler, whose samples carry the warp's exact density
-    /// while `pdf` is its pdf network's approximation, `core/ARCHITECTURES.md` §8).
-    #[inline]
-    fn exact_pdf(&self) -> bool {
-        true
-    }
-
-    /// The density MIS weights must use for a sample `s` this state drew: [`Prepared::pdf`]
-    /// at `s.wo`, the function every other strategy's MIS weight evaluates too, so that the
-    /// weights sum to one. `s.pdf` itself where [`Prepared::exact_pdf`] (no extra work).
-    /// Divide `f·cos θo` by `s.pdf`; weigh with `mis_pdf(&s)`.
-    #[inline]
-    fn mis_pdf(&self, s: &Sample) -> f32 {
-        if self.exact_pdf() {
-            s.pdf
-        } else {
-            self.pdf(s.wo)
         }
     }
 

@@ -103,7 +103,7 @@ impl<'r, 'a, M: Material + ?Sized, S: Sampler> Ctx<'r, 'a, M, S> {
                 let l = env.radiance(wo_w);
                 let f = material.eval(&v.phi, v.wi, s.wo);
                 let w = if mis {
-                    power_heuristic(prep.mis_pdf(&s), env.pdf(wo_w))
+                    power_heuristic(s.mis_pdf, env.pdf(wo_w))
                 } else {
                     1.0
                 };

@@ -163,7 +163,7 @@ struct Batch<L> {
     u: Rows<2>,
     wo: Rows<3>,
     pdf: Vec<f32>,
-    /// With MIS: the density the BSDF sample's MIS weight uses (`mis_pdf_batch`).
+    /// The density the BSDF sample's MIS weight uses ([`neusample::Sample::mis_pdf`]).
     mis_pdf: Vec<f32>,
     f: Rows<3>,
     /// With MIS: the environment sample per lane (world direction, density), its local
@@ -278,6 +278,7 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
                 SamplesMut {
                     wo: b.wo.view_mut(n),
                     pdf: &mut b.pdf[..n],
+                    mis_pdf: &mut b.mis_pdf[..n],
                 },
             );
             surface.material.eval_batch(
@@ -287,10 +288,6 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
                 b.f.rgb_mut(n),
             );
             if mis {
-                b.mis_pdf[..n].copy_from_slice(&b.pdf[..n]);
-                let _ = surface
-                    .sampler
-                    .mis_pdf_batch(lanes, b.wo.view(n), &mut b.mis_pdf[..n]);
                 for i in 0..n {
                     let r = &randoms[b.slots[i]];
                     let s = scene.env.sample(r.env_pick, r.env);

@@ -279,6 +279,7 @@ pub fn batched_split<S: BatchSampler>(s: &S, rows: &Rows, n: usize, passes: usiz
     let mut lanes = vec![S::Lane::default(); total];
     let mut wo = [0, 1, 2].map(|_| vec![0.0f32; total]);
     let mut pdf = vec![0.0f32; total];
+    let mut mis = vec![0.0f32; total];
     let mut pdf2 = vec![0.0f32; total];
     let starts: Vec<usize> = (0..total).step_by(n).collect();
     let prepare_ns = time_per(passes, total, || {
@@ -299,6 +300,7 @@ pub fn batched_split<S: BatchSampler>(s: &S, rows: &Rows, n: usize, passes: usiz
                     z: &mut z[a..b],
                 },
                 pdf: &mut pdf[a..b],
+                mis_pdf: &mut mis[a..b],
             };
             s.sample_batch(&lanes[a..b], rows.u(a, b), out)
                 .expect("lengths agree");

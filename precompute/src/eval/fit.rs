@@ -40,9 +40,10 @@ pub struct Fit {
     /// Mean probability mass the sampler puts inside the disk.
     #[serde(deserialize_with = "f64_or_nan")]
     pub mass_in_disk: f64,
-    /// Samplers whose samples carry a density other than their `pdf`
-    /// (`Prepared::exact_pdf` false: the reparameterization sampler), measured on their own
-    /// samples ([`SampledFit`]); `None` for the others, whose fields above say it all.
+    /// Samplers whose samples are drawn with a density other than their `pdf` (their MIS
+    /// density: [`samples_carry_pdf`] false, the reparameterization sampler), measured on
+    /// their own samples ([`SampledFit`]); `None` for the others, whose fields above say it
+    /// all.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sampled: Option<SampledFit>,
 }
@@ -71,6 +72,17 @@ pub struct SampledFit {
 /// Samples per condition of [`SampledFit`].
 pub const FIT_SAMPLES: usize = 16384;
 
+/// Whether `prep`'s samples are drawn with their MIS density, the sampler's `pdf`
+/// ([`neusample::Sample::mis_pdf`] equal to [`neusample::Sample::pdf`]), on 16 stratified
+/// samples: true for every kind but the reparameterization sampler, whose warp's density
+/// and pdf network agree only approximately.
+pub fn samples_carry_pdf<P: Prepared>(prep: &P) -> bool {
+    (0..16).all(|i| {
+        let u = Vec2::new((i % 4) as f32 * 0.25 + 0.125, (i / 4) as f32 * 0.25 + 0.125);
+        prep.sample(u).is_none_or(|s| s.mis_pdf == s.pdf)
+    })
+}
+
 /// [`SampledFit`]'s figures at one condition: `(E[w], E[w²] − 1, KL, χ²)`; `a` is the
 /// condition's quadrature albedo.
 fn sampled_fit<P: Prepared>(
@@ -98,7 +110,7 @@ fn sampled_fit<P: Prepared>(
             w1 += w;
             w2 += w * w;
         }
-        let p_mis = f64::from(prep.mis_pdf(&s)) / f64::from(s.wo.z);
+        let p_mis = f64::from(s.mis_pdf) / f64::from(s.wo.z);
         if p_mis > 0.0 && p_mis.is_finite() {
             kl += (q / p_mis).ln();
             x2 += q / p_mis;
@@ -163,7 +175,7 @@ pub fn fit_to<S: Sampler + Sync>(
             let (a, m2) =
                 groundtruth::rim_moments(target_material, &tc, &nodes, |p| prep.pdf_disk(p));
             let chi2 = if a > 0.0 { m2 / (a * a) - 1.0 } else { 0.0 };
-            let sampled = (!prep.exact_pdf())
+            let sampled = (!samples_carry_pdf(&prep))
                 .then(|| sampled_fit(&prep, target_material, &tc, a, mix_seed(seed, ci as u64)));
             let h = 2.0 / res as f64;
             let (mut se, mut mass, mut n) = (0.0, 0.0, 0usize);

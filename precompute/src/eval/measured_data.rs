@@ -101,7 +101,8 @@ impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
         check("wo", out.wo.y.len(), n)?;
         check("wo", out.wo.z.len(), n)?;
         check("pdf", out.pdf.len(), n)?;
-        let SamplesMut { wo, pdf } = out;
+        check("mis_pdf", out.mis_pdf.len(), n)?;
+        let SamplesMut { wo, pdf, mis_pdf } = out;
         let Vec3sMut { x, y, z } = wo;
         for (a, group) in lanes.chunks(GROUP).enumerate() {
             let (s, m) = (a * GROUP, group.len());
@@ -118,6 +119,7 @@ impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
                         z: &mut z[s..s + m],
                     },
                     pdf: &mut pdf[s..s + m],
+                    mis_pdf: &mut mis_pdf[s..s + m],
                 },
             )?;
         }
@@ -205,8 +207,7 @@ mod tests {
             &mut lanes,
         )
         .unwrap();
-        let (mut ox, mut oy, mut oz, mut pdf) =
-            (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let [mut ox, mut oy, mut oz, mut pdf, mut mis] = [(); 5].map(|_| vec![0.0; n]);
         s.sample_batch(
             &lanes,
             Vec2s { x: &ux, y: &uy },
@@ -217,9 +218,14 @@ mod tests {
                     z: &mut oz,
                 },
                 pdf: &mut pdf,
+                mis_pdf: &mut mis,
             },
         )
         .unwrap();
+        assert_eq!(
+            pdf, mis,
+            "the data's sampler: its MIS density is its density"
+        );
         let mut density = vec![0.0; n];
         s.pdf_batch(
             &lanes,

@@ -19,5 +19,7 @@ mod oracle;
 pub mod warp_inverse;
 
 pub use cost::{cost, cost_any, cost_scalar, eval_cost, Cost, EvalCost, COST_BATCH};
-pub use fit::{fit, fit_report, fit_to, Fit, FitReport, SampledFit, FIT_SAMPLES};
+pub use fit::{
+    fit, fit_report, fit_to, samples_carry_pdf, Fit, FitReport, SampledFit, FIT_SAMPLES,
+};
 pub use oracle::{OraclePrepared, OracleSampler};

@@ -8,9 +8,9 @@ from the surface); every pdf is a density with respect to solid angle::
     material = neusample.NeuralMaterial("fixtures/materials/neural/goat_leather_neural.nsb")
     sampler = neusample.Sampler("fixtures/blobs/goat_leather_neural/flow.nsb")
     phi = material.features(uv)                 # (8, N)
-    wo, pdf = sampler.sample(phi, wi, u)        # (3, N), (N,)
+    wo, pdf, mis_pdf = sampler.sample(phi, wi, u)  # (3, N), (N,), (N,)
     f = material.eval(phi, wi, wo)              # (3, N) RGB, no cosine
-    weight = f * wo[2] / np.where(pdf > 0, pdf, 1)
+    weight = f * wo[2] / np.where(pdf > 0, pdf, 1)  # MIS weighs with mis_pdf
 
 Measured materials (RGL database ``.bsdf`` files, RGB) with the data's own sampler, as
 Mitsuba 3's ``measured`` BSDF evaluates and samples them::

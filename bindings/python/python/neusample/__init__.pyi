@@ -72,14 +72,12 @@ class Sampler:
     @property
     def alpha(self) -> float:
         """The defensive weight: the density is (1 − α)·p_learned + α·cos θ/π."""
-    @property
-    def exact_pdf(self) -> bool:
-        """Whether a sample's pdf is ``pdf(wo)`` (False for "reparam": divide by the
-        sample's pdf, weigh MIS with ``pdf(wo)``)."""
-    def sample(self, phi: F32, wi: F32, u: F32, *, threads: int = 1) -> Tuple[F32, F32]:
-        """phi (8, N), wi (3, N), u (2, N) in [0, 1) → (wo (3, N), pdf (N,)); refused
-        lanes (wi below the horizon, NaN, sample outside the support) are wo = 0, pdf = 0."""
-    def sample_scalar(self, phi: F32, wi: F32, u: F32) -> Tuple[F32, F32]:
+    def sample(self, phi: F32, wi: F32, u: F32, *, threads: int = 1) -> Tuple[F32, F32, F32]:
+        """phi (8, N), wi (3, N), u (2, N) in [0, 1) → (wo (3, N), pdf (N,), mis_pdf (N,)):
+        divide f·cos by ``pdf`` (the density the sample was drawn with), weigh MIS with
+        ``mis_pdf`` (``pdf(wo)``; equal to ``pdf`` for every kind but "reparam"). Refused
+        lanes (wi below the horizon, NaN, sample outside the support) are all zeros."""
+    def sample_scalar(self, phi: F32, wi: F32, u: F32) -> Tuple[F32, F32, F32]:
         """`sample` through the scalar API, one lane at a time (the reference)."""
     def pdf_scalar(self, phi: F32, wi: F32, wo: F32) -> F32:
         """`pdf` through the scalar API, one lane at a time (the reference)."""

@@ -1050,7 +1050,7 @@ class Sampler:
 
     def sample_mis(self, st, ok, u):
         """``(wo, pdf, valid, mis_pdf)``: :meth:`sample_prepared` and the density MIS weighs
-        the sample with (``Prepared::mis_pdf``: :meth:`pdf_prepared` at ``wo``). The two
+        the sample with (``Sample::mis_pdf``: :meth:`pdf_prepared` at ``wo``). The two
         differ only for kinds whose samples carry their own density (``Kind.exact`` false,
         the reparameterization sampler); with a defensive weight such a kind is combined
         with cosine by one-sample MIS over its ``pdf_disk`` (``samplers/defensive.rs``)."""

@@ -206,18 +206,16 @@ def bsdf_class():
             n = _width(si.wi, si.uv, sample2)
             phi, wi = self._inputs(si, n)
             u = np.stack([_flat(sample2.x, n), _flat(sample2.y, n)])
-            wo, pdf = self.sampler.sample(phi, wi, u, threads=self.threads)
+            # Mitsuba weighs MIS with bs.pdf and the estimate with the weight: the sample's
+            # MIS density (the sampler's pdf at wo) there, its own density here.
+            wo, pdf, mis = self.sampler.sample(phi, wi, u, threads=self.threads)
             f_cos = self._f_cos(ctx, si, phi, wi, wo)
             ok = pdf > 0
             weight = np.where(ok, f_cos / np.where(ok, pdf, 1.0), 0.0).astype(np.float32)
             enabled = ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
-            if not self.sampler.exact_pdf:
-                # Mitsuba weighs MIS with bs.pdf and the estimate with the weight: the
-                # sampler's MIS density (its pdf at wo) there, the sample's own density here.
-                pdf = np.where(ok, self._pdf(phi, wi, wo), 0.0).astype(np.float32)
             bs = dr.zeros(mi.BSDFSample3f, n if jit else 1)
             bs.wo = to_vec3(wo)
-            bs.pdf = to_float(pdf)
+            bs.pdf = to_float(np.where(ok, mis, 0.0).astype(np.float32))
             bs.eta = 1.0
             bs.sampled_type = mi.UInt32(+mi.BSDFFlags.GlossyReflection)
             bs.sampled_component = mi.UInt32(0)

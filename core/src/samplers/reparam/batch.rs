@@ -58,7 +58,6 @@ impl<W: Weights + Copy> ReparamSampler<W> {}
 impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
     type Lane = Option<ReparamLane>;
     const CHUNK: usize = CHUNK;
-    const EXACT_PDF: bool = false;
 
     #[inline(always)]
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<ReparamLane>]) {
@@ -173,6 +172,13 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
             };
             out.set(i, s);
         }
+        // The MIS density: the pdf network at each sample (0 at refused lanes, `wo = 0`).
+        let wo = Vec3s {
+            x: &out.wo.x[..m],
+            y: &out.wo.y[..m],
+            z: &out.wo.z[..m],
+        };
+        self.pdf_chunk(lanes, wo, &mut out.mis_pdf[..m]);
     }
 
     #[inline(always)]

@@ -747,11 +747,12 @@ fn measured_batched(
                 .expect("lengths agree");
         }
     });
-    let mut out = vec![0.0f32; 7 * total];
+    let mut out = vec![0.0f32; 8 * total];
     let sample_ns = time_per(passes, total, || {
         let mut cols = out.chunks_exact_mut(total);
-        let mut col = || cols.next().expect("seven columns");
-        let (x, y, z, p, r, g, bl) = (col(), col(), col(), col(), col(), col(), col());
+        let mut col = || cols.next().expect("eight columns");
+        let (x, y, z, p, q) = (col(), col(), col(), col(), col());
+        let (r, g, bl) = (col(), col(), col());
         for &a in &starts {
             let b = (a + n).min(total);
             let samples = neusample::wavefront::SamplesMut {
@@ -761,6 +762,7 @@ fn measured_batched(
                     z: &mut z[a..b],
                 },
                 pdf: &mut p[a..b],
+                mis_pdf: &mut q[a..b],
             };
             let weight = RgbMut {
                 r: &mut r[a..b],
