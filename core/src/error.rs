@@ -5,7 +5,8 @@
 
 use core::fmt;
 
-use crate::kind::{BlobKind, DType};
+use crate::dtype::DType;
+use crate::kind::BlobKind;
 
 /// Why a blob could not be opened.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]

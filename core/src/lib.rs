@@ -22,7 +22,7 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | `error`, `kind`, `math`, [`warp`], `weights` | leaves: the error type, the kind enums, the only calls to transcendental functions, disk ↔ hemisphere warps, parameter storage ([`Weights`]) |
+//! | `dtype`, `error`, `kind`, `math`, [`warp`], `weights` | leaves: the storage type, the error type, the kind enums, the only calls to transcendental functions, disk ↔ hemisphere warps, parameter storage ([`Weights`]) |
 //! | [`nn`] | dense layers and the condition encodings |
 //! | [`distrib`] | Gaussians, RQ splines, [`Table2D`], [`distrib::Marginal2D`] |
 //! | `batch` | the batched path's building blocks (not on SPIR-V): structure-of-arrays views, the `BatchSampler` trait, chunked kernels, run-time instruction-set dispatch, dense layers over lanes |
@@ -74,6 +74,7 @@ extern crate alloc;
 mod batch;
 pub mod blob;
 pub mod distrib;
+mod dtype;
 mod error;
 mod kind;
 mod math;
@@ -90,9 +91,10 @@ mod weights;
 pub use blob::BlobWriter;
 pub use blob::{Blob, TensorRole};
 pub use distrib::Table2D;
+pub use dtype::DType;
 pub use error::{Error, Result};
 pub use glam::{Vec2, Vec3};
-pub use kind::{BlobKind, DType, Interpolation, SamplerKind, UnknownTag};
+pub use kind::{BlobKind, Interpolation, SamplerKind, UnknownTag};
 pub use math::ONE_MINUS_EPSILON;
 pub use measured::{
     MeasuredMaterial, MeasuredPrepared, MeasuredPreparedCopied, MeasuredSample, MeasuredShape,
@@ -104,9 +106,9 @@ pub use samplers::{
     AffineFlowPrepared, AffineFlowSampler, AnalyticMixturePrepared, AnalyticMixtureSampler,
     AnyPrepared, AnySampler, BlobSampler, CosinePrepared, CosineSampler, Defensive,
     DefensivePrepared, DirectHistogramPrepared, DirectHistogramSampler, DiskFlowPrepared,
-    DiskFlowSampler, FlowPrepared, FlowSampler, HistogramMixturePrepared, HistogramMixtureSampler,
-    ImprovedBaselinePrepared, ImprovedBaselineSampler, Prepared, ReparamPrepared, ReparamSampler,
-    Sample, Sampler,
+    DiskFlowSampler, HistogramMixturePrepared, HistogramMixtureSampler, ImprovedBaselinePrepared,
+    ImprovedBaselineSampler, Prepared, ReparamPrepared, ReparamSampler, Sample, Sampler,
+    SplineFlowPrepared, SplineFlowSampler,
 };
 pub use warp::Frame;
 pub use weights::{Tensor, Weights};

@@ -37,7 +37,8 @@ pub use crate::batch::{
     RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut, FUSED_CHUNK,
 };
 pub use crate::samplers::{
-    AffineLane, AnyLane, FlowLane, MixtureLane, ReparamLane, SamplerVisitor,
+    AffineFlowLane, AnyLane, DiskFlowLane, HistogramMixtureLane, ReparamLane, SamplerVisitor,
+    SplineFlowLane,
 };
 
 /// One dense layer `dense(I, O)` at `offset` of `w` (`core/ARCHITECTURES.md`: weights

@@ -14,7 +14,7 @@
 
 use half::f16;
 
-use crate::kind::DType;
+use crate::dtype::DType;
 
 /// Random access to an array of `f32` parameters.
 pub trait Weights {

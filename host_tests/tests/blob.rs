@@ -173,7 +173,7 @@ fn wrong_magic_version_and_kind() {
             found: SamplerKind::Flow.into()
         }
     );
-    assert!(blob.sampler_as::<neusample::FlowSampler<_>>().is_ok());
+    assert!(blob.sampler_as::<neusample::SplineFlowSampler<_>>().is_ok());
     // Trailing garbage is refused.
     let mut b = bytes.clone();
     b.push(0);

@@ -5,7 +5,7 @@
 //! that the densities are far from uniform.
 
 use neusample::samplers::{affine_flow, disk_flow, spline_flow as flow};
-use neusample::{AffineFlowSampler, DiskFlowSampler, FlowSampler, FEATURE_DIM};
+use neusample::{AffineFlowSampler, DiskFlowSampler, SplineFlowSampler, FEATURE_DIM};
 use neusample::{DType, Prepared, Sampler, Tensor, Vec2, Vec3};
 use neusample_host_tests::{bonferroni, chi2_test, disk_integral, full_tests, rng, TestRng};
 use rand::RngExt;
@@ -463,15 +463,15 @@ fn exercise<P: Prepared>(p: &P, rng: &mut TestRng) {
 
 #[test]
 fn parameter_counts() {
-    assert_eq!(FlowSampler::<&[f32]>::PARAM_COUNT, 9690);
+    assert_eq!(SplineFlowSampler::<&[f32]>::PARAM_COUNT, 9690);
     assert_eq!(AffineFlowSampler::<&[f32]>::PARAM_COUNT, 9608);
     assert_eq!(flow::FLOW_BASE_LEN, 1124);
     assert_eq!(flow::SPLINE_NET_LEN, 4283);
     assert_eq!(affine_flow::AFFINE_NET_LEN, 2402);
     let p = vec![0.0f32; 9690];
-    assert!(FlowSampler::new(&p[..]).is_some());
-    assert!(FlowSampler::new(&p[..9689]).is_none());
-    assert!(FlowSampler::new(&p[..9608]).is_none());
+    assert!(SplineFlowSampler::new(&p[..]).is_some());
+    assert!(SplineFlowSampler::new(&p[..9689]).is_none());
+    assert!(SplineFlowSampler::new(&p[..9608]).is_none());
     assert!(AffineFlowSampler::new(&p[..9608]).is_some());
     assert!(AffineFlowSampler::new(&p[..]).is_none());
 }
@@ -482,7 +482,7 @@ fn zero_weights_give_known_densities() {
     // the ends, interior derivatives 1e-3 + ln 2, i.e. a fixed map. Its density integrates
     // to the mass of the disk under the flow; compare with the reference.
     let p = vec![0.0f32; 9690];
-    let s = FlowSampler::new(&p[..]).unwrap();
+    let s = SplineFlowSampler::new(&p[..]).unwrap();
     let c = random_condition(&mut rng(1));
     let prep = s.prepare(&c.phi, c.wi).unwrap();
     let q = Vec2::new(0.1, -0.2);
@@ -503,7 +503,7 @@ fn densities_match_reference() {
     for model in 0..4 {
         let ps = spline_params(100 + model);
         let pa = affine_params(200 + model);
-        let fs = FlowSampler::new(&ps[..]).unwrap();
+        let fs = SplineFlowSampler::new(&ps[..]).unwrap();
         let fa = AffineFlowSampler::new(&pa[..]).unwrap();
         for _ in 0..4 {
             let c = random_condition(&mut r);
@@ -540,8 +540,8 @@ fn storage_kinds_agree() {
         bytes.extend_from_slice(&v.to_le_bytes());
     }
     let unaligned = Tensor::from_bytes(DType::F32, &bytes[1..]);
-    let a = FlowSampler::new(&ps[..]).unwrap();
-    let b = FlowSampler::new(unaligned).unwrap();
+    let a = SplineFlowSampler::new(&ps[..]).unwrap();
+    let b = SplineFlowSampler::new(unaligned).unwrap();
     let pa = a.prepare(&c.phi, c.wi).unwrap();
     let pb = b.prepare(&c.phi, c.wi).unwrap();
     let mut r = rng(8);
@@ -564,7 +564,7 @@ fn sample_pdf_and_invert_agree() {
     for model in 0..4 {
         let ps = spline_params(300 + model);
         let pa = affine_params(400 + model);
-        let fs = FlowSampler::new(&ps[..]).unwrap();
+        let fs = SplineFlowSampler::new(&ps[..]).unwrap();
         let fa = AffineFlowSampler::new(&pa[..]).unwrap();
         for _ in 0..4 {
             let c = random_condition(&mut r);
@@ -612,7 +612,7 @@ fn disk_integral_equals_inside_fraction() {
     for model in 0..2 {
         let ps = spline_params(500 + model);
         let pa = affine_params(600 + model);
-        let fs = FlowSampler::new(&ps[..]).unwrap();
+        let fs = SplineFlowSampler::new(&ps[..]).unwrap();
         let fa = AffineFlowSampler::new(&pa[..]).unwrap();
         let c = random_condition(&mut r);
         let ss = fs.prepare(&c.phi, c.wi).unwrap();
@@ -658,7 +658,7 @@ fn chi2_goodness_of_fit() {
     for model in 0..2 {
         let ps = spline_params(700 + model);
         let pa = affine_params(800 + model);
-        let fs = FlowSampler::new(&ps[..]).unwrap();
+        let fs = SplineFlowSampler::new(&ps[..]).unwrap();
         let fa = AffineFlowSampler::new(&pa[..]).unwrap();
         for _ in 0..conditions {
             let c = random_condition(&mut r);
@@ -685,12 +685,12 @@ fn hostile_conditions_and_variates() {
     let mut r = rng(50);
     let ps = spline_params(900);
     let pa = affine_params(901);
-    hostile_inputs(&FlowSampler::new(&ps[..]).unwrap(), &mut r);
+    hostile_inputs(&SplineFlowSampler::new(&ps[..]).unwrap(), &mut r);
     hostile_inputs(&AffineFlowSampler::new(&pa[..]).unwrap(), &mut r);
     // Huge weights: activations overflow; the samplers refuse or stay finite.
     for scale in [1e3f32, 1e18, 1e30] {
         let big: Vec<f32> = ps.iter().map(|v| v * scale).collect();
-        hostile_inputs(&FlowSampler::new(&big[..]).unwrap(), &mut r);
+        hostile_inputs(&SplineFlowSampler::new(&big[..]).unwrap(), &mut r);
         let big: Vec<f32> = pa.iter().map(|v| v * scale).collect();
         hostile_inputs(&AffineFlowSampler::new(&big[..]).unwrap(), &mut r);
     }
@@ -700,7 +700,7 @@ fn hostile_conditions_and_variates() {
 fn prepared_is_clone() {
     fn copy<T: Clone>(_: T) {}
     let ps = spline_params(1);
-    let s = FlowSampler::new(&ps[..]).unwrap();
+    let s = SplineFlowSampler::new(&ps[..]).unwrap();
     let c = random_condition(&mut rng(1));
     copy(s.prepare(&c.phi, c.wi).unwrap());
     let pa = affine_params(1);
@@ -716,7 +716,7 @@ fn timing() {
     use std::time::Instant;
     let ps = spline_params(1);
     let pa = affine_params(1);
-    let fs = FlowSampler::new(&ps[..]).unwrap();
+    let fs = SplineFlowSampler::new(&ps[..]).unwrap();
     let fa = AffineFlowSampler::new(&pa[..]).unwrap();
     let c = random_condition(&mut rng(1));
     let n = 200_000;

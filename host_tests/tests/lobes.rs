@@ -1,10 +1,12 @@
-//! Lobe mixtures (`neusample::samplers::lobes`, paper Eq. 1–2) with random weights: sample/pdf
+//! Lobe mixtures (`neusample::samplers::{improved_baseline, analytic_mixture}`, paper Eq. 1–2) with random weights: sample/pdf
 //! consistency, mass on the disk against the fraction of samples inside it, χ² goodness of
 //! fit, and totality on hostile input.
 
-use neusample::samplers::lobes::{
-    AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,
-    ImprovedBaselineSampler, ANALYTIC_OUTPUTS, BASELINE_OUTPUTS,
+use neusample::samplers::analytic_mixture::{
+    AnalyticMixturePrepared, AnalyticMixtureSampler, ANALYTIC_OUTPUTS,
+};
+use neusample::samplers::improved_baseline::{
+    ImprovedBaselinePrepared, ImprovedBaselineSampler, BASELINE_OUTPUTS,
 };
 use neusample::{Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
 use neusample_host_tests::{

@@ -255,7 +255,7 @@ fn blob_round_trip_f32_and_f16() {
             })
         ));
         assert!(matches!(
-            blob.sampler_as::<neusample::FlowSampler<_>>(),
+            blob.sampler_as::<neusample::SplineFlowSampler<_>>(),
             Err(Error::WrongKind { .. })
         ));
     }

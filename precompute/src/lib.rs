@@ -16,7 +16,7 @@
 //! | [`demo`]        | the full evaluation run and the fixture generator                    |
 //!
 //! The renderer is its own crate, `neusample-render` (`precompute/render/`), which links the
-//! runtime alone; the binary `neusample` (`src/bin/neusample/`) parses arguments into the
+//! runtime alone; the binary `neusample` (`src/bin/cli/`) parses arguments into the
 //! typed settings of [`jobs`] and [`demo`].
 
 pub mod bake;

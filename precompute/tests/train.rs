@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
 use neusample::SamplerKind;
-use neusample::{AffineFlowSampler, DiskFlowSampler, FlowSampler};
+use neusample::{AffineFlowSampler, DiskFlowSampler, SplineFlowSampler};
 use neusample::{AnalyticMixtureSampler, ImprovedBaselineSampler};
 use neusample::{DirectHistogramSampler, HistogramMixtureSampler};
 use neusample::{Prepared, ReparamSampler, Sampler, Vec2, Vec3};
@@ -51,7 +51,7 @@ fn core_pdf(t: &Trained, phi: &[f32; 8], wi: Vec3, p: Vec2) -> f32 {
             .expect("analytic parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
-        SamplerKind::Flow => FlowSampler::new(w)
+        SamplerKind::Flow => SplineFlowSampler::new(w)
             .expect("flow parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
@@ -96,7 +96,7 @@ fn expected_len(m: SamplerKind) -> usize {
     match m {
         SamplerKind::ImprovedBaseline => ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::AnalyticMixture => AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT,
-        SamplerKind::Flow => FlowSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::Flow => SplineFlowSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::DiskFlow => DiskFlowSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::AffineFlow => AffineFlowSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,

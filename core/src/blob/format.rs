@@ -3,7 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::kind::{BlobKind, DType, Interpolation};
+use crate::dtype::DType;
+use crate::kind::{BlobKind, Interpolation};
 
 /// The 8 bytes every blob starts with.
 pub const MAGIC: [u8; 8] = *b"NEUSAMP\0";

@@ -163,7 +163,7 @@ impl<'a> Blob<'a> {
     }
 
     /// The sampler of type `S` (with the blob's defensive weight), or [`Error::WrongKind`]
-    /// when the blob holds another kind: `blob.sampler_as::<FlowSampler<_>>()`.
+    /// when the blob holds another kind: `blob.sampler_as::<SplineFlowSampler<_>>()`.
     pub fn sampler_as<S: FromBlob<'a>>(&self) -> Result<Defensive<S>> {
         self.expect(BlobKind::Sampler(S::KIND))?;
         let s = S::from_blob(self).ok_or(Error::HeaderInvalid)?;

@@ -3,8 +3,9 @@
 //! needs, and the finiteness of every stored value. The histogram mixture's table checks are
 //! [`validate_tables`](crate::samplers::histogram_mixture::validate_tables).
 
+use crate::dtype::DType;
 use crate::error::{Error, Result};
-use crate::kind::{BlobKind, DType, SamplerKind};
+use crate::kind::{BlobKind, SamplerKind};
 use crate::neural_material;
 use crate::nn::FEATURE_DIM;
 use crate::samplers::{direct_histogram, histogram_mixture};

@@ -1,7 +1,8 @@
 //! [`BlobWriter`]: builds blobs (the `alloc` feature). The trainer and the tests use it; the
 //! runtime only reads.
 
-use crate::kind::{BlobKind, DType, Interpolation, SamplerKind};
+use crate::dtype::DType;
+use crate::kind::{BlobKind, Interpolation, SamplerKind};
 use crate::nn::FEATURE_DIM;
 use crate::samplers::{direct_histogram, histogram_mixture};
 

@@ -79,14 +79,14 @@ super::traits::flat_params_sampler!(
 /// The affine flow at one shading point without its weights handle (the lane of the batched
 /// API): the condition's share of every coupling network's first layer.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct AffineLane {
+pub struct AffineFlowLane {
     share: [[f32; HIDDEN]; AFFINE_LAYERS],
 }
 
-impl AffineLane {
+impl AffineFlowLane {
     /// The state from the couplings' condition shares; `None` when any is not finite.
     #[inline(always)]
-    fn new(share: [[f32; HIDDEN]; AFFINE_LAYERS]) -> Option<AffineLane> {
+    fn new(share: [[f32; HIDDEN]; AFFINE_LAYERS]) -> Option<AffineFlowLane> {
         let mut l = 0;
         while l < AFFINE_LAYERS {
             if !all_finite(&share[l]) {
@@ -94,18 +94,18 @@ impl AffineLane {
             }
             l += 1;
         }
-        Some(AffineLane { share })
+        Some(AffineFlowLane { share })
     }
 }
 
-/// [`AffineFlowSampler`] prepared for one condition: its [`AffineLane`] and a copy of the
+/// [`AffineFlowSampler`] prepared for one condition: its [`AffineFlowLane`] and a copy of the
 /// weights handle.
 #[derive(Debug)]
 pub struct AffineFlowPrepared<'s, W> {
     /// A copy of the sampler's weights handle (see `Held`).
     params: Held<W>,
     _sampler: PhantomData<&'s W>,
-    lane: AffineLane,
+    lane: AffineFlowLane,
 }
 
 impl<W: Copy> Clone for AffineFlowPrepared<'_, W> {
@@ -142,7 +142,7 @@ impl<W: Weights + Copy> Sampler for AffineFlowSampler<W> {
         Some(AffineFlowPrepared {
             params: Held::new(self.params),
             _sampler: PhantomData,
-            lane: AffineLane::new(share)?,
+            lane: AffineFlowLane::new(share)?,
         })
     }
 }

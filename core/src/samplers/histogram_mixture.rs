@@ -327,7 +327,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
 
     /// [`Self::prepare_outputs`] without the weights handle: the lane of the batched API.
     #[inline(always)]
-    pub(crate) fn lane_from_outputs(&self, o: &[f32; MIX_OUTPUTS]) -> Option<MixtureLane>
+    pub(crate) fn lane_from_outputs(&self, o: &[f32; MIX_OUTPUTS]) -> Option<HistogramMixtureLane>
     where
         W: Copy,
     {
@@ -348,7 +348,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
         &self,
         o: &[f32; MIX_OUTPUTS],
         soft: &[f32; BASES],
-    ) -> Option<MixtureLane>
+    ) -> Option<HistogramMixtureLane>
     where
         W: Copy,
     {
@@ -468,7 +468,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             weights[k] *= inv;
             k += 1;
         }
-        Some(MixtureLane {
+        Some(HistogramMixtureLane {
             weights,
             rotation,
             slice0,
@@ -483,7 +483,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
 /// The histogram mixture at one shading point without its weights handle (the lane of the
 /// batched API): per-basis weight, rotation and table slices.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct MixtureLane {
+pub struct HistogramMixtureLane {
     weights: [f32; BASES],
     rotation: [Vec2; BASES],
     slice0: [u32; BASES],
@@ -495,14 +495,14 @@ pub struct MixtureLane {
     inv_integral: [f32; BASES],
 }
 
-/// The histogram mixture at one shading point: its [`MixtureLane`] and a copy of the
+/// The histogram mixture at one shading point: its [`HistogramMixtureLane`] and a copy of the
 /// sampler's weight and table handles.
 #[derive(Debug)]
 pub struct HistogramMixturePrepared<'s, W> {
     /// A copy of the sampler: weight and table handles (see `Held`).
     sampler: Held<HistogramMixtureSampler<W>>,
     _sampler: core::marker::PhantomData<&'s W>,
-    lane: MixtureLane,
+    lane: HistogramMixtureLane,
 }
 
 impl<W: Copy> Clone for HistogramMixturePrepared<'_, W> {
@@ -518,7 +518,7 @@ impl<W: Copy> Clone for HistogramMixturePrepared<'_, W> {
 impl<W: Weights + Copy> HistogramMixtureSampler<W> {
     /// The scalar prepared state of a lane.
     #[inline(always)]
-    pub(crate) fn with_lane(&self, lane: MixtureLane) -> HistogramMixturePrepared<'_, W> {
+    pub(crate) fn with_lane(&self, lane: HistogramMixtureLane) -> HistogramMixturePrepared<'_, W> {
         HistogramMixturePrepared {
             sampler: Held::new(*self),
             _sampler: core::marker::PhantomData,
@@ -528,7 +528,7 @@ impl<W: Weights + Copy> HistogramMixtureSampler<W> {
 
     /// [`HistogramMixturePrepared::table`] of a lane.
     #[inline(always)]
-    pub(crate) fn lane_table(&self, lane: &MixtureLane, k: usize) -> Table2D<W> {
+    pub(crate) fn lane_table(&self, lane: &HistogramMixtureLane, k: usize) -> Table2D<W> {
         let k = if k < BASES { k } else { BASES - 1 };
         Table2D::from_normalized_parts(
             self.table,
@@ -546,7 +546,7 @@ impl<W: Weights + Copy> HistogramMixtureSampler<W> {
     /// samples its table in rotated coordinates and rotates back, `ω⊥ = R_k q`; the density
     /// is the full mixture at the drawn point.
     #[inline(always)]
-    pub(crate) fn lane_sample(&self, lane: &MixtureLane, u: Vec2) -> Option<Sample> {
+    pub(crate) fn lane_sample(&self, lane: &HistogramMixtureLane, u: Vec2) -> Option<Sample> {
         let u = math::sanitize_u2(u)?;
         let (k, u0) = gaussian::select_component(&lane.weights, u.x);
         let k = if k < BASES { k } else { BASES - 1 };
@@ -557,7 +557,7 @@ impl<W: Weights + Copy> HistogramMixtureSampler<W> {
 
     /// [`Prepared::pdf_disk`] of a lane, Eq. 5: `Σ_k w_k · H_k(Rᵀ_k ω⊥)`.
     #[inline(always)]
-    pub(crate) fn lane_pdf_disk(&self, lane: &MixtureLane, p: Vec2) -> f32 {
+    pub(crate) fn lane_pdf_disk(&self, lane: &HistogramMixtureLane, p: Vec2) -> f32 {
         if !(p.x * p.x + p.y * p.y < 1.0) {
             return 0.0;
         }
@@ -601,7 +601,12 @@ impl<W: Weights + Copy> HistogramMixtureSampler<W> {
 
     /// [`HistogramMixturePrepared::invert_basis`] of a lane.
     #[inline(always)]
-    pub(crate) fn lane_invert_basis(&self, lane: &MixtureLane, k: usize, wo: Vec3) -> Option<Vec2> {
+    pub(crate) fn lane_invert_basis(
+        &self,
+        lane: &HistogramMixtureLane,
+        k: usize,
+        wo: Vec3,
+    ) -> Option<Vec2> {
         if k >= BASES || !(lane.weights[k] > 0.0) {
             return None;
         }
@@ -626,7 +631,7 @@ impl<W: Weights + Copy> HistogramMixtureSampler<W> {
 
     /// [`Prepared::invert`] of a lane: the basis inverse when exactly one basis has weight.
     #[inline(always)]
-    pub(crate) fn lane_invert(&self, lane: &MixtureLane, wo: Vec3) -> Option<Vec2> {
+    pub(crate) fn lane_invert(&self, lane: &HistogramMixtureLane, wo: Vec3) -> Option<Vec2> {
         let mut only = BASES;
         let mut k = 0;
         while k < BASES {
@@ -657,7 +662,7 @@ impl<'s, W: Weights + Copy> HistogramMixturePrepared<'s, W> {
 
     /// The prepared state without the weights handle.
     #[must_use]
-    pub fn lane(&self) -> MixtureLane {
+    pub fn lane(&self) -> HistogramMixtureLane {
         self.lane
     }
 
@@ -737,7 +742,7 @@ mod batch {
     const CHUNK: usize = 32;
 
     impl<W: Weights + Copy> ChunkedSampler for HistogramMixtureSampler<W> {
-        type Lane = Option<MixtureLane>;
+        type Lane = Option<HistogramMixtureLane>;
         const CHUNK: usize = CHUNK;
 
         #[inline(always)]

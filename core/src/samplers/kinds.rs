@@ -16,16 +16,16 @@ macro_rules! sampler_kinds {
             /// Analytic mixture: Lambert + two anisotropic Gaussians (paper Eq. 2).
             AnalyticMixture = 2, "analytic", AnalyticMixtureSampler<Tensor<'a>>, AnalyticMixturePrepared;
             /// Conditional rational-quadratic spline flow (paper Eq. 3–4).
-            Flow = 3, "flow", FlowSampler<Tensor<'a>>, FlowLane;
+            Flow = 3, "flow", SplineFlowSampler<Tensor<'a>>, SplineFlowLane;
             /// Disk flow: the paper's spline couplings on a uniform base with every mass inside
             /// the disk (`core/ARCHITECTURES.md` §9).
             DiskFlow = 9, "disk-flow", DiskFlowSampler<Tensor<'a>>, DiskFlowLane;
             /// Affine-coupling flow baseline (Xie et al. 2019).
-            AffineFlow = 4, "affine-flow", AffineFlowSampler<Tensor<'a>>, AffineLane;
+            AffineFlow = 4, "affine-flow", AffineFlowSampler<Tensor<'a>>, AffineFlowLane;
             /// Direct histogram baseline (Zhu et al. 2021).
             DirectHistogram = 5, "direct-histogram", DirectHistogramSampler<Tensor<'a>>, DirectHistogramPrepared;
             /// Histogram mixture (paper Eq. 5–6).
-            HistogramMixture = 6, "histogram-mixture", HistogramMixtureSampler<Tensor<'a>>, MixtureLane;
+            HistogramMixture = 6, "histogram-mixture", HistogramMixtureSampler<Tensor<'a>>, HistogramMixtureLane;
             /// Reparameterization sampler (Wu et al. 2025): an MLP warp of a Gaussian with its
             /// exact Jacobian weight, and a pdf network for MIS ([`crate::samplers::reparam`]).
             Reparam = 8, "reparam", ReparamSampler<Tensor<'a>>, ReparamLane;

@@ -5,9 +5,9 @@
 #[cfg(feature = "alloc")]
 use crate::distrib::table2d::running_sums;
 use crate::distrib::table2d::{cell_area, cell_outside_disk, CDF_UNITS, MAX_N};
-use crate::error::Error;
 #[cfg(feature = "alloc")]
-use crate::kind::DType;
+use crate::dtype::DType;
+use crate::error::Error;
 use crate::math;
 use crate::weights::Weights;
 

@@ -4,7 +4,8 @@
 //! | module | paper | density |
 //! |---|---|---|
 //! | [`cosine`] | — | 1/π on the projected disk |
-//! | [`lobes`] | Eq. 1 (improved baseline), Eq. 2 (analytic mixture) | Lambert + Gaussians |
+//! | [`improved_baseline`] | Eq. 1 | Lambert + an isotropic Gaussian |
+//! | [`analytic_mixture`] | Eq. 2 | Lambert + two anisotropic Gaussians ([`lobes`]: what they share) |
 //! | [`spline_flow`] | Eq. 3–4 | RQ-spline coupling flow |
 //! | [`disk_flow`] | Eq. 3–4 on chords | RQ-spline couplings, uniform base, all mass in the disk |
 //! | [`affine_flow`] | Xie et al. 2019 | affine coupling flow |
@@ -25,6 +26,7 @@
 //! [`SamplerKind`]: crate::SamplerKind
 
 pub mod affine_flow;
+pub mod analytic_mixture;
 mod any;
 pub mod cosine;
 mod coupling;
@@ -32,6 +34,7 @@ pub mod defensive;
 pub mod direct_histogram;
 pub mod disk_flow;
 pub mod histogram_mixture;
+pub mod improved_baseline;
 pub(crate) mod kinds;
 pub mod lobes;
 mod mixture_tables;
@@ -39,7 +42,8 @@ pub mod reparam;
 pub mod spline_flow;
 mod traits;
 
-pub use affine_flow::{AffineFlowPrepared, AffineFlowSampler, AffineLane};
+pub use affine_flow::{AffineFlowLane, AffineFlowPrepared, AffineFlowSampler};
+pub use analytic_mixture::{AnalyticMixturePrepared, AnalyticMixtureSampler};
 #[cfg(not(target_arch = "spirv"))]
 pub use any::{AnyLane, SamplerVisitor};
 pub use any::{AnyPrepared, AnySampler};
@@ -47,12 +51,11 @@ pub use cosine::{CosinePrepared, CosineSampler};
 pub use defensive::{BlobSampler, Defensive, DefensivePrepared};
 pub use direct_histogram::{DirectHistogramPrepared, DirectHistogramSampler};
 pub use disk_flow::{DiskFlowLane, DiskFlowPrepared, DiskFlowSampler};
-pub use histogram_mixture::{HistogramMixturePrepared, HistogramMixtureSampler, MixtureLane};
-pub use lobes::{
-    AnalyticMixturePrepared, AnalyticMixtureSampler, ImprovedBaselinePrepared,
-    ImprovedBaselineSampler,
+pub use histogram_mixture::{
+    HistogramMixtureLane, HistogramMixturePrepared, HistogramMixtureSampler,
 };
+pub use improved_baseline::{ImprovedBaselinePrepared, ImprovedBaselineSampler};
 pub use reparam::{ReparamLane, ReparamPrepared, ReparamSampler};
-pub use spline_flow::{FlowLane, FlowPrepared, FlowSampler};
+pub use spline_flow::{SplineFlowLane, SplineFlowPrepared, SplineFlowSampler};
 pub(crate) use traits::Held;
 pub use traits::{BlobSource, FromBlob, Prepared, Sample, Sampler};

@@ -1,4 +1,4 @@
-//! The paper's conditional rational-quadratic spline flow ([`FlowSampler`], Eq. 3–4,
+//! The paper's conditional rational-quadratic spline flow ([`SplineFlowSampler`], Eq. 3–4,
 //! `core/ARCHITECTURES.md` §3) on the projected unit disk.
 //!
 //! A flow is a bijection `T` between the disk point `ω⊥ = (x, y)` and a latent point `z`
@@ -9,7 +9,7 @@
 //! ```
 //!
 //! computed in the *density direction* `ω⊥ → z` ([`Prepared::pdf_disk`],
-//! [`FlowPrepared::to_latent`]). Sampling runs the *sampling direction* `z → ω⊥`
+//! [`SplineFlowPrepared::to_latent`]). Sampling runs the *sampling direction* `z → ω⊥`
 //! (Box–Muller, then the inverse couplings), then evaluates the density direction at the
 //! sampled point, reusing the one coupling evaluation both directions share: the pdf a
 //! sample reports is bit for bit [`Prepared::pdf_disk`] at its point. Samples that leave the
@@ -40,9 +40,9 @@ use super::{Prepared, Sample, Sampler};
 #[cfg(not(target_arch = "spirv"))]
 mod batch;
 
-/// Bins of every spline of [`FlowSampler`] (release: 20).
+/// Bins of every spline of [`SplineFlowSampler`] (release: 20).
 pub const SPLINE_BINS: usize = 20;
-/// Tail bound `B` of every spline of [`FlowSampler`]: splines act on `[−1, 1]`.
+/// Tail bound `B` of every spline of [`SplineFlowSampler`]: splines act on `[−1, 1]`.
 pub const TAIL_BOUND: f32 = 1.0;
 /// Raw outputs of a spline coupling network: 20 widths, 20 heights, 19 derivatives.
 pub const SPLINE_RAW_LEN: usize = Knots::<SPLINE_BINS>::RAW_LEN;
@@ -67,7 +67,7 @@ pub const SPLINE_NET_LEN: usize = SPLINE_NET_L2 + nn::dense_len(HIDDEN, SPLINE_R
 pub const FLOW_COUPLING0: usize = FLOW_BASE_LEN;
 /// Offset of coupling network 1 (transforms y, conditioned on x).
 pub const FLOW_COUPLING1: usize = FLOW_COUPLING0 + SPLINE_NET_LEN;
-/// Parameters of [`FlowSampler`] (9690).
+/// Parameters of [`SplineFlowSampler`] (9690).
 pub const FLOW_PARAM_COUNT: usize = FLOW_COUPLING1 + SPLINE_NET_LEN;
 
 /// The spline of a coupling network at `offset`, for the other coordinate `v`.
@@ -88,12 +88,12 @@ fn spline_knots<W: Weights>(
 /// Gaussian base predicted from the condition and two spline coupling layers
 /// (`core/ARCHITECTURES.md` §3). Densities are on the projected disk (area measure).
 #[derive(Copy, Clone, Debug)]
-pub struct FlowSampler<W> {
+pub struct SplineFlowSampler<W> {
     params: W,
 }
 
 super::traits::flat_params_sampler!(
-    FlowSampler,
+    SplineFlowSampler,
     Flow,
     FLOW_PARAM_COUNT,
     "Length of the flat parameter array: base, coupling 0, coupling 1 (9690)."
@@ -102,7 +102,7 @@ super::traits::flat_params_sampler!(
 /// The flow at one shading point without its weights handle (the lane of the batched API):
 /// the base Gaussian and the condition's share of both coupling networks' first layers.
 #[derive(Copy, Clone, Debug, PartialEq)]
-pub struct FlowLane {
+pub struct SplineFlowLane {
     /// Mean of the base Gaussian.
     mu: Vec2,
     /// Standard deviations of the base Gaussian (clamped `exp(log σ)`).
@@ -113,11 +113,11 @@ pub struct FlowLane {
     share: [[f32; HIDDEN]; 2],
 }
 
-impl FlowLane {
+impl SplineFlowLane {
     /// The state from the base network's outputs `[μx, μy, log σx, log σy]` and the
     /// couplings' condition shares; `None` when any of them is not finite.
     #[inline(always)]
-    fn new(o: &[f32; BASE_OUTPUTS], share: [[f32; HIDDEN]; 2]) -> Option<FlowLane> {
+    fn new(o: &[f32; BASE_OUTPUTS], share: [[f32; HIDDEN]; 2]) -> Option<SplineFlowLane> {
         if !all_finite(o) || !all_finite(&share[0]) || !all_finite(&share[1]) {
             return None;
         }
@@ -125,7 +125,7 @@ impl FlowLane {
             gaussian::sigma_from_log(o[2]),
             gaussian::sigma_from_log(o[3]),
         );
-        Some(FlowLane {
+        Some(SplineFlowLane {
             mu: Vec2::new(o[0], o[1]),
             sigma,
             ln_sigma: math::ln(sigma.x * sigma.y),
@@ -176,20 +176,20 @@ impl FlowLane {
     }
 }
 
-/// [`FlowSampler`] prepared for one condition: its [`FlowLane`] and a copy of the weights
+/// [`SplineFlowSampler`] prepared for one condition: its [`SplineFlowLane`] and a copy of the weights
 /// handle.
 #[derive(Debug)]
-pub struct FlowPrepared<'s, W> {
+pub struct SplineFlowPrepared<'s, W> {
     /// A copy of the sampler's weights handle (see `Held`).
     params: Held<W>,
     _sampler: PhantomData<&'s W>,
-    lane: FlowLane,
+    lane: SplineFlowLane,
 }
 
-impl<W: Copy> Clone for FlowPrepared<'_, W> {
+impl<W: Copy> Clone for SplineFlowPrepared<'_, W> {
     #[inline]
     fn clone(&self) -> Self {
-        FlowPrepared {
+        SplineFlowPrepared {
             params: self.params.clone(),
             _sampler: PhantomData,
             lane: self.lane,
@@ -197,13 +197,17 @@ impl<W: Copy> Clone for FlowPrepared<'_, W> {
     }
 }
 
-impl<W: Weights + Copy> Sampler for FlowSampler<W> {
+impl<W: Weights + Copy> Sampler for SplineFlowSampler<W> {
     type Prepared<'s>
-        = FlowPrepared<'s, W>
+        = SplineFlowPrepared<'s, W>
     where
         W: 's;
 
-    fn prepare<'s>(&'s self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<FlowPrepared<'s, W>> {
+    fn prepare<'s>(
+        &'s self,
+        phi: &[f32; FEATURE_DIM],
+        wi: Vec3,
+    ) -> Option<SplineFlowPrepared<'s, W>> {
         let wi = check_condition(phi, wi)?;
         let c = encode_condition(phi, wi);
         let w = &self.params;
@@ -213,15 +217,15 @@ impl<W: Weights + Copy> Sampler for FlowSampler<W> {
             condition_share(w, FLOW_COUPLING0 as u32, &c),
             condition_share(w, FLOW_COUPLING1 as u32, &c),
         ];
-        Some(FlowPrepared {
+        Some(SplineFlowPrepared {
             params: Held::new(self.params),
             _sampler: PhantomData,
-            lane: FlowLane::new(&o, share)?,
+            lane: SplineFlowLane::new(&o, share)?,
         })
     }
 }
 
-impl<W: Weights + Copy> FlowPrepared<'_, W> {
+impl<W: Weights + Copy> SplineFlowPrepared<'_, W> {
     /// Mean of the base Gaussian.
     #[must_use]
     pub fn mean(&self) -> Vec2 {
@@ -236,7 +240,7 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
 
     /// The prepared state without the weights handle.
     #[must_use]
-    pub fn lane(&self) -> FlowLane {
+    pub fn lane(&self) -> SplineFlowLane {
         self.lane
     }
 
@@ -261,7 +265,7 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
         Some(self.latent_with_k1(p, &k1))
     }
 
-    /// [`FlowPrepared::to_latent`] given coupling 1's spline `k1` at `x = p.x`.
+    /// [`SplineFlowPrepared::to_latent`] given coupling 1's spline `k1` at `x = p.x`.
     #[inline(always)]
     fn latent_with_k1(&self, p: Vec2, k1: &Knots<SPLINE_BINS>) -> (Vec2, f32) {
         let (yl, ld1) = k1.forward(p.y);
@@ -289,7 +293,7 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
         (p, k0.inverse(z.x).1 + k1.inverse(z.y).1)
     }
 
-    /// [`FlowPrepared::from_latent`]'s point, with the splines it built: coupling 0's at
+    /// [`SplineFlowPrepared::from_latent`]'s point, with the splines it built: coupling 0's at
     /// `y' = z.y` and coupling 1's at `x`.
     #[inline(always)]
     fn point_and_knots(&self, z: Vec2) -> (Vec2, Knots<SPLINE_BINS>, Knots<SPLINE_BINS>) {
@@ -322,7 +326,7 @@ impl<W: Weights + Copy> FlowPrepared<'_, W> {
     }
 }
 
-impl<W: Weights + Copy> Prepared for FlowPrepared<'_, W> {
+impl<W: Weights + Copy> Prepared for SplineFlowPrepared<'_, W> {
     /// Box–Muller from `u`, `z = μ + σ ⊙ n`, then the inverse couplings.
     ///
     /// The reported pdf (solid angle; disk area in [`Sample::pdf_disk`]) is the density

@@ -4,8 +4,8 @@
 use glam::Vec2;
 
 use super::{
-    scale_shift, AffineFlowPrepared, AffineFlowSampler, AffineLane, AFFINE_LAYERS, AFFINE_NET_L0,
-    AFFINE_NET_L1, AFFINE_NET_L2, AFFINE_NET_LEN, AFFINE_OUTPUTS,
+    scale_shift, AffineFlowLane, AffineFlowPrepared, AffineFlowSampler, AFFINE_LAYERS,
+    AFFINE_NET_L0, AFFINE_NET_L1, AFFINE_NET_L2, AFFINE_NET_LEN, AFFINE_OUTPUTS,
 };
 use crate::batch::chunked::ChunkedSampler;
 use crate::batch::lanes;
@@ -35,7 +35,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     fn scale_shift_for(
         &self,
         l: usize,
-        lanes: &[Option<AffineLane>],
+        lanes: &[Option<AffineFlowLane>],
         idx: &[usize; CHUNK],
         m: usize,
         v: &[f32; CHUNK],
@@ -93,7 +93,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     #[inline(always)]
     fn latent_chunk(
         &self,
-        lanes: &[Option<AffineLane>],
+        lanes: &[Option<AffineFlowLane>],
         p: &[Vec2; CHUNK],
         st0: &[(f32, f32); CHUNK],
         seen: Option<&Seen>,
@@ -143,7 +143,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     #[inline(always)]
     fn latent_at_chunk(
         &self,
-        lanes: &[Option<AffineLane>],
+        lanes: &[Option<AffineFlowLane>],
         wo: Vec3s<'_>,
         ok: &mut [bool; CHUNK],
         cos: &mut [f32; CHUNK],
@@ -169,11 +169,11 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
 }
 
 impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
-    type Lane = Option<AffineLane>;
+    type Lane = Option<AffineFlowLane>;
     const CHUNK: usize = CHUNK;
 
     #[inline(always)]
-    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<AffineLane>]) {
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<AffineFlowLane>]) {
         let m = out.len();
         let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
@@ -189,7 +189,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
                 for (dst, src) in sh.iter_mut().zip(share.iter()) {
                     *dst = batch::column(src, l);
                 }
-                AffineLane::new(sh)
+                AffineFlowLane::new(sh)
             } else {
                 None
             };
@@ -197,7 +197,12 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Option<AffineLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn sample_chunk(
+        &self,
+        lanes: &[Option<AffineFlowLane>],
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+    ) {
         let m = lanes.len();
         let all = batch::identity_index::<CHUNK>();
         let mut ok = [false; CHUNK];
@@ -260,7 +265,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Option<AffineLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(&self, lanes: &[Option<AffineFlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
         let mut ok = [false; CHUNK];
         let mut cos = [0.0f32; CHUNK];
         let mut zl = [Vec2::ZERO; CHUNK];
@@ -279,7 +284,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
     #[inline(always)]
     fn invert_chunk(
         &self,
-        lanes: &[Option<AffineLane>],
+        lanes: &[Option<AffineFlowLane>],
         wo: Vec3s<'_>,
         mut u: Vec2sMut<'_>,
         ok_out: &mut [bool],

@@ -1,4 +1,4 @@
-//! [`FlowSampler`] over wavefronts ([`BatchSampler`]). Lanes run in chunks of [`CHUNK`]: the
+//! [`SplineFlowSampler`] over wavefronts ([`BatchSampler`]). Lanes run in chunks of [`CHUNK`]: the
 //! networks as matrix products over the chunk's lanes ([`dense`]), the splines, Box–Muller and
 //! the densities per lane through the scalar path's own functions (the paths agree within
 //! the `wavefront` tolerances).
@@ -6,7 +6,7 @@
 use glam::Vec2;
 
 use super::{
-    FlowLane, FlowSampler, BASE_OUTPUTS, FLOW_BASE_L0, FLOW_BASE_L1, FLOW_COUPLING0,
+    SplineFlowLane, SplineFlowSampler, BASE_OUTPUTS, FLOW_BASE_L0, FLOW_BASE_L1, FLOW_COUPLING0,
     FLOW_COUPLING1, SPLINE_BINS, SPLINE_RAW_LEN, TAIL_BOUND,
 };
 use crate::batch::chunked::ChunkedSampler;
@@ -40,7 +40,7 @@ struct Base {
 
 impl Base {
     #[inline(always)]
-    fn of(lanes: &[Option<FlowLane>]) -> Base {
+    fn of(lanes: &[Option<SplineFlowLane>]) -> Base {
         let mut b = Base {
             mx: [0.0; CHUNK],
             my: [0.0; CHUNK],
@@ -58,7 +58,7 @@ impl Base {
         b
     }
 
-    /// `FlowLane::log_density` of the latent points `(x, y)` with log-dets `ld0 + ld1`, for
+    /// `SplineFlowLane::log_density` of the latent points `(x, y)` with log-dets `ld0 + ld1`, for
     /// every lane (NaN → −∞).
     #[inline(always)]
     fn log_densities(
@@ -80,14 +80,14 @@ impl Base {
     }
 }
 
-impl<W: Weights + Copy> FlowSampler<W> {
+impl<W: Weights + Copy> SplineFlowSampler<W> {
     /// The splines of coupling network `net` for the lanes `idx[..m]` of a chunk, each at its
     /// own other coordinate `v[lane]`: group `g` holds the splines of `idx[8g .. 8g + 8]`.
     #[inline(always)]
     fn knots_for(
         &self,
         net: usize,
-        lanes: &[Option<FlowLane>],
+        lanes: &[Option<SplineFlowLane>],
         idx: &[usize; CHUNK],
         m: usize,
         v: &[f32; CHUNK],
@@ -114,11 +114,11 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 
     /// The latent points and log-dets of the disk points `p` (density direction,
-    /// `FlowPrepared::to_latent`) of a chunk's lanes.
+    /// `SplineFlowPrepared::to_latent`) of a chunk's lanes.
     #[inline(always)]
     fn latent_chunk(
         &self,
-        lanes: &[Option<FlowLane>],
+        lanes: &[Option<SplineFlowLane>],
         px: &[f32; CHUNK],
         py: &[f32; CHUNK],
         zl: &mut [Vec2; CHUNK],
@@ -150,14 +150,14 @@ impl<W: Weights + Copy> FlowSampler<W> {
     }
 }
 
-impl<W: Weights + Copy> ChunkedSampler for FlowSampler<W> {
-    type Lane = Option<FlowLane>;
+impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
+    type Lane = Option<SplineFlowLane>;
     const CHUNK: usize = CHUNK;
     // The splines run in eight-lane groups.
     const WIDEST: Isa = Isa::X86V3;
 
     #[inline(always)]
-    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<FlowLane>]) {
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<SplineFlowLane>]) {
         let m = out.len();
         let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
@@ -193,7 +193,7 @@ impl<W: Weights + Copy> ChunkedSampler for FlowSampler<W> {
                         dst[j] = src[j][l];
                     }
                 }
-                FlowLane::new(&oo, sh)
+                SplineFlowLane::new(&oo, sh)
             } else {
                 None
             };
@@ -201,7 +201,12 @@ impl<W: Weights + Copy> ChunkedSampler for FlowSampler<W> {
     }
 
     #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Option<FlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn sample_chunk(
+        &self,
+        lanes: &[Option<SplineFlowLane>],
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+    ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
         let all = batch::identity_index::<CHUNK>();
@@ -298,7 +303,7 @@ impl<W: Weights + Copy> ChunkedSampler for FlowSampler<W> {
     }
 
     #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Option<FlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(&self, lanes: &[Option<SplineFlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
         let m = lanes.len();
         let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         let mut cos = [0.0f32; CHUNK];
@@ -331,7 +336,7 @@ impl<W: Weights + Copy> ChunkedSampler for FlowSampler<W> {
     #[inline(always)]
     fn invert_chunk(
         &self,
-        lanes: &[Option<FlowLane>],
+        lanes: &[Option<SplineFlowLane>],
         wo: Vec3s<'_>,
         mut u: Vec2sMut<'_>,
         ok_out: &mut [bool],

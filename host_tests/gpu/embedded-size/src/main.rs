@@ -47,7 +47,7 @@ pub extern "C" fn ns_cosine() -> f32 {
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_flow() -> f32 {
-    exercise(&neusample::FlowSampler::new_unchecked(weights()))
+    exercise(&neusample::SplineFlowSampler::new_unchecked(weights()))
 }
 
 #[inline(never)]

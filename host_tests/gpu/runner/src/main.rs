@@ -634,7 +634,7 @@ fn main() {
     for _ in 0..2 {
         mlp_params(&mut rng, &[(39, 32), (32, 32), (32, 59)], 1.0, &mut flow_w);
     }
-    assert_eq!(flow_w.len(), neusample::FlowSampler::<&[f32]>::PARAM_COUNT);
+    assert_eq!(flow_w.len(), neusample::SplineFlowSampler::<&[f32]>::PARAM_COUNT);
     let mut affine_w = Vec::new();
     for _ in 0..4 {
         mlp_params(&mut rng, &[(39, 32), (32, 32), (32, 2)], 1.0, &mut affine_w);

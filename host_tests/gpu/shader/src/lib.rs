@@ -100,7 +100,7 @@ weighted_entry!(
 weighted_entry!(
     /// Conditional rational-quadratic spline flow (paper Eq. 3–4).
     flow,
-    FlowSampler
+    SplineFlowSampler
 );
 weighted_entry!(
     /// Affine-coupling flow baseline (Xie et al. 2019).
@@ -136,7 +136,7 @@ pub fn defensive_flow(
     let i = id.x;
     if i < params.n && kernel::in_range(i, input.len(), output.len()) {
         let s = neusample::Defensive::new_unchecked(
-            neusample::FlowSampler::new_unchecked(weights),
+            neusample::SplineFlowSampler::new_unchecked(weights),
             DEFENSIVE_ALPHA,
         );
         kernel::run(&s, i, input, output);

@@ -1,0 +1,183 @@
+//! The analytic mixture of paper §3.1 (Eq. 2): a Lambertian lobe and two axis-aligned
+//! anisotropic Gaussians on the **projected unit disk**, predicted by an MLP
+//! (`ARCHITECTURES.md` §2). How the lobes are sampled and evaluated: [`super::lobes`].
+
+use glam::{Vec2, Vec3};
+
+use crate::distrib::gaussian;
+use crate::math::{self, clamp_logit, finite_density};
+use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
+use crate::warp::{self, inside_disk};
+use crate::weights::Weights;
+
+use super::lobes::{mean, HIDDEN};
+use super::{Prepared, Sample, Sampler};
+
+/// Number of network outputs of the analytic mixture:
+/// `[μ1x, μ1y, μ2x, μ2y, log σ1x, log σ1y, log σ2x, log σ2y, a0, a1, a2]`.
+pub const ANALYTIC_OUTPUTS: usize = 11;
+
+const ANALYTIC_L0: usize = 0;
+const ANALYTIC_L1: usize = ANALYTIC_L0 + nn::dense_len(CONDITION_DIM, HIDDEN);
+const ANALYTIC_END: usize = ANALYTIC_L1 + nn::dense_len(HIDDEN, ANALYTIC_OUTPUTS);
+
+/// The analytic mixture of paper §3.1 (Eq. 2): Lambert + two axis-aligned anisotropic
+/// Gaussians on the projected disk, predicted by an MLP `30 → 32 → 11` (ReLU hidden) from
+/// `encode_condition(φ, wi)`. See `ARCHITECTURES.md` §2.
+#[derive(Copy, Clone, Debug)]
+pub struct AnalyticMixtureSampler<W> {
+    params: W,
+}
+
+super::traits::flat_params_sampler!(
+    AnalyticMixtureSampler,
+    AnalyticMixture,
+    ANALYTIC_END,
+    "Number of parameters: `dense(30,32) dense(32,11)` = 1355."
+);
+
+impl<W: Weights> AnalyticMixtureSampler<W> {
+    /// The raw network outputs (see [`ANALYTIC_OUTPUTS`]) for an encoded condition.
+    #[inline]
+    #[must_use]
+    pub fn forward(&self, c: &[f32; CONDITION_DIM]) -> [f32; ANALYTIC_OUTPUTS] {
+        let w = &self.params;
+        let h: [f32; HIDDEN] = nn::dense(w, ANALYTIC_L0 as u32, c, Activation::Relu);
+        nn::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity)
+    }
+}
+
+/// The analytic mixture's lobes at one shading point (Eq. 2).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct AnalyticMixturePrepared {
+    /// `(w0, w1, w2)` = (Lambert, Gaussian 1, Gaussian 2), summing to 1.
+    weights: [f32; 3],
+    mu: [Vec2; 2],
+    sigma: [Vec2; 2],
+}
+
+impl AnalyticMixturePrepared {
+    /// The lobes from raw network outputs (see [`ANALYTIC_OUTPUTS`]): `w = softmax(a)`,
+    /// `σ = exp(clamp(log σ, −7, 1))` per axis. Non-finite outputs are clamped
+    /// ([`MEAN_BOUND`](super::lobes::MEAN_BOUND), ±10³⁰) so the lobes are always finite.
+    #[inline]
+    #[must_use]
+    pub fn from_outputs(o: &[f32; ANALYTIC_OUTPUTS]) -> Self {
+        let mut weights = [clamp_logit(o[8]), clamp_logit(o[9]), clamp_logit(o[10])];
+        gaussian::softmax(&mut weights);
+        AnalyticMixturePrepared {
+            weights,
+            mu: [
+                Vec2::new(mean(o[0]), mean(o[1])),
+                Vec2::new(mean(o[2]), mean(o[3])),
+            ],
+            sigma: [
+                Vec2::new(
+                    gaussian::sigma_from_log(o[4]),
+                    gaussian::sigma_from_log(o[5]),
+                ),
+                Vec2::new(
+                    gaussian::sigma_from_log(o[6]),
+                    gaussian::sigma_from_log(o[7]),
+                ),
+            ],
+        }
+    }
+
+    /// Mixture weights `(w0, w1, w2)` (Lambert, Gaussian 1, Gaussian 2).
+    #[must_use]
+    pub fn weights(&self) -> [f32; 3] {
+        self.weights
+    }
+
+    /// Means of the two Gaussian lobes.
+    #[must_use]
+    pub fn means(&self) -> [Vec2; 2] {
+        self.mu
+    }
+
+    /// Per-axis standard deviations of the two Gaussian lobes.
+    #[must_use]
+    pub fn sigmas(&self) -> [Vec2; 2] {
+        self.sigma
+    }
+}
+
+impl<W: Weights> Sampler for AnalyticMixtureSampler<W> {
+    type Prepared<'s>
+        = AnalyticMixturePrepared
+    where
+        Self: 's;
+
+    #[inline]
+    fn prepare(&self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<AnalyticMixturePrepared> {
+        let wi = check_condition(phi, wi)?;
+        let o = self.forward(&encode_condition(phi, wi));
+        Some(AnalyticMixturePrepared::from_outputs(&o))
+    }
+}
+
+impl Prepared for AnalyticMixturePrepared {
+    /// Component 0 (Lambert) by the concentric map, components 1 and 2 (Gaussians) by
+    /// Box–Muller; the reported density is the full Eq. 2 mixture at the drawn point.
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        let u = math::sanitize_u2(u)?;
+        let (i, u0) = gaussian::select_component(&self.weights, u.x);
+        let v = Vec2::new(u0, u.y);
+        let p = if i == 0 {
+            warp::sample_uniform_disk_concentric(v)
+        } else {
+            // i ∈ {1, 2}; clamp so the index is provably in range.
+            let g = if i >= 2 { 1 } else { 0 };
+            self.mu[g] + self.sigma[g] * gaussian::box_muller(v)
+        };
+        Sample::from_disk(p, self.pdf_disk(p))
+    }
+
+    /// Eq. 2, with respect to area on the projected disk; 0 outside the open unit disk.
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        if !inside_disk(p) {
+            return 0.0;
+        }
+        finite_density(
+            self.weights[0] * math::INV_PI
+                + self.weights[1] * gaussian::normal_pdf(p, self.mu[0], self.sigma[0])
+                + self.weights[2] * gaussian::normal_pdf(p, self.mu[1], self.sigma[1]),
+        )
+    }
+}
+
+#[cfg(not(target_arch = "spirv"))]
+mod batch {
+    //! The analytic mixture over wavefronts: the network as matrix products over a chunk's lanes, the lobes
+    //! per lane.
+
+    use super::*;
+    use crate::batch::chunked::ChunkedSampler;
+    use crate::batch::{self, dense, per_lane_chunks, Features, Soa, Vec3s};
+    use crate::samplers::lobes::CHUNK;
+
+    impl<W: Weights> ChunkedSampler for AnalyticMixtureSampler<W> {
+        type Lane = Option<AnalyticMixturePrepared>;
+        const CHUNK: usize = CHUNK;
+
+        #[inline(always)]
+        fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
+            let w = &self.params;
+            let m = lanes.len();
+            let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
+            let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
+            let mut o: Soa<ANALYTIC_OUTPUTS, CHUNK> = [[0.0; CHUNK]; ANALYTIC_OUTPUTS];
+            dense::dense(w, ANALYTIC_L0 as u32, &c, Activation::Relu, &mut h, m);
+            dense::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity, &mut o, m);
+            for l in 0..m {
+                lanes[l] =
+                    valid[l].then(|| AnalyticMixturePrepared::from_outputs(&batch::column(&o, l)));
+            }
+        }
+
+        per_lane_chunks!(AnalyticMixturePrepared);
+    }
+}
