@@ -150,34 +150,4 @@ impl Prepared for AnalyticMixturePrepared {
 }
 
 #[cfg(not(target_arch = "spirv"))]
-mod batch {
-    //! The analytic mixture over wavefronts: the network as matrix products over a chunk's lanes, the lobes
-    //! per lane.
-
-    use super::*;
-    use crate::batch::chunked::ChunkedSampler;
-    use crate::batch::{self, dense, per_lane_chunks, Features, Soa, Vec3s};
-    use crate::samplers::lobes::CHUNK;
-
-    impl<W: Weights> ChunkedSampler for AnalyticMixtureSampler<W> {
-        type Lane = Option<AnalyticMixturePrepared>;
-        const CHUNK: usize = CHUNK;
-
-        #[inline(always)]
-        fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
-            let w = &self.params;
-            let m = lanes.len();
-            let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
-            let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
-            let mut o: Soa<ANALYTIC_OUTPUTS, CHUNK> = [[0.0; CHUNK]; ANALYTIC_OUTPUTS];
-            dense::dense(w, ANALYTIC_L0 as u32, &c, Activation::Relu, &mut h, m);
-            dense::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity, &mut o, m);
-            for l in 0..m {
-                lanes[l] =
-                    valid[l].then(|| AnalyticMixturePrepared::from_outputs(&batch::column(&o, l)));
-            }
-        }
-
-        per_lane_chunks!(AnalyticMixturePrepared);
-    }
-}
+mod batch;

@@ -1,0 +1,85 @@
+//! The histogram mixture over wavefronts: the network as matrix products over a chunk's
+//! lanes, then per lane the scalar path's own functions (`lane_from_outputs`,
+//! `lane_sample`, `lane_pdf_disk`, `lane_invert`).
+
+use super::*;
+use crate::batch::chunked::ChunkedSampler;
+use crate::batch::lanes::V8;
+use crate::batch::{self, dense, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s};
+
+/// Lanes per chunk.
+const CHUNK: usize = 32;
+
+impl<W: Weights + Copy> ChunkedSampler for HistogramMixtureSampler<W> {
+    type Lane = Option<HistogramMixtureLane>;
+    const CHUNK: usize = CHUNK;
+
+    #[inline(always)]
+    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
+        let w = &self.params;
+        let m = lanes.len();
+        let (c, valid) = batch::raw_conditions::<CHUNK>(&phi, &wi);
+        let mut h: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
+        let mut g: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
+        let mut o: Soa<MIX_OUTPUTS, CHUNK> = [[0.0; CHUNK]; MIX_OUTPUTS];
+        let relu = Activation::Relu;
+        dense::dense(w, MIX_L0 as u32, &c, relu, &mut h, m);
+        dense::dense(w, MIX_L1 as u32, &h, relu, &mut g, m);
+        dense::dense(w, MIX_L2 as u32, &g, relu, &mut h, m);
+        dense::dense(w, MIX_L3 as u32, &h, Activation::Identity, &mut o, m);
+        // The softmax of the logits a_k across lanes, eight at a time.
+        let mut soft: Soa<BASES, CHUNK> = [[0.0; CHUNK]; BASES];
+        let mut g = 0;
+        while g < m {
+            let mut a: [V8; BASES] = core::array::from_fn(|k| V8::load(&o[4 * k][g..]));
+            gaussian::softmax_lanes(&mut a);
+            for (k, v) in a.into_iter().enumerate() {
+                v.store(&mut soft[k][g..]);
+            }
+            g += 8;
+        }
+        for l in 0..m {
+            lanes[l] = if valid[l] {
+                self.lane_from_softmax(&batch::column(&o, l), &batch::column(&soft, l))
+            } else {
+                None
+            };
+        }
+    }
+
+    #[inline(always)]
+    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+        for (i, l) in lanes.iter().enumerate() {
+            out.set(i, l.as_ref().and_then(|l| self.lane_sample(l, u.at(i))));
+        }
+    }
+
+    #[inline(always)]
+    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) {
+        for (i, l) in lanes.iter().enumerate() {
+            pdf[i] = match (l, warp::upper_hemisphere(wo.at(i))) {
+                (Some(l), Some(w)) => {
+                    warp::disk_to_solid_angle(self.lane_pdf_disk(l, warp::to_disk(w)), w.z)
+                }
+                _ => 0.0,
+            };
+        }
+    }
+
+    #[inline(always)]
+    fn invert_chunk(
+        &self,
+        lanes: &[Self::Lane],
+        wo: Vec3s<'_>,
+        mut u: Vec2sMut<'_>,
+        ok: &mut [bool],
+    ) {
+        for (i, l) in lanes.iter().enumerate() {
+            let r = l.as_ref().and_then(|l| self.lane_invert(l, wo.at(i)));
+            ok[i] = r.is_some();
+            if let Some(v) = r {
+                u.set(i, v);
+            }
+        }
+    }
+}
