@@ -35,6 +35,7 @@ use crate::train::neural_material::NeuralTrainConfig;
 use crate::train::{self, has_integrand, needs_integrand, TrainConfig};
 use crate::util::io::{self, slug};
 use crate::util::progress::stages_bar;
+use crate::util::rng::Stream;
 
 /// A sampler trained by the demo: the checked blob and what the report says of its training.
 pub(crate) struct TrainedBlob {
@@ -69,9 +70,16 @@ pub(crate) fn train_blob(
         "demo material={mname} method={method_name} steps={}",
         cfg.schedule(method).map_or(0, |s| s.steps)
     );
-    let (bytes, v) = bake::checked_blob_bytes(&trained, DType::F32, &label, m, 8, a.seed + 7)
-        .with_context(|| format!("baking {method_name} on {mname}"))?;
-    let (bytes, _) = defend::defend_baked(bytes, m, a.seed + 300)?;
+    let (bytes, v) = bake::checked_blob_bytes(
+        &trained,
+        DType::F32,
+        &label,
+        m,
+        8,
+        Stream::DemoBlobCheck.of(a.seed),
+    )
+    .with_context(|| format!("baking {method_name} on {mname}"))?;
+    let (bytes, _) = defend::defend_baked(bytes, m, Stream::Defend.of(a.seed))?;
     Ok(TrainedBlob {
         bytes,
         seconds: trained.seconds,
@@ -219,7 +227,7 @@ fn neural_report(
             p.eval_conditions,
             p.eval_res,
             NeuralTrainConfig::default_run().epsilon,
-            a.seed + 100,
+            Stream::Fit.of(a.seed),
         ),
         cost: eval::eval_cost(m, p.cost_n, p.cost_passes),
         source_cost: eval::eval_cost(src, p.cost_n, p.cost_passes),
@@ -350,7 +358,7 @@ fn render_report(
     let name_key = e.name.bytes().fold(0xCBF2_9CE4_8422_2325u64, |h, b| {
         (h ^ u64::from(b)).wrapping_mul(0x100_0000_01B3)
     });
-    let seed = crate::util::rng::mix_seed(seed ^ 0xB007, name_key);
+    let seed = crate::util::rng::mix_seed(Stream::Bootstrap.of(seed), name_key);
     let speedup = metrics::speedup(e, base, seed);
     let mse_ratio = metrics::variance_ratio(e, base, seed);
     RenderReport {
@@ -556,12 +564,12 @@ fn render_material(
     let seed = p.settings.seed;
     figures::write_png(
         &out.join(&pdfs),
-        &pdf_figure(m, &techniques, p, seed + 500)?,
+        &pdf_figure(m, &techniques, p, Stream::PdfFigure.of(seed))?,
     )?;
     let weights = format!("{dir}/weights.png");
     figures::write_png(
         &out.join(&weights),
-        &weights_figure(m, &techniques, p, seed + 100)?,
+        &weights_figure(m, &techniques, p, Stream::Fit.of(seed))?,
     )?;
     pb.inc(1);
 
@@ -753,7 +761,13 @@ fn fits<S: Sampler + Sync>(
     p: &Preset,
     seed: u64,
 ) -> (Fit, Option<f64>) {
-    let fit = eval::fit(sampler, m, p.eval_conditions, p.eval_res, seed + 100);
+    let fit = eval::fit(
+        sampler,
+        m,
+        p.eval_conditions,
+        p.eval_res,
+        Stream::Fit.of(seed),
+    );
     let kl_src = source.map(|src| {
         eval::fit_to(
             sampler,
@@ -761,7 +775,7 @@ fn fits<S: Sampler + Sync>(
             Some(src),
             p.eval_conditions,
             p.eval_res,
-            seed + 100,
+            Stream::Fit.of(seed),
         )
         .kl_divergence
     });

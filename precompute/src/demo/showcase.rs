@@ -57,7 +57,7 @@ use crate::eval::metrics::{self, Reference};
 use crate::materials::Material;
 use crate::util::io;
 use crate::util::json::f64_or_nan;
-use crate::util::rng::mix_seed;
+use crate::util::rng::{mix_seed, Stream};
 use crate::util::stats::{bootstrap, ratio, Estimate};
 use crate::util::timing::median;
 
@@ -781,7 +781,7 @@ fn reference_render(
     eprintln!("reference: baseline, {ref_spp} spp");
     let mut o = opts.clone();
     o.spp = ref_spp;
-    o.seed = c.seed ^ 0x5EF0_0000_0000_5EF0;
+    o.seed = Stream::Reference.of(c.seed);
     let reference = render_wavefront(scene, base_surfaces, &o);
     Reference {
         noise: metrics::mean_variance_of_mean(&reference, &reference.mask),
@@ -811,7 +811,7 @@ fn equal_time_renders(
     let base_render = render_wavefront(scene, surfaces[0], &o);
     let mut o = opts.clone();
     o.spp = best_spp;
-    o.seed = c.seed.wrapping_add(0x00E9_0A17);
+    o.seed = Stream::EqualTime.of(c.seed);
     o.blocks = metrics::DEFAULT_BLOCKS;
     [base_render, render_wavefront(scene, surfaces[1], &o)]
 }

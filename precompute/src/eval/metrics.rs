@@ -49,6 +49,7 @@ use super::measured_data::MeasuredDataSampler;
 use super::oracle::OracleSampler;
 use crate::materials::Material;
 use crate::util::json::f64_or_nan;
+use crate::util::rng::Stream;
 use crate::util::stats::{bootstrap, median_of_means, ratio, Estimate};
 use crate::util::timing::median;
 use neusample::wavefront::SamplerVisitor;
@@ -211,7 +212,7 @@ pub struct Reference {
 /// independently of the compared renders.
 #[must_use]
 pub fn reference(scene: &Scene, material: &dyn Material, s: &RenderSettings) -> Reference {
-    let mut opts = RenderOptions::new(s.ref_spp.max(2), s.seed ^ 0x5EF0_0000_0000_5EF0);
+    let mut opts = RenderOptions::new(s.ref_spp.max(2), Stream::Reference.of(s.seed));
     opts.checkpoints.clear();
     opts.estimator = Estimator::Mis;
     let t = Technique::Oracle(OracleSampler::new(material, s.ref_res));
@@ -473,7 +474,7 @@ pub fn evaluate(
         let mut o = base.clone();
         o.spp = spp_t;
         o.checkpoints.clear();
-        o.seed = s.seed.wrapping_add(0x00E9_0A17);
+        o.seed = Stream::EqualTime.of(s.seed);
         let rt = t.render(scene, material, &o);
         let mse_equal_time =
             (mse(&rt.image, &reference.render.image, mask) - reference.noise).max(MSE_FLOOR);

@@ -14,6 +14,7 @@ use crate::materials::neural::{NeuralMaterialModel, NeuralParts};
 use crate::materials::{self, Material};
 use crate::train::neural_material::{self as nt, BlobCheck, NeuralTrainConfig};
 use crate::util::io;
+use crate::util::rng::Stream;
 use crate::util::stats::mean;
 
 /// Queries of the blob check (runtime vs training graph) of every written neural material.
@@ -155,7 +156,7 @@ pub fn train_material(job: &TrainMaterialJob) -> Result<TrainMaterialReport> {
         cfg.epsilon
     );
     let bytes = trained.parts.blob_bytes(dtype, &label)?;
-    let check = nt::verify_blob(&bytes, CHECK_QUERIES, cfg.seed ^ 0x5EED)
+    let check = nt::verify_blob(&bytes, CHECK_QUERIES, Stream::BlobCheck.of(cfg.seed))
         .with_context(|| format!("verifying the blob for {}", job.out.display()))?;
     io::atomic_write(&job.out, &bytes)?;
     if let Some(p) = &job.safetensors {
@@ -169,7 +170,7 @@ pub fn train_material(job: &TrainMaterialJob) -> Result<TrainMaterialReport> {
         job.fit.conditions,
         job.fit.res,
         cfg.epsilon,
-        cfg.seed ^ 0xF17,
+        Stream::MaterialFit.of(cfg.seed),
     );
     let cost = eval_cost(&neural, COST_QUERIES, COST_PASSES);
     let source_cost = eval_cost(source.as_ref(), COST_QUERIES, COST_PASSES);

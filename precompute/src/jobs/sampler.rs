@@ -14,6 +14,7 @@ use crate::eval;
 use crate::materials::Material;
 use crate::train::{self, TrainConfig, Trained};
 use crate::util::io;
+use crate::util::rng::Stream;
 
 /// Conditions of the blob check after training ([`bake::verify`]).
 const VERIFY_CONDITIONS: usize = 16;
@@ -42,7 +43,7 @@ pub fn train_sampler(
         &label,
         material,
         VERIFY_CONDITIONS,
-        cfg.common.seed ^ 0x5EED,
+        Stream::BlobCheck.of(cfg.common.seed),
     )
     .with_context(|| format!("verifying the blob for {}", out.display()))?;
     io::atomic_write(out, &bytes)?;
@@ -139,7 +140,7 @@ pub struct SummaryRow {
 /// and the sweep goes on. Returns the summary; count the rows with an `error`.
 pub fn sweep(material: &dyn Material, job: &SweepJob) -> Result<Summary> {
     let seed = job.config.common.seed;
-    let eval_seed = seed + 100;
+    let eval_seed = Stream::Fit.of(seed);
     let fit = eval::fit(
         &CosineSampler,
         material,
