@@ -22,7 +22,7 @@ use super::fixtures::fixture_path;
 use super::markdown::{fmt_chi2, markdown};
 use super::report::{
     method_report, FigureReport, MaterialReport, MethodReport, NeuralReport, ReferenceReport,
-    RenderReport, RenderSetup, Report, REPORT_SCHEMA,
+    RenderReport, RenderSetup, Report, Training, REPORT_SCHEMA,
 };
 use crate::bake;
 use crate::defend;
@@ -47,6 +47,18 @@ pub(crate) struct TrainedBlob {
     pub(crate) loss: Option<f32>,
     /// The bake check's largest relative pdf error.
     pub(crate) max_relative: f64,
+}
+
+impl TrainedBlob {
+    /// What its method's report says of its training.
+    pub(crate) fn training(&self) -> Training {
+        Training {
+            seconds: self.seconds,
+            final_loss: self.loss,
+            blob_bytes: self.bytes.len(),
+            blob_vs_model: Some(self.max_relative),
+        }
+    }
 }
 
 /// `method` trained on `m` as `neusample demo --train` trains it: the quick schedule with
@@ -252,10 +264,9 @@ fn fit_and_cost(
     let mut blobs: Vec<(String, Vec<u8>)> = Vec::new();
 
     pb.set_message(format!("{mname}/{COSINE}"));
-    let (fit, kl_src) = fits(&CosineSampler, m, src, p, a.seed);
+    let fit = fits(&CosineSampler, m, src, p, a.seed);
     let cost = eval::cost(&CosineSampler, m, p.cost_n, p.cost_passes);
-    methods.push(method_report(COSINE, 0.0, None, 0, None, fit, cost));
-    methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+    methods.push(method_report(COSINE, Training::NONE, fit, cost));
     pb.inc(1);
 
     for &method in &method_list {
@@ -266,12 +277,18 @@ fn fit_and_cost(
             continue;
         }
         pb.set_message(format!("{mname}/{method_name}"));
-        let (bytes, secs, loss, check) = if a.use_fixtures {
+        let (bytes, training) = if a.use_fixtures {
             let path = fixture_path(&a.blob_dir(&mname), &slug(&mname), method_name);
-            (io::read_blob(&path)?, 0.0, None, None)
+            let bytes = io::read_blob(&path)?;
+            let training = Training {
+                blob_bytes: bytes.len(),
+                ..Training::NONE
+            };
+            (bytes, training)
         } else {
             let t = train_blob(m, method, a)?;
-            (t.bytes, t.seconds, t.loss, Some(t.max_relative))
+            let training = t.training();
+            (t.bytes, training)
         };
         io::atomic_write(
             &out.join("blobs")
@@ -281,38 +298,27 @@ fn fit_and_cost(
         )?;
         let blob = Blob::open(&bytes).map_err(|e| anyhow::anyhow!("{e}"))?;
         let sampler = blob.sampler().map_err(|e| anyhow::anyhow!("{e}"))?;
-        let (fit, kl_src) = fits(&sampler, m, src, p, a.seed);
+        let fit = fits(&sampler, m, src, p, a.seed);
         let cost = eval::cost_any(&sampler, m, p.cost_n, p.cost_passes);
-        methods.push(method_report(
-            method_name,
-            secs,
-            loss,
-            bytes.len(),
-            check,
-            fit,
-            cost,
-        ));
-        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+        methods.push(method_report(method_name, training, fit, cost));
         blobs.push((method_name.to_string(), bytes));
         pb.inc(1);
     }
 
     pb.set_message(format!("{mname}/{ORACLE}"));
     let oracle = OracleSampler::new(m, p.settings.oracle_res);
-    let (fit, kl_src) = fits(&oracle, m, src, p, a.seed);
+    let fit = fits(&oracle, m, src, p, a.seed);
     let cost = eval::cost_scalar(&oracle, m, p.oracle_cost_n, p.cost_passes.min(3));
-    methods.push(method_report(ORACLE, 0.0, None, 0, None, fit, cost));
-    methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+    methods.push(method_report(ORACLE, Training::NONE, fit, cost));
     pb.inc(1);
 
     // A measured material's own sampler: the peer a user of the data would pick.
     if let Some(data) = m.measured() {
         pb.set_message(format!("{mname}/{MEASURED_DATA}"));
         let s = MeasuredDataSampler(data.material().borrowed());
-        let (fit, kl_src) = fits(&s, m, src, p, a.seed);
+        let fit = fits(&s, m, src, p, a.seed);
         let cost = eval::cost(&s, m, p.cost_n, p.cost_passes);
-        methods.push(method_report(MEASURED_DATA, 0.0, None, 0, None, fit, cost));
-        methods.last_mut().expect("pushed").kl_vs_source = kl_src;
+        methods.push(method_report(MEASURED_DATA, Training::NONE, fit, cost));
     }
     Ok((methods, blobs))
 }

@@ -253,29 +253,51 @@ pub struct Report {
     pub materials: Vec<MaterialReport>,
 }
 
-/// A method's report without rendering results (filled in by the rendering step).
+/// How a learned method's blob came about; [`Training::NONE`] for the references (cosine,
+/// the oracle, a measured material's own sampler) and for committed fixtures.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Training {
+    /// Wall-clock training time, seconds.
+    pub seconds: f64,
+    /// The last step's loss.
+    pub final_loss: Option<f32>,
+    /// The blob's size.
+    pub blob_bytes: usize,
+    /// The blob check's largest relative difference from the trained model.
+    pub blob_vs_model: Option<f64>,
+}
+
+impl Training {
+    /// Nothing trained.
+    pub const NONE: Training = Training {
+        seconds: 0.0,
+        final_loss: None,
+        blob_bytes: 0,
+        blob_vs_model: None,
+    };
+}
+
+/// A method's report without rendering results (filled in by the rendering step): its
+/// training, its fit with the KL to the source material where there is one, its cost.
 pub(crate) fn method_report(
     method: &str,
-    train_seconds: f64,
-    final_loss: Option<f32>,
-    blob_bytes: usize,
-    blob_vs_model: Option<f64>,
-    fit: Fit,
+    training: Training,
+    (fit, kl_vs_source): (Fit, Option<f64>),
     cost: Cost,
 ) -> MethodReport {
     MethodReport {
         method: method.to_string(),
-        train_seconds,
-        final_loss,
-        blob_bytes,
-        blob_vs_model,
+        train_seconds: training.seconds,
+        final_loss: training.final_loss,
+        blob_bytes: training.blob_bytes,
+        blob_vs_model: training.blob_vs_model,
         kl_divergence: fit.kl_divergence,
         chi2: fit.chi2,
         chi2_worst: fit.chi2_worst,
         pdf_mse: fit.pdf_mse,
         mass_in_disk: fit.mass_in_disk,
         sampled: fit.sampled,
-        kl_vs_source: None,
+        kl_vs_source,
         ns_per_sample: cost.total_ns,
         cost_vs_material_eval: cost.total_ns / cost.material_eval_ns.max(1e-9),
         cost,
