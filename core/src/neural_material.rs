@@ -462,11 +462,8 @@ mod batch {
                 g: [[0.0; CHUNK]; DECODER_HIDDEN],
                 o: [[0.0; CHUNK]; DECODER_OUTPUTS],
             };
-            let mut a = 0;
-            while a < n {
-                let b = if n - a > CHUNK { a + CHUNK } else { n };
-                self.m.eval_chunk(&args, &mut self.out, (a, b), &mut s);
-                a = b;
+            for ab in crate::batch::chunks(n, CHUNK) {
+                self.m.eval_chunk(&args, &mut self.out, ab, &mut s);
             }
         }
     }

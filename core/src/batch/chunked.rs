@@ -3,7 +3,7 @@
 
 use super::simd::{dispatch, Isa, Kernel};
 use super::{
-    check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, BatchSampler,
+    check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, chunks, BatchSampler,
     Features, SamplesMut, Vec2s, Vec2sMut, Vec3s,
 };
 use crate::error::Result;
@@ -29,16 +29,6 @@ pub trait ChunkedSampler {
     fn invert_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, u: Vec2sMut<'_>, ok: &mut [bool]);
 }
 
-/// The chunks `[a, b)` of `0..n`, `c` lanes each.
-#[inline(always)]
-fn next_chunk(a: usize, n: usize, c: usize) -> usize {
-    if n - a > c {
-        a + c
-    } else {
-        n
-    }
-}
-
 struct Prepare<'a, 's, S: ChunkedSampler> {
     s: &'s S,
     phi: Features<'a>,
@@ -52,12 +42,9 @@ impl<S: ChunkedSampler> Kernel for Prepare<'_, '_, S> {
     #[inline(always)]
     fn run(self) {
         let n = self.lanes.len();
-        let mut a = 0;
-        while a < n {
-            let b = next_chunk(a, n, S::CHUNK);
+        for (a, b) in chunks(n, S::CHUNK) {
             let (phi, wi) = (self.phi.range(a, b), self.wi.range(a, b));
             self.s.prepare_chunk(phi, wi, &mut self.lanes[a..b]);
-            a = b;
         }
     }
 }
@@ -75,13 +62,10 @@ impl<S: ChunkedSampler> Kernel for Sample<'_, '_, S> {
     #[inline(always)]
     fn run(mut self) {
         let n = self.lanes.len();
-        let mut a = 0;
-        while a < n {
-            let b = next_chunk(a, n, S::CHUNK);
+        for (a, b) in chunks(n, S::CHUNK) {
             let u = self.u.range(a, b);
             self.s
                 .sample_chunk(&self.lanes[a..b], u, self.out.range(a, b));
-            a = b;
         }
     }
 }
@@ -99,12 +83,9 @@ impl<S: ChunkedSampler> Kernel for Pdf<'_, '_, S> {
     #[inline(always)]
     fn run(self) {
         let n = self.lanes.len();
-        let mut a = 0;
-        while a < n {
-            let b = next_chunk(a, n, S::CHUNK);
+        for (a, b) in chunks(n, S::CHUNK) {
             let wo = self.wo.range(a, b);
             self.s.pdf_chunk(&self.lanes[a..b], wo, &mut self.pdf[a..b]);
-            a = b;
         }
     }
 }
@@ -123,14 +104,11 @@ impl<S: ChunkedSampler> Kernel for Invert<'_, '_, S> {
     #[inline(always)]
     fn run(mut self) {
         let n = self.lanes.len();
-        let mut a = 0;
-        while a < n {
-            let b = next_chunk(a, n, S::CHUNK);
+        for (a, b) in chunks(n, S::CHUNK) {
             let wo = self.wo.range(a, b);
             let lanes = &self.lanes[a..b];
             self.s
                 .invert_chunk(lanes, wo, self.u.range(a, b), &mut self.ok[a..b]);
-            a = b;
         }
     }
 }

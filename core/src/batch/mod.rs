@@ -14,6 +14,43 @@ pub use views::{Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3
 
 use crate::error::Result;
 
+/// The chunks `[a, b)` of `0..n`, `c` lanes each (the last one shorter; `c = 0` counts as
+/// 1). A plain iterator without closures, so that a loop over it inside a dispatched kernel
+/// compiles for the kernel's instruction set.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Chunks {
+    a: usize,
+    n: usize,
+    c: usize,
+}
+
+impl Iterator for Chunks {
+    type Item = (usize, usize);
+    #[inline(always)]
+    fn next(&mut self) -> Option<(usize, usize)> {
+        if self.a >= self.n {
+            return None;
+        }
+        let a = self.a;
+        self.a = if self.n - a > self.c {
+            a + self.c
+        } else {
+            self.n
+        };
+        Some((a, self.a))
+    }
+}
+
+/// [`Chunks`] of `0..n`, `c` lanes each.
+#[inline(always)]
+pub(crate) fn chunks(n: usize, c: usize) -> Chunks {
+    Chunks {
+        a: 0,
+        n,
+        c: if c > 0 { c } else { 1 },
+    }
+}
+
 /// Lanes per chunk of the fused calls ([`BatchSampler::sample_fused`],
 /// [`BatchSampler::pdf_fused`]): their prepared states live on the stack.
 pub const FUSED_CHUNK: usize = 32;
@@ -91,17 +128,10 @@ pub(crate) fn sample_fused_chunks<S: BatchSampler + ?Sized>(
     u.check(n)?;
     out.check(n)?;
     let mut lanes = [S::Lane::default(); FUSED_CHUNK];
-    let mut a = 0;
-    while a < n {
-        let b = if n - a > FUSED_CHUNK {
-            a + FUSED_CHUNK
-        } else {
-            n
-        };
+    for (a, b) in chunks(n, FUSED_CHUNK) {
         let chunk = &mut lanes[..b - a];
         s.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
         s.sample_batch(chunk, u.range(a, b), out.range(a, b))?;
-        a = b;
     }
     Ok(())
 }
@@ -121,17 +151,10 @@ pub(crate) fn pdf_fused_chunks<S: BatchSampler + ?Sized>(
     wo.check(n)?;
     check_len("pdf", pdf.len(), n)?;
     let mut lanes = [S::Lane::default(); FUSED_CHUNK];
-    let mut a = 0;
-    while a < n {
-        let b = if n - a > FUSED_CHUNK {
-            a + FUSED_CHUNK
-        } else {
-            n
-        };
+    for (a, b) in chunks(n, FUSED_CHUNK) {
         let chunk = &mut lanes[..b - a];
         s.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
         s.pdf_batch(chunk, wo.range(a, b), &mut pdf[a..b])?;
-        a = b;
     }
     Ok(())
 }

@@ -12,7 +12,7 @@ use glam::{Vec2, Vec3};
 
 use crate::batch::check_len;
 use crate::batch::simd::{dispatch, Kernel};
-use crate::batch::{RgbMut, SamplesMut, Vec2s, Vec3s};
+use crate::batch::{chunks, RgbMut, SamplesMut, Vec2s, Vec3s};
 use crate::distrib::marginal2d::{invert_segment, lerp, patch, sample_segment, SliceBlend};
 use crate::error::Result;
 use crate::math;
@@ -515,19 +515,13 @@ impl<const A: bool> Kernel for Job<'_, A> {
         let c = &self.c;
         match self.op {
             Op::Eval { wi, wo, mut out } => {
-                let mut a = 0;
-                while a < wi.len() {
-                    let m = chunk_len(wi.len(), a);
-                    c.eval_chunk::<A>(&wi, &wo, &mut out, a, m);
-                    a += m;
+                for (a, b) in chunks(wi.len(), CHUNK) {
+                    c.eval_chunk::<A>(&wi, &wo, &mut out, a, b - a);
                 }
             }
             Op::Pdf { wi, wo, pdf } => {
-                let mut a = 0;
-                while a < wi.len() {
-                    let m = chunk_len(wi.len(), a);
-                    c.pdf_chunk::<A>(&wi, &wo, &mut pdf[a..a + m], a);
-                    a += m;
+                for (a, b) in chunks(wi.len(), CHUNK) {
+                    c.pdf_chunk::<A>(&wi, &wo, &mut pdf[a..b], a);
                 }
             }
             Op::Sample {
@@ -536,27 +530,15 @@ impl<const A: bool> Kernel for Job<'_, A> {
                 mut out,
                 mut weight,
             } => {
-                let mut a = 0;
-                while a < wi.len() {
-                    let m = chunk_len(wi.len(), a);
+                for (a, b) in chunks(wi.len(), CHUNK) {
+                    let m = b - a;
                     match &mut weight {
                         Some(w) => c.sample_chunk::<A, true>(&wi, &u, &mut out, Some(w), a, m),
                         None => c.sample_chunk::<A, false>(&wi, &u, &mut out, None, a, m),
                     }
-                    a += m;
                 }
             }
         }
-    }
-}
-
-/// Lanes in the chunk that starts at `a` of `n`.
-#[inline(always)]
-fn chunk_len(n: usize, a: usize) -> usize {
-    if n - a > CHUNK {
-        CHUNK
-    } else {
-        n - a
     }
 }
 

@@ -11,7 +11,9 @@ use crate::weights::Tensor;
 
 use super::*;
 
-/// The batched calls of [`AnySampler`], written once over `each_kind!`.
+/// The batched calls of [`AnySampler`], written once over `each_kind!` (not on SPIR-V, which
+/// has no batched path).
+#[cfg(not(target_arch = "spirv"))]
 macro_rules! batch_impl {
     ($each_kind:ident) => {
         impl LaneState for AnyLane {
@@ -26,9 +28,7 @@ macro_rules! batch_impl {
             ($lanes:expr, $variant:ident, $lane_ty:ty, |$typed:ident, $a:ident| $body:expr) => {{
                 let lanes = $lanes;
                 let mut buf: [Option<$lane_ty>; FUSED_CHUNK] = [None; FUSED_CHUNK];
-                let mut $a = 0;
-                while $a < lanes.len() {
-                    let b = ($a + FUSED_CHUNK).min(lanes.len());
+                for ($a, b) in crate::batch::chunks(lanes.len(), FUSED_CHUNK) {
                     for (t, l) in buf.iter_mut().zip(&lanes[$a..b]) {
                         *t = match l {
                             AnyLane::$variant(x) => Some(*x),
@@ -37,7 +37,6 @@ macro_rules! batch_impl {
                     }
                     let $typed = &buf[..b - $a];
                     $body?;
-                    $a = b;
                 }
                 Ok(())
             }};
@@ -56,9 +55,7 @@ macro_rules! batch_impl {
                 macro_rules! prep {
                     ($s:expr, $variant:ident, $lane_ty:ty) => {{
                         let mut buf: [Option<$lane_ty>; FUSED_CHUNK] = [None; FUSED_CHUNK];
-                        let mut a = 0;
-                        while a < n {
-                            let b = (a + FUSED_CHUNK).min(n);
+                        for (a, b) in crate::batch::chunks(n, FUSED_CHUNK) {
                             $s.prepare_batch(phi.range(a, b), wi.range(a, b), &mut buf[..b - a])?;
                             for (l, t) in lanes[a..b].iter_mut().zip(&buf[..b - a]) {
                                 *l = match t {
@@ -66,7 +63,6 @@ macro_rules! batch_impl {
                                     None => AnyLane::Refused,
                                 };
                             }
-                            a = b;
                         }
                         Ok::<(), Error>(())
                     }};

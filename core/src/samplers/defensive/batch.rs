@@ -3,8 +3,8 @@
 
 use super::*;
 use crate::batch::{
-    check_invert_args, check_pdf_args, check_sample_args, BatchSampler, Features, LaneState,
-    SamplesMut, Vec2s, Vec2sMut, Vec3s, FUSED_CHUNK,
+    check_invert_args, check_pdf_args, check_sample_args, chunks, BatchSampler, Features,
+    LaneState, SamplesMut, Vec2s, Vec2sMut, Vec3s, FUSED_CHUNK,
 };
 use crate::error::Result;
 
@@ -22,13 +22,7 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
         }
         let n = check_sample_args(lanes, &u, &out)?;
         let alpha = self.alpha;
-        let mut a = 0;
-        while a < n {
-            let b = if n - a > FUSED_CHUNK {
-                a + FUSED_CHUNK
-            } else {
-                n
-            };
+        for (a, b) in chunks(n, FUSED_CHUNK) {
             let m = b - a;
             // Uniforms for the learned part (NaN refuses a lane whose `u` is invalid or
             // that chose cosine: the learned kernel's result there is not used).
@@ -96,7 +90,6 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
                     chunk.set(at[j], Sample::from_solid_angle(wo, mix(alpha, pl[j], wo.z)));
                 }
             }
-            a = b;
         }
         Ok(())
     }
