@@ -50,17 +50,7 @@ impl Sample {
     #[must_use]
     pub fn from_disk(p: Vec2, pdf_disk: f32) -> Option<Sample> {
         let wo = warp::from_disk(p)?;
-        let pdf = warp::disk_to_solid_angle(pdf_disk, wo.z);
-        if pdf > 0.0 && crate::math::is_finite(pdf) {
-            Some(Sample {
-                wo,
-                pdf,
-                pdf_disk,
-                mis_pdf: pdf,
-            })
-        } else {
-            None
-        }
+        Sample::checked(wo, warp::disk_to_solid_angle(pdf_disk, wo.z), pdf_disk)
     }
 
     /// A sample at direction `wo` (`wo.z > 0`) drawn with solid-angle density `pdf` (and the
@@ -68,11 +58,18 @@ impl Sample {
     #[inline]
     #[must_use]
     pub fn from_solid_angle(wo: Vec3, pdf: f32) -> Option<Sample> {
+        Sample::checked(wo, pdf, warp::solid_angle_to_disk(pdf, wo.z))
+    }
+
+    /// The sample with densities `pdf` (solid angle, also its MIS density) and `pdf_disk`,
+    /// or `None` when `pdf` is not finite and positive.
+    #[inline(always)]
+    fn checked(wo: Vec3, pdf: f32, pdf_disk: f32) -> Option<Sample> {
         if pdf > 0.0 && crate::math::is_finite(pdf) {
             Some(Sample {
                 wo,
                 pdf,
-                pdf_disk: warp::solid_angle_to_disk(pdf, wo.z),
+                pdf_disk,
                 mis_pdf: pdf,
             })
         } else {

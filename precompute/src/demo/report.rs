@@ -255,7 +255,7 @@ pub struct Report {
 
 /// How a learned method's blob came about; [`Training::NONE`] for the references (cosine,
 /// the oracle, a measured material's own sampler) and for committed fixtures.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 pub(crate) struct Training {
     /// Wall-clock training time, seconds.
     pub seconds: f64,
