@@ -84,7 +84,6 @@ class NeuralBxDF {
     Check(st, "sample");
     Vector3f wi{s.wo.x, s.wo.y, s.wo.z};
     RGB value = f(wo, wi);
-    if (s.mis_pdf == s.pdf) return BSDFSample{value, wi, s.pdf};
     if (!(s.mis_pdf > 0.0f)) return std::nullopt;
     float k = s.mis_pdf / s.pdf;
     return BSDFSample{{value.r * k, value.g * k, value.b * k}, wi, s.mis_pdf};

@@ -215,7 +215,7 @@ def bsdf_class():
             enabled = ctx.is_enabled(mi.BSDFFlags.GlossyReflection)
             bs = dr.zeros(mi.BSDFSample3f, n if jit else 1)
             bs.wo = to_vec3(wo)
-            bs.pdf = to_float(np.where(ok, mis, 0.0).astype(np.float32))
+            bs.pdf = to_float(mis)  # 0 at refused lanes, as pdf
             bs.eta = 1.0
             bs.sampled_type = mi.UInt32(+mi.BSDFFlags.GlossyReflection)
             bs.sampled_component = mi.UInt32(0)
