@@ -61,6 +61,35 @@ impl TrainedBlob {
     }
 }
 
+/// The training settings of `neusample demo --train`: the quick schedule with `a.quick`,
+/// else the defaults scaled by `a.steps_scale`; seed `a.seed`.
+pub(crate) fn demo_train_config(a: &DemoConfig) -> TrainConfig {
+    let mut cfg = if a.quick {
+        TrainConfig::quick()
+    } else {
+        TrainConfig::default().with_steps_scaled(a.steps_scale)
+    };
+    cfg.common.seed = a.seed;
+    cfg
+}
+
+/// The label [`train_blob`] gives the blob of `method` trained on the material `mname` with
+/// `cfg`: it ends with a fingerprint of every training setting, so that a run which finds
+/// the blob on disk can tell whether it was trained as that run would train it (the
+/// fingerprint is the standard library's hash of the settings' `Debug` text: another
+/// toolchain may change it, which costs a retraining, never a stale blob).
+pub(crate) fn demo_blob_label(mname: &str, method: SamplerKind, cfg: &TrainConfig) -> String {
+    use std::hash::{DefaultHasher, Hash, Hasher};
+    let mut h = DefaultHasher::new();
+    format!("{cfg:?}").hash(&mut h);
+    format!(
+        "demo material={mname} method={} steps={} settings={:016x}",
+        method.name(),
+        cfg.schedule(method).map_or(0, |s| s.steps),
+        h.finish()
+    )
+}
+
 /// `method` trained on `m` as `neusample demo --train` trains it: the quick schedule with
 /// `a.quick`, else the defaults scaled by `a.steps_scale`; seed `a.seed`; baked to f32,
 /// checked and given its defensive weight.
@@ -70,18 +99,10 @@ pub(crate) fn train_blob(
     a: &DemoConfig,
 ) -> Result<TrainedBlob> {
     let (mname, method_name) = (m.name(), method.name());
-    let mut cfg = if a.quick {
-        TrainConfig::quick()
-    } else {
-        TrainConfig::default().with_steps_scaled(a.steps_scale)
-    };
-    cfg.common.seed = a.seed;
+    let cfg = demo_train_config(a);
     let trained = train::train(m, method, &cfg)
         .with_context(|| format!("training {method_name} on {mname}"))?;
-    let label = format!(
-        "demo material={mname} method={method_name} steps={}",
-        cfg.schedule(method).map_or(0, |s| s.steps)
-    );
+    let label = demo_blob_label(mname, method, &cfg);
     let (bytes, v) = bake::checked_blob_bytes(
         &trained,
         DType::F32,

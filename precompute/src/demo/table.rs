@@ -266,8 +266,10 @@ fn neural_dir() -> PathBuf {
 
 /// The samplers of the material file `m`: `None` when `fixtures/blobs/<name>/` holds every
 /// method evaluated (the demo reads them there); else the folder `<out>/blobs`, after training
-/// the methods not yet in `<out>/blobs/<name>/` as `demo --train` trains them (blobs already
-/// there are kept: a run of one lighting, then of the other, evaluates the same samplers).
+/// the methods not yet in `<out>/blobs/<name>/` as `demo --train` trains them. A blob already
+/// there is kept when its label says it was trained with this run's settings (a run of one
+/// lighting, then of the other, evaluates the same samplers), and trained again otherwise
+/// (e.g. a `--smoke` blob met by a full run).
 fn file_samplers(cfg: &TableConfig, m: &dyn Material) -> Result<Option<PathBuf>> {
     let demo = cfg.demo(Lighting::Uniform, &[], &[]);
     let name = slug(m.name());
@@ -285,10 +287,17 @@ fn file_samplers(cfg: &TableConfig, m: &dyn Material) -> Result<Option<PathBuf>>
         return Ok(None);
     }
     let dir = cfg.out.join("blobs");
+    let settings = pipeline::demo_train_config(&demo);
     for &k in &methods {
         let path = fixture_path(&dir, &name, k.name());
-        if path.exists() {
-            continue;
+        let want = pipeline::demo_blob_label(m.name(), k, &settings);
+        match trained_label(&path) {
+            Some(label) if label == want => continue,
+            Some(_) => eprintln!(
+                "neusample table: {} was not trained with this run's settings; retraining",
+                path.display()
+            ),
+            None => {}
         }
         eprintln!(
             "neusample table: training {} on {} into {}",
@@ -300,6 +309,13 @@ fn file_samplers(cfg: &TableConfig, m: &dyn Material) -> Result<Option<PathBuf>>
         io::atomic_write(&path, &trained.bytes)?;
     }
     Ok(Some(dir))
+}
+
+/// The label of the blob at `path`; `None` when there is no file or it is not a blob.
+fn trained_label(path: &Path) -> Option<String> {
+    let bytes = std::fs::read(path).ok()?;
+    let blob = neusample::Blob::open(&bytes).ok()?;
+    Some(blob.header().label.to_string())
 }
 
 /// Whether the neural version of `name` and its samplers of `methods` are committed.
@@ -611,4 +627,45 @@ fn med_range(v: &mut Vec<f64>, digits: usize) -> String {
         v[0],
         v[v.len() - 1]
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A blob in `<out>/blobs` is reused only when its label names this run's training
+    /// settings: another schedule, step scale or seed gives another label (the lighting
+    /// does not: both lightings evaluate one set of samplers), and a missing or broken file
+    /// has no label.
+    #[test]
+    fn blobs_trained_with_other_settings_are_not_reused() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut t = TableConfig::new(dir.path());
+        let k = SamplerKind::ImprovedBaseline;
+        let label =
+            |d: &DemoConfig| pipeline::demo_blob_label("mint", k, &pipeline::demo_train_config(d));
+        t.smoke = true;
+        let quick = t.demo(Lighting::Uniform, &[], &[]);
+        t.smoke = false;
+        let full = t.demo(Lighting::Uniform, &[], &[]);
+        assert_eq!(label(&full), label(&t.demo(Lighting::SkySun, &[], &[])));
+        assert_eq!(label(&quick), label(&quick.clone()));
+        assert_ne!(label(&quick), label(&full));
+        let mut reseeded = full.clone();
+        reseeded.seed += 1;
+        assert_ne!(label(&full), label(&reseeded));
+        let mut longer = full.clone();
+        longer.steps_scale *= 2.0;
+        assert_ne!(label(&full), label(&longer));
+        let head = format!("demo material=mint method={} steps=", k.name());
+        assert!(label(&full).starts_with(&head), "{}", label(&full));
+
+        let path = dir.path().join("baseline.nsb");
+        assert_eq!(trained_label(&path), None);
+        std::fs::write(&path, b"not a blob").unwrap();
+        assert_eq!(trained_label(&path), None);
+        let committed = fixture_path(&fixtures_dir(), "goat_leather_neural", "flow");
+        let l = trained_label(&committed).expect("a committed blob has a label");
+        assert!(l.contains("method=flow"), "{l}");
+    }
 }
