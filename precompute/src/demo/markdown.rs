@@ -156,10 +156,10 @@ fn speedup_table(s: &mut String, r: &Report) {
             .methods
             .iter()
             .map(|x| {
-                let t = x.render.as_ref().map_or_else(
-                    || fmt_x(x.speedup_vs_baseline),
-                    |rr| fmt_x_interval(&rr.speedup),
-                );
+                let t = x
+                    .render
+                    .as_ref()
+                    .map_or_else(|| fmt_x(None), |rr| fmt_x_interval(&rr.speedup));
                 match &m.verdict {
                     Some(v) if v.clear && v.best == x.method => format!("**{t}**"),
                     _ => t,
@@ -240,7 +240,7 @@ fn fit_table(s: &mut String, m: &MaterialReport) {
             x.cost.total_ns,
             x.cost.scalar_total_ns,
             x.cost.material_eval_ns,
-            x.cost_vs_material_eval,
+            x.cost_vs_material_eval(),
             x.train_seconds,
             x.blob_bytes
         );

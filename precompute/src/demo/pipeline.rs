@@ -401,10 +401,8 @@ fn render_report(
         mse_equal_spp: e.mse_equal_spp,
         equal_time_spp: e.equal_time_spp,
         mse_equal_time: e.mse_equal_time,
-        speedup_vs_baseline: speedup.value,
         speedup_measured_mse: metrics::speedup_measured(e, base),
         mse_expected_equal_spp: e.mse_expected_equal_spp,
-        mse_ratio_equal_spp: mse_ratio.value,
         convergence: e.convergence.clone(),
         equal_time_exr,
         equal_time_png,
@@ -559,9 +557,6 @@ fn render_material(
         spp_tiles.push(spp_tile);
         let r = render_report(e, &evals[base], cosine_ns, p.settings.seed, paths);
         if let Some(mr) = methods.iter_mut().find(|x| x.method == e.name) {
-            mr.speedup_vs_baseline = Some(r.speedup_vs_baseline);
-            mr.mse_equal_spp = Some(r.mse_equal_spp);
-            mr.mse_equal_time = Some(r.mse_equal_time);
             mr.render = Some(r);
         }
     }

@@ -11,7 +11,7 @@ use crate::util::json::{f64_or_nan, nan};
 use crate::util::stats::Estimate;
 
 /// Schema version of `report.json` (`docs/report_schema.md` documents it).
-pub const REPORT_SCHEMA: u32 = 4;
+pub const REPORT_SCHEMA: u32 = 5;
 
 /// Rendering results of one method on one material (see [`crate::eval::metrics`]).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -32,10 +32,6 @@ pub struct RenderReport {
     /// MSE of the equal-time render.
     #[serde(deserialize_with = "f64_or_nan")]
     pub mse_equal_time: f64,
-    /// Speed-up over the improved baseline at equal quality (Table 2): the value of
-    /// `speedup`.
-    #[serde(deserialize_with = "f64_or_nan")]
-    pub speedup_vs_baseline: f64,
     /// The same speed-up from the measured MSEs against the reference (noisier).
     #[serde(deserialize_with = "f64_or_nan")]
     pub speedup_measured_mse: f64,
@@ -43,10 +39,6 @@ pub struct RenderReport {
     /// plain mean dominated by rare bright samples; the speed-up uses `variance` instead).
     #[serde(deserialize_with = "f64_or_nan")]
     pub mse_expected_equal_spp: f64,
-    /// Expected-MSE ratio baseline / method at equal spp (the speed-up if sampling cost
-    /// nothing: the paper's "sampling rate" view).
-    #[serde(deserialize_with = "f64_or_nan")]
-    pub mse_ratio_equal_spp: f64,
     /// Independent sample blocks of the equal-spp render (the units the intervals resample).
     pub blocks: u32,
     /// Per-sample variance `V`: the median of means over the blocks of
@@ -57,11 +49,11 @@ pub struct RenderReport {
     /// The equal-time render's MSE from its own blocks, with its interval (the interval is
     /// null with fewer than two blocks).
     pub mse_equal_time_interval: Estimate,
-    /// Speed-up over the improved baseline with its 95 % interval (`speedup_vs_baseline` is
-    /// its value).
+    /// Speed-up over the improved baseline at equal quality (Table 2), with its 95 %
+    /// interval.
     pub speedup: Estimate,
-    /// MSE ratio baseline / method at equal spp with its interval (`mse_ratio_equal_spp` is
-    /// its value).
+    /// Expected-MSE ratio baseline / method at equal spp (the speed-up if sampling cost
+    /// nothing: the paper's "sampling rate" view), with its interval.
     pub mse_ratio: Estimate,
     /// MSE vs spp and vs single-thread time.
     pub convergence: Vec<ConvergencePoint>,
@@ -114,21 +106,24 @@ pub struct MethodReport {
     pub kl_vs_source: Option<f64>,
     /// Single-thread cost.
     pub cost: Cost,
-    /// prepare + sample + pdf, ns (same as cost.total_ns).
-    #[serde(deserialize_with = "f64_or_nan")]
-    pub ns_per_sample: f64,
-    /// `cost.total_ns / cost.material_eval_ns` (Table 1: sampling vs material evaluation).
-    #[serde(deserialize_with = "f64_or_nan")]
-    pub cost_vs_material_eval: f64,
-    /// Speed-up over the improved baseline (copy of `render.speedup_vs_baseline`; null
-    /// without rendering).
-    pub speedup_vs_baseline: Option<f64>,
-    /// MSE at equal spp (copy of `render.mse_equal_spp`).
-    pub mse_equal_spp: Option<f64>,
-    /// MSE at equal time (copy of `render.mse_equal_time`).
-    pub mse_equal_time: Option<f64>,
     /// Rendering results (null with `--no-render`).
     pub render: Option<RenderReport>,
+}
+
+impl MethodReport {
+    /// `cost.total_ns / cost.material_eval_ns` (Table 1: sampling against material
+    /// evaluation).
+    #[must_use]
+    pub fn cost_vs_material_eval(&self) -> f64 {
+        self.cost.total_ns / self.cost.material_eval_ns.max(1e-9)
+    }
+
+    /// The speed-up over the improved baseline at equal quality (Table 2); `None` without
+    /// rendering.
+    #[must_use]
+    pub fn speedup_vs_baseline(&self) -> Option<f64> {
+        self.render.as_ref().map(|r| r.speedup.value)
+    }
 }
 
 /// The reference image of a material.
@@ -298,12 +293,7 @@ pub(crate) fn method_report(
         mass_in_disk: fit.mass_in_disk,
         sampled: fit.sampled,
         kl_vs_source,
-        ns_per_sample: cost.total_ns,
-        cost_vs_material_eval: cost.total_ns / cost.material_eval_ns.max(1e-9),
         cost,
-        speedup_vs_baseline: None,
-        mse_equal_spp: None,
-        mse_equal_time: None,
         render: None,
     }
 }
