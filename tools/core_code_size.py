@@ -60,7 +60,7 @@ def classify(name):
     isa = "V4" if "x86::v4::V4>::vectorize" in name else "V3" if "x86::v3::V3>::vectorize" in name else "base"
     if "dense::Tiled" in name:
         return "dense kernels (tiled)", isa
-    if "batch::dense::" in name:
+    if "wavefront::dense::" in name:
         return "dense kernels (portable)", isa
     owners = re.findall(r"\b([A-Z][A-Za-z0-9]+(?:Sampler|Material))\b", name)
     return (owners[0] if owners else "other"), isa

@@ -25,12 +25,11 @@
 //! | `dtype`, `error`, `kind`, `math`, [`warp`], `weights` | leaves: the storage type, the error type, the kind enums, the only calls to transcendental functions, disk ↔ hemisphere warps, parameter storage ([`Weights`]) |
 //! | [`nn`] | dense layers and the condition encodings |
 //! | [`distrib`] | Gaussians, RQ splines, [`Table2D`], [`distrib::Marginal2D`] |
-//! | `batch` | the batched path's building blocks (not on SPIR-V): structure-of-arrays views, the `BatchSampler` trait, chunked kernels, run-time instruction-set dispatch, dense layers over lanes |
+//! | [`wavefront`] | the batched API (not on SPIR-V): structure-of-arrays views, the `BatchSampler` trait, and its private building blocks (chunked kernels, run-time instruction-set dispatch, dense layers over lanes) |
 //! | [`samplers`] | one file per method (scalar, and batched beside it), the [`Sampler`]/[`Prepared`] traits, [`AnySampler`] |
 //! | [`neural_material`] | the neural BRDF the samplers are trained for |
 //! | [`measured`] | measured (RGL) BRDFs: their evaluation and their own VNDF sampler |
 //! | [`blob`] | the file format: layout, reader, validation, writer |
-//! | `wavefront` | the batched API as users see it: `batch`'s public items and the samplers' lane types |
 //!
 //! Everything a renderer needs is re-exported here; the modules add the architecture
 //! constants and building blocks a trainer or a test needs.
@@ -70,8 +69,6 @@
 #[cfg(feature = "alloc")]
 extern crate alloc;
 
-#[cfg(not(target_arch = "spirv"))]
-mod batch;
 pub mod blob;
 pub mod distrib;
 mod dtype;

@@ -310,9 +310,9 @@ mod batch {
     //! [`NeuralMaterial::eval`] within the `wavefront` tolerances.
 
     use super::*;
-    use crate::batch::simd::{dispatch, Kernel};
-    use crate::batch::{check_len, dense, Features, FeaturesMut, RgbMut, Soa, Vec2s, Vec3s};
     use crate::error::Result;
+    use crate::wavefront::simd::{dispatch, Kernel};
+    use crate::wavefront::{check_len, dense, Features, FeaturesMut, RgbMut, Soa, Vec2s, Vec3s};
 
     /// Lanes per chunk (two 64-wide activations of 64 lanes: 32 KiB). Each register tile
     /// of the dense kernel widens its weights once per chunk, so 64 lanes amortise that
@@ -462,7 +462,7 @@ mod batch {
                 g: [[0.0; CHUNK]; DECODER_HIDDEN],
                 o: [[0.0; CHUNK]; DECODER_OUTPUTS],
             };
-            for ab in crate::batch::chunks(n, CHUNK) {
+            for ab in crate::wavefront::chunks(n, CHUNK) {
                 self.m.eval_chunk(&args, &mut self.out, ab, &mut s);
             }
         }

@@ -10,12 +10,12 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::batch::check_len;
-use crate::batch::simd::{dispatch, Kernel};
-use crate::batch::{chunks, RgbMut, SamplesMut, Vec2s, Vec3s};
 use crate::distrib::marginal2d::{invert_segment, lerp, patch, sample_segment, SliceBlend};
 use crate::error::Result;
 use crate::math;
+use crate::wavefront::check_len;
+use crate::wavefront::simd::{dispatch, Kernel};
+use crate::wavefront::{chunks, RgbMut, SamplesMut, Vec2s, Vec3s};
 use crate::weights::Weights;
 
 use super::{

@@ -28,7 +28,7 @@ macro_rules! batch_impl {
             ($lanes:expr, $variant:ident, $lane_ty:ty, |$typed:ident, $a:ident| $body:expr) => {{
                 let lanes = $lanes;
                 let mut buf: [Option<$lane_ty>; FUSED_CHUNK] = [None; FUSED_CHUNK];
-                for ($a, b) in crate::batch::chunks(lanes.len(), FUSED_CHUNK) {
+                for ($a, b) in crate::wavefront::chunks(lanes.len(), FUSED_CHUNK) {
                     for (t, l) in buf.iter_mut().zip(&lanes[$a..b]) {
                         *t = match l {
                             AnyLane::$variant(x) => Some(*x),
@@ -51,11 +51,11 @@ macro_rules! batch_impl {
                 wi: Vec3s<'_>,
                 lanes: &mut [AnyLane],
             ) -> Result<()> {
-                let n = crate::batch::check_prepare_args(&phi, &wi, lanes)?;
+                let n = crate::wavefront::check_prepare_args(&phi, &wi, lanes)?;
                 macro_rules! prep {
                     ($s:expr, $variant:ident, $lane_ty:ty) => {{
                         let mut buf: [Option<$lane_ty>; FUSED_CHUNK] = [None; FUSED_CHUNK];
-                        for (a, b) in crate::batch::chunks(n, FUSED_CHUNK) {
+                        for (a, b) in crate::wavefront::chunks(n, FUSED_CHUNK) {
                             $s.prepare_batch(phi.range(a, b), wi.range(a, b), &mut buf[..b - a])?;
                             for (l, t) in lanes[a..b].iter_mut().zip(&buf[..b - a]) {
                                 *l = match t {
@@ -76,7 +76,7 @@ macro_rules! batch_impl {
                 u: Vec2s<'_>,
                 mut out: SamplesMut<'_>,
             ) -> Result<()> {
-                crate::batch::check_sample_args(lanes, &u, &out)?;
+                crate::wavefront::check_sample_args(lanes, &u, &out)?;
                 macro_rules! samp {
                     ($s:expr, $variant:ident, $lane_ty:ty) => {
                         typed!(lanes, $variant, $lane_ty, |t, a| $s.sample_batch(
@@ -90,7 +90,7 @@ macro_rules! batch_impl {
             }
 
             fn pdf_batch(&self, lanes: &[AnyLane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
-                crate::batch::check_pdf_args(lanes, &wo, pdf)?;
+                crate::wavefront::check_pdf_args(lanes, &wo, pdf)?;
                 macro_rules! dens {
                     ($s:expr, $variant:ident, $lane_ty:ty) => {
                         typed!(lanes, $variant, $lane_ty, |t, a| $s.pdf_batch(
@@ -110,7 +110,7 @@ macro_rules! batch_impl {
                 mut u: Vec2sMut<'_>,
                 ok: &mut [bool],
             ) -> Result<()> {
-                crate::batch::check_invert_args(lanes, &wo, &u, ok)?;
+                crate::wavefront::check_invert_args(lanes, &wo, &u, ok)?;
                 macro_rules! inv {
                     ($s:expr, $variant:ident, $lane_ty:ty) => {
                         typed!(lanes, $variant, $lane_ty, |t, a| $s.invert_batch(
@@ -252,7 +252,7 @@ impl Prepared for AnyPrepared<'_, '_> {
             //! sampler's batched kernels; and the visitor that hands out the concrete sampler.
 
             use super::*;
-            use crate::batch::{
+            use crate::wavefront::{
                 BatchSampler, Features, LaneState, SamplesMut, Vec2s, Vec2sMut, Vec3s,
                 FUSED_CHUNK,
             };

@@ -57,15 +57,15 @@ impl Prepared for CosinePrepared {
 }
 
 #[cfg(not(target_arch = "spirv"))]
-impl crate::batch::chunked::ChunkedSampler for CosineSampler {
+impl crate::wavefront::chunked::ChunkedSampler for CosineSampler {
     type Lane = Option<CosinePrepared>;
     const CHUNK: usize = 64;
 
     #[inline(always)]
     fn prepare_chunk(
         &self,
-        phi: crate::batch::Features<'_>,
-        wi: crate::batch::Vec3s<'_>,
+        phi: crate::wavefront::Features<'_>,
+        wi: crate::wavefront::Vec3s<'_>,
         lanes: &mut [Option<CosinePrepared>],
     ) {
         for (i, lane) in lanes.iter_mut().enumerate() {
@@ -73,5 +73,5 @@ impl crate::batch::chunked::ChunkedSampler for CosineSampler {
         }
     }
 
-    crate::batch::per_lane_chunks!(CosinePrepared);
+    crate::wavefront::per_lane_chunks!(CosinePrepared);
 }

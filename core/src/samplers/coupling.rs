@@ -7,9 +7,9 @@ use crate::nn::{self, encoding_len, CONDITION_DIM};
 use crate::weights::Weights;
 #[cfg(not(target_arch = "spirv"))]
 use {
-    crate::batch::lanes::V8,
-    crate::batch::simd::{dispatch, Isa, Kernel},
     crate::distrib::spline::Knots,
+    crate::wavefront::lanes::V8,
+    crate::wavefront::simd::{dispatch, Isa, Kernel},
     core::marker::PhantomData,
 };
 
@@ -125,10 +125,10 @@ pub(crate) fn coupling_raw_chunk<W: Weights, const RAW: usize, const CHUNK: usiz
     share: &[[f32; HIDDEN]; CHUNK],
     v: &[f32; CHUNK],
     m: usize,
-    raw: &mut crate::batch::Soa<RAW, CHUNK>,
+    raw: &mut crate::wavefront::Soa<RAW, CHUNK>,
 ) {
-    use crate::batch::{dense, lanes};
     use crate::nn::Activation;
+    use crate::wavefront::{dense, lanes};
     let mut h = [[0.0f32; CHUNK]; HIDDEN];
     for (l, s) in share.iter().enumerate().take(m) {
         for (j, x) in s.iter().enumerate() {
@@ -243,7 +243,7 @@ impl<E: SplineEnds<K, RAW>, W: Weights, const K: usize, const RAW: usize, const 
 
     #[inline(always)]
     fn run(self) {
-        let mut raw: crate::batch::Soa<RAW, CHUNK> = [[0.0; CHUNK]; RAW];
+        let mut raw: crate::wavefront::Soa<RAW, CHUNK> = [[0.0; CHUNK]; RAW];
         coupling_raw_chunk(self.w, self.offset, self.share, self.v, self.m, &mut raw);
         for (g, kn) in self.knots.iter_mut().enumerate().take(self.m.div_ceil(8)) {
             let mut r = [V8::splat(0.0); RAW];

@@ -7,10 +7,6 @@ use super::{
     scale_shift, AffineFlowLane, AffineFlowPrepared, AffineFlowSampler, AFFINE_LAYERS,
     AFFINE_NET_L0, AFFINE_NET_L1, AFFINE_NET_L2, AFFINE_NET_LEN, AFFINE_OUTPUTS,
 };
-use crate::batch::chunked::ChunkedSampler;
-use crate::batch::lanes;
-use crate::batch::lanes::density_from_log;
-use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::gaussian;
 use crate::math;
 use crate::math::approx;
@@ -18,12 +14,16 @@ use crate::nn::{Activation, CONDITION_DIM};
 use crate::samplers::coupling::{COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
+use crate::wavefront::chunked::ChunkedSampler;
+use crate::wavefront::lanes;
+use crate::wavefront::lanes::density_from_log;
+use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk.
 const CHUNK: usize = 32;
 
-type Soa<const N: usize> = batch::Soa<N, CHUNK>;
+type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
 
 /// Per coupling layer and lane, the input `v` and the `(s, t)` computed from it.
 type Seen = [[(f32, f32, f32); CHUNK]; AFFINE_LAYERS];
@@ -151,7 +151,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         ld: &mut [f32; CHUNK],
     ) {
         let m = lanes.len();
-        let all = batch::identity_index::<CHUNK>();
+        let all = wavefront::identity_index::<CHUNK>();
         let mut p = [Vec2::ZERO; CHUNK];
         let mut v = [0.0f32; CHUNK];
         for i in 0..m {
@@ -175,7 +175,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
     #[inline(always)]
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<AffineFlowLane>]) {
         let m = out.len();
-        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
+        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
         let mut share: [Soa<HIDDEN>; AFFINE_LAYERS] = [[[0.0; CHUNK]; HIDDEN]; AFFINE_LAYERS];
         for (l, s) in share.iter_mut().enumerate() {
@@ -187,7 +187,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
             out[l] = if valid[l] {
                 let mut sh = [[0.0f32; HIDDEN]; AFFINE_LAYERS];
                 for (dst, src) in sh.iter_mut().zip(share.iter()) {
-                    *dst = batch::column(src, l);
+                    *dst = wavefront::column(src, l);
                 }
                 AffineFlowLane::new(sh)
             } else {
@@ -204,7 +204,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         mut out: SamplesMut<'_>,
     ) {
         let m = lanes.len();
-        let all = batch::identity_index::<CHUNK>();
+        let all = wavefront::identity_index::<CHUNK>();
         let mut ok = [false; CHUNK];
         let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         for i in 0..m {

@@ -2,9 +2,9 @@
 //! per lane.
 
 use super::*;
-use crate::batch::chunked::ChunkedSampler;
-use crate::batch::{self, dense, per_lane_chunks, Features, Soa, Vec3s};
 use crate::samplers::lobes::CHUNK;
+use crate::wavefront::chunked::ChunkedSampler;
+use crate::wavefront::{self, dense, per_lane_chunks, Features, Soa, Vec3s};
 
 impl<W: Weights> ChunkedSampler for AnalyticMixtureSampler<W> {
     type Lane = Option<AnalyticMixturePrepared>;
@@ -14,14 +14,14 @@ impl<W: Weights> ChunkedSampler for AnalyticMixtureSampler<W> {
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
         let w = &self.params;
         let m = lanes.len();
-        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
+        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
         let mut o: Soa<ANALYTIC_OUTPUTS, CHUNK> = [[0.0; CHUNK]; ANALYTIC_OUTPUTS];
         dense::dense(w, ANALYTIC_L0 as u32, &c, Activation::Relu, &mut h, m);
         dense::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity, &mut o, m);
         for l in 0..m {
             lanes[l] =
-                valid[l].then(|| AnalyticMixturePrepared::from_outputs(&batch::column(&o, l)));
+                valid[l].then(|| AnalyticMixturePrepared::from_outputs(&wavefront::column(&o, l)));
         }
     }
 

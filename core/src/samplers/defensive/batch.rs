@@ -2,11 +2,11 @@
 //! gathered into one `pdf_batch` of the learned part per chunk.
 
 use super::*;
-use crate::batch::{
+use crate::error::Result;
+use crate::wavefront::{
     check_invert_args, check_pdf_args, check_sample_args, chunks, BatchSampler, Features,
     LaneState, SamplesMut, Vec2s, Vec2sMut, Vec3s, FUSED_CHUNK,
 };
-use crate::error::Result;
 
 impl<S: BatchSampler> BatchSampler for Defensive<S> {
     type Lane = S::Lane;
@@ -134,7 +134,7 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
         if !self.is_mixed() {
             return self.inner.sample_fused(phi, wi, u, out);
         }
-        crate::batch::sample_fused_chunks(self, phi, wi, u, out)
+        crate::wavefront::sample_fused_chunks(self, phi, wi, u, out)
     }
 
     fn pdf_fused(
@@ -147,6 +147,6 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
         if !self.is_mixed() {
             return self.inner.pdf_fused(phi, wi, wo, pdf);
         }
-        crate::batch::pdf_fused_chunks(self, phi, wi, wo, pdf)
+        crate::wavefront::pdf_fused_chunks(self, phi, wi, wo, pdf)
     }
 }

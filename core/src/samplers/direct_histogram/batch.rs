@@ -2,8 +2,8 @@
 //! lanes, the histogram per lane ([`DirectHistogramPrepared::from_logits`]).
 
 use super::*;
-use crate::batch::chunked::ChunkedSampler;
-use crate::batch::{self, dense, per_lane_chunks, Features, Soa, Vec3s};
+use crate::wavefront::chunked::ChunkedSampler;
+use crate::wavefront::{self, dense, per_lane_chunks, Features, Soa, Vec3s};
 
 /// Lanes per chunk (the 256 logits of 16 lanes take 16 KiB).
 const CHUNK: usize = 16;
@@ -16,7 +16,7 @@ impl<W: Weights> ChunkedSampler for DirectHistogramSampler<W> {
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
         let w = &self.params;
         let m = lanes.len();
-        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
+        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let mut h: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
         let mut g: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
         let mut o: Soa<DIRECT_CELLS, CHUNK> = [[0.0; CHUNK]; DIRECT_CELLS];
@@ -26,7 +26,7 @@ impl<W: Weights> ChunkedSampler for DirectHistogramSampler<W> {
         dense::dense(w, DIRECT_L2 as u32, &g, Activation::Identity, &mut o, m);
         for l in 0..m {
             lanes[l] =
-                valid[l].then(|| DirectHistogramPrepared::from_logits(&batch::column(&o, l)));
+                valid[l].then(|| DirectHistogramPrepared::from_logits(&wavefront::column(&o, l)));
         }
     }
 

@@ -10,10 +10,6 @@ use super::{
     log_density, DiskFlowLane, DiskFlowSampler, DISK_FLOW_BINS, DISK_FLOW_COUPLING0,
     DISK_FLOW_COUPLING1, DISK_SPLINE_RAW_LEN,
 };
-use crate::batch::chunked::ChunkedSampler;
-use crate::batch::lanes::V8;
-use crate::batch::simd::Isa;
-use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::CONDITION_DIM;
@@ -22,6 +18,10 @@ use crate::samplers::coupling::{
 };
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
+use crate::wavefront::chunked::ChunkedSampler;
+use crate::wavefront::lanes::V8;
+use crate::wavefront::simd::Isa;
+use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk: activations, splines and lane states of a chunk stay in L1.
@@ -82,7 +82,7 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
     ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
-        let all = batch::identity_index::<CHUNK>();
+        let all = wavefront::identity_index::<CHUNK>();
         let mut k = [Knots::<DISK_FLOW_BINS, V8>::zeroed(); GROUPS];
         self.knots_for(1, lanes, &all, m, px, &mut k);
         let mut yb = [0.0f32; CHUNK];
@@ -139,7 +139,7 @@ impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
     #[inline(always)]
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<DiskFlowLane>]) {
         let m = out.len();
-        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
+        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
         let mut share = [[[0.0f32; CHUNK]; HIDDEN]; 2];
         for (s, net) in share
@@ -168,7 +168,7 @@ impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
     fn sample_chunk(&self, lanes: &[Option<DiskFlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
-        let all = batch::identity_index::<CHUNK>();
+        let all = wavefront::identity_index::<CHUNK>();
         // Base points (refused lanes keep b = 0 and are dropped at the end).
         let mut bx = [0.0f32; CHUNK];
         let mut by = [0.0f32; CHUNK];

@@ -3,9 +3,9 @@
 //! `lane_sample`, `lane_pdf_disk`, `lane_invert`).
 
 use super::*;
-use crate::batch::chunked::ChunkedSampler;
-use crate::batch::lanes::V8;
-use crate::batch::{self, dense, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s};
+use crate::wavefront::chunked::ChunkedSampler;
+use crate::wavefront::lanes::V8;
+use crate::wavefront::{self, dense, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s};
 
 /// Lanes per chunk.
 const CHUNK: usize = 32;
@@ -18,7 +18,7 @@ impl<W: Weights + Copy> ChunkedSampler for HistogramMixtureSampler<W> {
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]) {
         let w = &self.params;
         let m = lanes.len();
-        let (c, valid) = batch::raw_conditions::<CHUNK>(&phi, &wi);
+        let (c, valid) = wavefront::raw_conditions::<CHUNK>(&phi, &wi);
         let mut h: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
         let mut g: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
         let mut o: Soa<MIX_OUTPUTS, CHUNK> = [[0.0; CHUNK]; MIX_OUTPUTS];
@@ -40,7 +40,7 @@ impl<W: Weights + Copy> ChunkedSampler for HistogramMixtureSampler<W> {
         }
         for l in 0..m {
             lanes[l] = if valid[l] {
-                self.lane_from_softmax(&batch::column(&o, l), &batch::column(&soft, l))
+                self.lane_from_softmax(&wavefront::column(&o, l), &wavefront::column(&soft, l))
             } else {
                 None
             };

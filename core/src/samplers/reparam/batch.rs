@@ -13,13 +13,13 @@ use super::{
     ReparamSampler, DENSITY_L0, DENSITY_L1, REPARAM_HIDDEN, REPARAM_INPUTS, WARP_L0, WARP_L1,
     WARP_L2, WARP_OUTPUTS,
 };
-use crate::batch::chunked::ChunkedSampler;
-use crate::batch::lanes::{self, V8};
-use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::math;
 use crate::math::approx;
 use crate::nn::{Activation, CONDITION_DIM};
 use crate::warp::{self, inside_disk};
+use crate::wavefront::chunked::ChunkedSampler;
+use crate::wavefront::lanes::{self, V8};
+use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk.
@@ -28,7 +28,7 @@ const CHUNK: usize = 32;
 const STACK: usize = 3 * CHUNK;
 const H: usize = REPARAM_HIDDEN;
 
-type Soa<const N: usize> = batch::Soa<N, CHUNK>;
+type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
 
 /// `(silu(a), silu'(a))` with the fast sigmoid, per lane so that loops over a chunk's rows
 /// run at the full vector width.
@@ -62,7 +62,7 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
     #[inline(always)]
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<ReparamLane>]) {
         let m = out.len();
-        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
+        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
         let mut shares: [Soa<H>; 2] = [[[0.0; CHUNK]; H]; 2];
         for (s, off) in shares.iter_mut().zip([WARP_L0, DENSITY_L0]) {

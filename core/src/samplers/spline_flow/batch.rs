@@ -9,16 +9,16 @@ use super::{
     SplineFlowLane, SplineFlowSampler, BASE_OUTPUTS, FLOW_BASE_L0, FLOW_BASE_L1, FLOW_COUPLING0,
     FLOW_COUPLING1, SPLINE_BINS, SPLINE_RAW_LEN, TAIL_BOUND,
 };
-use crate::batch::chunked::ChunkedSampler;
-use crate::batch::lanes::{self, V8};
-use crate::batch::simd::Isa;
-use crate::batch::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
 use crate::samplers::coupling::{coupling_splines_chunk, BoundedEnds, COUPLING_INPUTS, HIDDEN};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
+use crate::wavefront::chunked::ChunkedSampler;
+use crate::wavefront::lanes::{self, V8};
+use crate::wavefront::simd::Isa;
+use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk: activations, splines and lane states of a chunk stay in L1.
@@ -27,7 +27,7 @@ const CHUNK: usize = 32;
 const GROUPS: usize = CHUNK / 8;
 
 /// Activations of a chunk: `[feature][lane]`.
-type Soa<const N: usize> = batch::Soa<N, CHUNK>;
+type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
 
 /// The base Gaussians of a chunk's lanes, as rows (refused lanes: `μ = 0`, `σ = 1`).
 struct Base {
@@ -126,7 +126,7 @@ impl<W: Weights + Copy> SplineFlowSampler<W> {
     ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
-        let all = batch::identity_index::<CHUNK>();
+        let all = wavefront::identity_index::<CHUNK>();
         let mut k = [Knots::<SPLINE_BINS, V8>::zeroed(); GROUPS];
         self.knots_for(FLOW_COUPLING1, lanes, &all, m, px, &mut k);
         let mut yl = [0.0f32; CHUNK];
@@ -159,7 +159,7 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
     #[inline(always)]
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<SplineFlowLane>]) {
         let m = out.len();
-        let (c, valid) = batch::encoded_conditions::<CHUNK>(&phi, &wi);
+        let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
         let mut h: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
         dense::dense::<W, CONDITION_DIM, HIDDEN, CHUNK>(
@@ -209,7 +209,7 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
     ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
-        let all = batch::identity_index::<CHUNK>();
+        let all = wavefront::identity_index::<CHUNK>();
         // Base points z = μ + σ ⊙ n (refused lanes keep z = 0 and are dropped at the end).
         let base = Base::of(lanes);
         let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);

@@ -1,17 +1,9 @@
-//! The batched runtime's building blocks: structure-of-arrays views, the [`BatchSampler`]
-//! trait, chunked kernels and their run-time instruction-set dispatch, dense layers over
-//! lanes. Samplers and the neural material implement their batched calls with these; users
-//! reach them through [`crate::wavefront`], which also names the samplers' lane types.
-pub(crate) mod chunked;
-pub(crate) mod dense;
-pub(crate) mod lanes;
-pub(crate) mod simd;
-mod views;
+//! [`BatchSampler`], the batched sampler interface, and what its implementations share:
+//! chunks of lanes, structure-of-arrays blocks, the condition encodings over lanes, the
+//! calls' argument checks.
 
-pub use simd::{current as current_isa, detected as detected_isa, prefer as prefer_isa, Isa};
-pub(crate) use views::check_len;
-pub use views::{Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut};
-
+use super::lanes;
+use super::views::{check_len, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::error::Result;
 
 /// The chunks `[a, b)` of `0..n`, `c` lanes each (the last one shorter; `c = 0` counts as
@@ -303,8 +295,8 @@ macro_rules! per_lane_chunks {
         fn sample_chunk(
             &self,
             lanes: &[Option<$p>],
-            u: $crate::batch::Vec2s<'_>,
-            mut out: $crate::batch::SamplesMut<'_>,
+            u: $crate::wavefront::Vec2s<'_>,
+            mut out: $crate::wavefront::SamplesMut<'_>,
         ) {
             for (i, l) in lanes.iter().enumerate() {
                 out.set(i, l.as_ref().and_then(|p| p.sample(u.at(i))));
@@ -312,7 +304,12 @@ macro_rules! per_lane_chunks {
         }
 
         #[inline(always)]
-        fn pdf_chunk(&self, lanes: &[Option<$p>], wo: $crate::batch::Vec3s<'_>, pdf: &mut [f32]) {
+        fn pdf_chunk(
+            &self,
+            lanes: &[Option<$p>],
+            wo: $crate::wavefront::Vec3s<'_>,
+            pdf: &mut [f32],
+        ) {
             for (i, l) in lanes.iter().enumerate() {
                 pdf[i] = l.as_ref().map_or(0.0, |p| p.pdf(wo.at(i)));
             }
@@ -322,8 +319,8 @@ macro_rules! per_lane_chunks {
         fn invert_chunk(
             &self,
             lanes: &[Option<$p>],
-            wo: $crate::batch::Vec3s<'_>,
-            mut u: $crate::batch::Vec2sMut<'_>,
+            wo: $crate::wavefront::Vec3s<'_>,
+            mut u: $crate::wavefront::Vec2sMut<'_>,
             ok: &mut [bool],
         ) {
             for (i, l) in lanes.iter().enumerate() {

@@ -32,14 +32,31 @@
 //!
 //! Densities are with respect to **solid angle**, `p_ω = p_disk · cos θo`, as in the scalar
 //! [`Prepared::pdf`](crate::Prepared::pdf).
-pub use crate::batch::{
-    current_isa, detected_isa, prefer_isa, BatchSampler, Features, FeaturesMut, Isa, LaneState,
-    RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut, FUSED_CHUNK,
+//!
+//! Each sampler's lane type is in its module ([`crate::samplers`]); [`AnyLane`] is the lane of
+//! any of them.
+//!
+//! The building blocks the samplers and the materials implement their batched calls with
+//! (chunked kernels, their run-time instruction-set dispatch, dense layers over lanes) are
+//! this module's private submodules.
+pub(crate) mod chunked;
+pub(crate) mod dense;
+pub(crate) mod lanes;
+mod sampler;
+pub(crate) mod simd;
+mod views;
+
+pub(crate) use sampler::{
+    check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, chunks, column,
+    encoded_conditions, identity_index, pdf_fused_chunks, per_lane_chunks, raw_conditions,
+    sample_fused_chunks, Soa,
 };
-pub use crate::samplers::{
-    AffineFlowLane, AnyLane, DiskFlowLane, HistogramMixtureLane, ReparamLane, SamplerVisitor,
-    SplineFlowLane,
-};
+pub use sampler::{BatchSampler, LaneState, FUSED_CHUNK};
+pub use simd::{current as current_isa, detected as detected_isa, prefer as prefer_isa, Isa};
+pub(crate) use views::check_len;
+pub use views::{Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut};
+
+pub use crate::samplers::{AnyLane, SamplerVisitor};
 
 /// One dense layer `dense(I, O)` at `offset` of `w` (`core/ARCHITECTURES.md`: weights
 /// input-major `W[i][o]`, then the bias) over a chunk of `B` lanes in structure-of-arrays
@@ -59,5 +76,5 @@ pub fn dense_layer<W: crate::Weights + ?Sized, const I: usize, const O: usize, c
     y: &mut [[f32; B]; O],
     m: usize,
 ) {
-    crate::batch::dense::dense(w, offset, x, act, y, m);
+    dense::dense(w, offset, x, act, y, m);
 }
