@@ -1,5 +1,6 @@
 """Shared fixtures of the neusample pytest suite."""
 
+import os
 from pathlib import Path
 
 import pytest
@@ -8,6 +9,22 @@ ROOT = Path(__file__).resolve().parents[3]
 FIXTURES = ROOT / "fixtures"
 MATERIALS = ["goat_leather_neural", "brushed_metal_neural", "victorian_fabric_neural"]
 METHODS = ["baseline", "analytic", "flow", "affine-flow", "direct-histogram", "histogram-mixture"]
+
+
+# CI sets NEUSAMPLE_REQUIRE_MITSUBA=1: there a missing Mitsuba or Dr.Jit fails the tests that
+# need it instead of skipping them.
+REQUIRE_MITSUBA = os.environ.get("NEUSAMPLE_REQUIRE_MITSUBA") == "1"
+
+
+def optional(setup):
+    """``(setup(), "")``, or ``(None, why)`` when ``setup`` (the imports and checks a test module
+    needs of Mitsuba or Dr.Jit) raises; under ``NEUSAMPLE_REQUIRE_MITSUBA=1`` it raises."""
+    try:
+        return setup(), ""
+    except Exception as e:  # noqa: BLE001 - any failure to get the backend or variant
+        if REQUIRE_MITSUBA:
+            raise
+        return None, str(e)
 
 
 def material_path(material: str) -> str:

@@ -27,26 +27,29 @@ Tolerances (the measured worst cases are printed at the end of the run):
 """
 
 import functools
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import neusample
-from conftest import FIXTURES, material_path
+from conftest import FIXTURES, material_path, optional
 
-REQUIRE = os.environ.get("NEUSAMPLE_REQUIRE_MITSUBA") == "1"
-try:
+
+
+def _llvm():
     import drjit as dr
     from drjit.llvm.ad import Float
 
     if not dr.has_backend(dr.JitBackend.LLVM):
         raise RuntimeError("Dr.Jit's LLVM backend is unavailable (libLLVM ≥ 15 missing)")
-except Exception as e:  # noqa: BLE001 - any failure to get the backend
-    if REQUIRE:
-        raise
-    pytest.skip(f"drjit llvm unavailable: {e}", allow_module_level=True)
+    return dr, Float
+
+
+_got, _why = optional(_llvm)
+if _got is None:
+    pytest.skip(f"drjit llvm unavailable: {_why}", allow_module_level=True)
+dr, Float = _got
 
 import neusample.drjit as nd  # noqa: E402
 

@@ -23,7 +23,6 @@ inversion is ill-conditioned where the tables are steep: Mitsuba's own round tri
 much on the anisotropic files).
 """
 
-import os
 import struct
 import sys
 import time
@@ -33,23 +32,22 @@ import numpy as np
 import pytest
 
 import neusample
-from conftest import FIXTURES, ROOT
+from conftest import FIXTURES, ROOT, optional
 
-REQUIRE = os.environ.get("NEUSAMPLE_REQUIRE_MITSUBA") == "1"
-try:
+
+def _scalar_rgb():
     import mitsuba as mi
 
     # Checked, not set: the reference sets scalar_rgb while it runs and `mitsuba_reference`
     # restores the variant that other modules (test_mitsuba: llvm_ad_rgb) set at import.
     if "scalar_rgb" not in mi.variants():
         raise ImportError(f"mitsuba {mi.__version__} lacks the scalar_rgb variant")
-    HAVE_MITSUBA = True
-    WHY = ""
-except Exception as e:  # noqa: BLE001 - any failure to get the variant
-    if REQUIRE:
-        raise
-    HAVE_MITSUBA = False
-    WHY = f"mitsuba scalar_rgb unavailable: {e}"
+    return mi
+
+
+mi, _why = optional(_scalar_rgb)
+HAVE_MITSUBA = mi is not None
+WHY = f"mitsuba scalar_rgb unavailable: {_why}"
 
 needs_mitsuba = pytest.mark.skipif(not HAVE_MITSUBA, reason=WHY)
 

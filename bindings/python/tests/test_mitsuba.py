@@ -8,24 +8,27 @@ Needs `mitsuba==3.9.1` and, for `llvm_ad_rgb`, a working LLVM (Debian: `libllvm1
 them the module is skipped, unless NEUSAMPLE_REQUIRE_MITSUBA=1 (CI), which makes it fail.
 """
 
-import os
 import time
 
 import numpy as np
 import pytest
 
-from conftest import FIXTURES, MATERIALS, METHODS, material_path, sampler_path
+from conftest import FIXTURES, MATERIALS, METHODS, material_path, optional, sampler_path
 
-REQUIRE = os.environ.get("NEUSAMPLE_REQUIRE_MITSUBA") == "1"
-try:
+
+
+def _llvm_ad_rgb():
     import drjit as dr
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_rgb")
-except Exception as e:  # noqa: BLE001 - any failure to get the variant
-    if REQUIRE:
-        raise
-    pytest.skip(f"mitsuba llvm_ad_rgb unavailable: {e}", allow_module_level=True)
+    return dr, mi
+
+
+_got, _why = optional(_llvm_ad_rgb)
+if _got is None:
+    pytest.skip(f"mitsuba llvm_ad_rgb unavailable: {_why}", allow_module_level=True)
+dr, mi = _got
 
 import neusample.mitsuba as nsm  # noqa: E402
 from mitsuba.chi2 import BSDFAdapter, ChiSquareTest, SphericalDomain  # noqa: E402

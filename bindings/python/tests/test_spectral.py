@@ -31,25 +31,24 @@ import numpy as np
 import pytest
 
 import neusample
-from conftest import FIXTURES, ROOT
+from conftest import FIXTURES, ROOT, optional
 from test_measured import ANISOTROPIC, anisotropic_fields, write_tensor_file
 
 sys.path.insert(0, str(ROOT / "tools"))
 from measured_reference import directions  # noqa: E402
 
-REQUIRE = os.environ.get("NEUSAMPLE_REQUIRE_MITSUBA") == "1"
-try:
+
+def _scalar_spectral():
     import mitsuba as mi
 
     if "scalar_spectral" not in mi.variants():
         raise ImportError(f"mitsuba {mi.__version__} lacks the scalar_spectral variant")
-    HAVE_MITSUBA = True
-    WHY = ""
-except Exception as e:  # noqa: BLE001 - any failure to get the variant
-    if REQUIRE:
-        raise
-    HAVE_MITSUBA = False
-    WHY = f"mitsuba scalar_spectral unavailable: {e}"
+    return mi
+
+
+mi, _why = optional(_scalar_spectral)
+HAVE_MITSUBA = mi is not None
+WHY = f"mitsuba scalar_spectral unavailable: {_why}"
 
 needs_mitsuba = pytest.mark.skipif(not HAVE_MITSUBA, reason=WHY)
 
