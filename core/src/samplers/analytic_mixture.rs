@@ -5,12 +5,11 @@
 use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
-use crate::math::{self, clamp_logit, finite_density};
+use crate::math::clamp_logit;
 use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
-use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
 
-use super::lobes::{mean, HIDDEN};
+use super::lobes::{self, mean, Lobe, HIDDEN};
 use super::{Prepared, Sample, Sampler};
 
 /// Number of network outputs of the analytic mixture:
@@ -84,6 +83,12 @@ impl AnalyticMixturePrepared {
         }
     }
 
+    /// The two Gaussian lobes.
+    #[inline(always)]
+    fn lobes(&self) -> [Lobe; 2] {
+        [(self.mu[0], self.sigma[0]), (self.mu[1], self.sigma[1])]
+    }
+
     /// Mixture weights `(w0, w1, w2)` (Lambert, Gaussian 1, Gaussian 2).
     #[must_use]
     pub fn weights(&self) -> [f32; 3] {
@@ -122,30 +127,14 @@ impl Prepared for AnalyticMixturePrepared {
     /// Box–Muller; the reported density is the full Eq. 2 mixture at the drawn point.
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
-        let u = math::sanitize_u2(u)?;
-        let (i, u0) = gaussian::select_component(&self.weights, u.x);
-        let v = Vec2::new(u0, u.y);
-        let p = if i == 0 {
-            warp::sample_uniform_disk_concentric(v)
-        } else {
-            // i ∈ {1, 2}; clamp so the index is provably in range.
-            let g = if i >= 2 { 1 } else { 0 };
-            self.mu[g] + self.sigma[g] * gaussian::box_muller(v)
-        };
+        let p = lobes::draw(&self.weights, &self.lobes(), u)?;
         Sample::from_disk(p, self.pdf_disk(p))
     }
 
     /// Eq. 2, with respect to area on the projected disk; 0 outside the open unit disk.
     #[inline]
     fn pdf_disk(&self, p: Vec2) -> f32 {
-        if !inside_disk(p) {
-            return 0.0;
-        }
-        finite_density(
-            self.weights[0] * math::INV_PI
-                + self.weights[1] * gaussian::normal_pdf(p, self.mu[0], self.sigma[0])
-                + self.weights[2] * gaussian::normal_pdf(p, self.mu[1], self.sigma[1]),
-        )
+        lobes::density(&self.weights, &self.lobes(), p)
     }
 }
 

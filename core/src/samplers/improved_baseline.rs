@@ -5,12 +5,11 @@
 use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
-use crate::math::{self, clamp_logit, finite_density};
+use crate::math::clamp_logit;
 use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
-use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
 
-use super::lobes::{mean, HIDDEN};
+use super::lobes::{self, mean, Lobe, HIDDEN};
 use super::{Prepared, Sample, Sampler};
 
 /// Number of network outputs of the improved baseline: `[μx, μy, log σ, a_L, a_G]`.
@@ -75,6 +74,12 @@ impl ImprovedBaselinePrepared {
         }
     }
 
+    /// The Gaussian lobe (isotropic: one σ on both axes).
+    #[inline(always)]
+    fn lobes(&self) -> [Lobe; 1] {
+        [(self.mu, Vec2::splat(self.sigma))]
+    }
+
     /// Mixture weights `(w_L, w_G)`.
     #[must_use]
     pub fn weights(&self) -> [f32; 2] {
@@ -113,27 +118,14 @@ impl Prepared for ImprovedBaselinePrepared {
     /// the reported density is the full Eq. 1 mixture at the drawn point.
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
-        let u = math::sanitize_u2(u)?;
-        let (i, u0) = gaussian::select_component(&self.weights, u.x);
-        let v = Vec2::new(u0, u.y);
-        let p = if i == 0 {
-            warp::sample_uniform_disk_concentric(v)
-        } else {
-            self.mu + self.sigma * gaussian::box_muller(v)
-        };
+        let p = lobes::draw(&self.weights, &self.lobes(), u)?;
         Sample::from_disk(p, self.pdf_disk(p))
     }
 
     /// Eq. 1, with respect to area on the projected disk; 0 outside the open unit disk.
     #[inline]
     fn pdf_disk(&self, p: Vec2) -> f32 {
-        if !inside_disk(p) {
-            return 0.0;
-        }
-        let s = Vec2::splat(self.sigma);
-        finite_density(
-            self.weights[0] * math::INV_PI + self.weights[1] * gaussian::normal_pdf(p, self.mu, s),
-        )
+        lobes::density(&self.weights, &self.lobes(), p)
     }
 }
 

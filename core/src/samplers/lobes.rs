@@ -26,7 +26,11 @@
 //! [`Prepared::invert`]: super::Prepared::invert
 //! [`gaussian::select_component`]: crate::distrib::gaussian::select_component
 
-use crate::math;
+use glam::Vec2;
+
+use crate::distrib::gaussian;
+use crate::math::{self, finite_density};
+use crate::warp::{self, inside_disk};
 
 /// Bound applied to every predicted Gaussian mean coordinate (NaN → −bound).
 ///
@@ -46,4 +50,51 @@ pub(super) const CHUNK: usize = 32;
 #[inline(always)]
 pub(super) fn mean(x: f32) -> f32 {
     math::clamp(x, -MEAN_BOUND, MEAN_BOUND)
+}
+
+/// A Gaussian lobe on the disk: its mean and its per-axis standard deviations.
+pub(super) type Lobe = (Vec2, Vec2);
+
+/// A point of the mixture of a Lambert lobe and the Gaussian `lobes`, with the weights `w`
+/// (Lambert's first, then one per lobe, summing to 1): the component chosen by `u.x` (pbrt
+/// style), the Lambert lobe by the concentric map, a Gaussian by Box–Muller. `None` for a
+/// `u` outside `[0, 1]²`.
+#[inline(always)]
+pub(super) fn draw<const K: usize, const G: usize>(
+    w: &[f32; K],
+    lobes: &[Lobe; G],
+    u: Vec2,
+) -> Option<Vec2> {
+    let u = math::sanitize_u2(u)?;
+    let (i, u0) = gaussian::select_component(w, u.x);
+    let v = Vec2::new(u0, u.y);
+    Some(if i == 0 {
+        warp::sample_uniform_disk_concentric(v)
+    } else {
+        // i ∈ 1 ..= G; clamped so that the index is provably in range.
+        let (mu, sigma) = lobes[(i - 1).min(G - 1)];
+        mu + sigma * gaussian::box_muller(v)
+    })
+}
+
+/// The density of that mixture at `p` (Eq. 1 and 2), `w0/π + Σ_g w_g·N(p; μ_g, diag σ_g²)`,
+/// with respect to area on the projected disk; 0 outside the open unit disk.
+#[inline(always)]
+pub(super) fn density<const K: usize, const G: usize>(
+    w: &[f32; K],
+    lobes: &[Lobe; G],
+    p: Vec2,
+) -> f32 {
+    if !inside_disk(p) {
+        return 0.0;
+    }
+    let mut d = w[0] * math::INV_PI;
+    // rust-gpu: an index loop (slice iterators are pointer casts it cannot compile).
+    let mut g = 0;
+    while g < G {
+        let (mu, sigma) = lobes[g];
+        d += w[(g + 1).min(K - 1)] * gaussian::normal_pdf(p, mu, sigma);
+        g += 1;
+    }
+    finite_density(d)
 }
