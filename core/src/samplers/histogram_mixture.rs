@@ -341,6 +341,28 @@ impl<W: Weights> HistogramMixtureSampler<W> {
         self.lane_from_softmax(o, &soft)
     }
 
+    /// The table levels `(l0, l1)` around the level position `s` (`≥ 0`, NaN-free) and the
+    /// blend weight of `l1`, by the blob's interpolation.
+    #[inline(always)]
+    fn levels(&self, s: f32) -> (u32, u32, f32) {
+        let t_levels = self.t_levels;
+        match self.interpolation {
+            // s ≥ 0, so the truncation in clamp_index is the floor.
+            Interpolation::Nearest => {
+                let l = math::clamp_index(s + 0.5, t_levels);
+                (l, l, 0.0)
+            }
+            Interpolation::Linear => {
+                if t_levels >= 2 {
+                    let l = math::clamp_index(s, t_levels - 1);
+                    (l, l + 1, math::clamp(s - l as f32, 0.0, 1.0))
+                } else {
+                    (0, 0, 0.0)
+                }
+            }
+        }
+    }
+
     /// [`Self::lane_from_outputs`] with the softmax of the logits `a_k` given (the batched
     /// path computes it across lanes).
     #[inline(always)]
@@ -358,7 +380,6 @@ impl<W: Weights> HistogramMixtureSampler<W> {
         // rust-gpu: plain local arrays, assembled into the prepared state at the end: a
         // mutable local struct holding the sampler reference stays a pointer-typed variable
         // on SPIR-V, which spirv-val rejects under logical addressing.
-        let mut weights = [0.0f32; BASES];
         let mut rotation = [Vec2::X; BASES];
         let mut slice0 = [0u32; BASES];
         let mut slice1 = [0u32; BASES];
@@ -366,28 +387,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
         let mut mass = [0.0f32; BASES];
         let mut total = [0.0f32; BASES];
         let mut inv_integral = [0.0f32; BASES];
-        let mut usable = [0u32; BASES]; // rust-gpu: not [bool; _], it cannot memset bools
-                                        // The latent codes t_k = sigmoid(τ_k), in a loop of their own so that it vectorises;
-                                        // the fast form is exact down to EXP_IN_RANGE_MIN, the rest (and NaN) take libm's.
-                                        // (Gathered into a contiguous array padded to a multiple of 4 first.)
-        let mut code = [0.0f32; PADDED_BASES];
-        k = 0;
-        while k < BASES {
-            code[k] = o[4 * k + 3];
-            k += 1;
-        }
-        k = 0;
-        while k < PADDED_BASES {
-            code[k] = math::sigmoid_in_range(code[k]);
-            k += 1;
-        }
-        k = 0;
-        while k < BASES {
-            if !(o[4 * k + 3] >= math::EXP_IN_RANGE_MIN) {
-                code[k] = math::sigmoid(o[4 * k + 3]);
-            }
-            k += 1;
-        }
+        let code = latent_codes(o);
         let top = (t_levels - 1) as f32;
         k = 0;
         while k < BASES {
@@ -398,21 +398,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             }
             // NaN τ gives NaN t; the clamp sends it to level 0.
             let s = math::clamp(code[k] * top, 0.0, top);
-            let (l0, l1, a) = match self.interpolation {
-                // s ≥ 0, so the truncation in clamp_index is the floor.
-                Interpolation::Nearest => {
-                    let l = math::clamp_index(s + 0.5, t_levels);
-                    (l, l, 0.0)
-                }
-                Interpolation::Linear => {
-                    if t_levels >= 2 {
-                        let l = math::clamp_index(s, t_levels - 1);
-                        (l, l + 1, math::clamp(s - l as f32, 0.0, 1.0))
-                    } else {
-                        (0, 0, 0.0)
-                    }
-                }
-            };
+            let (l0, l1, a) = self.levels(s);
             let base = k as u32 * t_levels;
             slice0[k] = base + l0;
             slice1[k] = base + l1;
@@ -430,44 +416,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             inv_integral[k] = inv;
             k += 1;
         }
-        // Usability and the unnormalised weights.
-        k = 0;
-        while k < BASES {
-            let ok = total[k] > 0.0;
-            usable[k] = u32::from(ok);
-            let w = soft[k] * mass[k];
-            weights[k] = if ok && w > 0.0 && math::is_finite(w) {
-                w
-            } else {
-                0.0
-            };
-            k += 1;
-        }
-        let mut sum = 0.0f32;
-        k = 0;
-        while k < BASES {
-            sum += weights[k];
-            k += 1;
-        }
-        if !(sum > 0.0 && math::is_finite(sum)) {
-            // Every basis has zero mass here: fall back to the softmax weights.
-            sum = 0.0;
-            k = 0;
-            while k < BASES {
-                weights[k] = if usable[k] != 0 { soft[k] } else { 0.0 };
-                sum += weights[k];
-                k += 1;
-            }
-            if !(sum > 0.0) {
-                return None;
-            }
-        }
-        let inv = 1.0 / sum;
-        k = 0;
-        while k < BASES {
-            weights[k] *= inv;
-            k += 1;
-        }
+        let weights = mixture_weights(soft, &mass, &total)?;
         Some(HistogramMixtureLane {
             weights,
             rotation,
@@ -478,6 +427,84 @@ impl<W: Weights> HistogramMixtureSampler<W> {
             inv_integral,
         })
     }
+}
+
+/// The latent codes `t_k = sigmoid(τ_k)` of the network outputs `o`, in a loop of their own
+/// so that it vectorises: the fast form is exact down to `EXP_IN_RANGE_MIN`, the rest (and
+/// NaN) take libm's. Padded to a multiple of 4 (the padding is unused).
+#[inline(always)]
+fn latent_codes(o: &[f32; MIX_OUTPUTS]) -> [f32; PADDED_BASES] {
+    let mut code = [0.0f32; PADDED_BASES];
+    let mut k = 0;
+    while k < BASES {
+        code[k] = o[4 * k + 3];
+        k += 1;
+    }
+    k = 0;
+    while k < PADDED_BASES {
+        code[k] = math::sigmoid_in_range(code[k]);
+        k += 1;
+    }
+    k = 0;
+    while k < BASES {
+        if !(o[4 * k + 3] >= math::EXP_IN_RANGE_MIN) {
+            code[k] = math::sigmoid(o[4 * k + 3]);
+        }
+        k += 1;
+    }
+    code
+}
+
+/// The mixture weights from the softmax `soft` and each basis's table mass at its level and
+/// table total: `soft·mass` over the usable bases (`total > 0`), normalised; where every
+/// basis has zero mass, the softmax weights of the usable bases; `None` when no basis is
+/// usable.
+#[inline(always)]
+fn mixture_weights(
+    soft: &[f32; BASES],
+    mass: &[f32; BASES],
+    total: &[f32; BASES],
+) -> Option<[f32; BASES]> {
+    let mut weights = [0.0f32; BASES];
+    let mut usable = [0u32; BASES]; // rust-gpu: not [bool; _], it cannot memset bools
+    let mut k = 0;
+    while k < BASES {
+        let ok = total[k] > 0.0;
+        usable[k] = u32::from(ok);
+        let w = soft[k] * mass[k];
+        weights[k] = if ok && w > 0.0 && math::is_finite(w) {
+            w
+        } else {
+            0.0
+        };
+        k += 1;
+    }
+    let mut sum = 0.0f32;
+    k = 0;
+    while k < BASES {
+        sum += weights[k];
+        k += 1;
+    }
+    if !(sum > 0.0 && math::is_finite(sum)) {
+        // Every basis has zero mass here: fall back to the softmax weights.
+        sum = 0.0;
+        k = 0;
+        while k < BASES {
+            weights[k] = if usable[k] != 0 { soft[k] } else { 0.0 };
+            sum += weights[k];
+            k += 1;
+        }
+        if !(sum > 0.0) {
+            return None;
+        }
+    }
+    let inv = 1.0 / sum;
+    k = 0;
+    while k < BASES {
+        weights[k] *= inv;
+        k += 1;
+    }
+    Some(weights)
 }
 
 /// The histogram mixture at one shading point without its weights handle (the lane of the
