@@ -66,6 +66,15 @@ impl<'a> Pool<'a> {
         })
     }
 
+    /// The conditions of training step `step`'s batch: `b` of the pool's, drawn with
+    /// replacement from the random stream `stream` (the caller's seed mixed with its salt).
+    pub fn pick(&self, b: usize, stream: u64, step: usize) -> Vec<&GtCondition> {
+        let mut rng = rng_for(stream, step as u64, 0);
+        (0..b)
+            .map(|_| &self.items[rng.random_range(0..self.items.len())])
+            .collect()
+    }
+
     /// Replaces a quarter of the pool when `step` is a refresh step (not step 0).
     pub fn maybe_refresh(&mut self, step: usize) -> anyhow::Result<()> {
         if self.refresh_every == 0 || step == 0 || !step.is_multiple_of(self.refresh_every) {
@@ -190,14 +199,11 @@ pub fn make_batch(
     seed: u64,
     step: usize,
 ) -> HostBatch {
-    let items = pool.items();
-    let mut pick = rng_for(mix_seed(seed, 0xba7c), step as u64, 0);
-    let chosen: Vec<usize> = (0..b).map(|_| pick.random_range(0..items.len())).collect();
+    let chosen = pool.pick(b, mix_seed(seed, 0xba7c), step);
     let rows: Vec<_> = chosen
         .par_iter()
         .enumerate()
-        .map(|(j, &i)| {
-            let g = &items[i];
+        .map(|(j, g)| {
             let mut rng = rng_for(mix_seed(seed, 0x9017), step as u64, j as u64);
             let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
             let cond = encode_condition(&g.phi, wi);

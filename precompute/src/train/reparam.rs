@@ -31,7 +31,6 @@ use rand::RngExt;
 use super::config::{Common, DensityLoss, Reparam, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, Pool};
 use super::integrand::Integrand;
-use super::source::GtCondition;
 use super::trainer::{Fitted, Run, Trained, Trainer};
 use crate::nn::{
     log_sum_exp_last, mlp_f64, optimise, tensor2, to_host, train_device, Activation, Mlp,
@@ -187,11 +186,7 @@ fn warp_batch(
     step: usize,
 ) -> WarpBatch {
     use rayon::prelude::*;
-    let items = pool.items();
-    let mut pick = rng_for(mix_seed(seed, 0x7e9a), step as u64, 0);
-    let chosen: Vec<&GtCondition> = (0..b)
-        .map(|_| &items[pick.random_range(0..items.len())])
-        .collect();
+    let chosen = pool.pick(b, mix_seed(seed, 0x7e9a), step);
     let rows: Vec<_> = chosen
         .par_iter()
         .enumerate()
@@ -336,11 +331,7 @@ fn density_batch(
     step: usize,
 ) -> DensityBatch {
     use rayon::prelude::*;
-    let items = pool.items();
-    let mut pick = rng_for(mix_seed(seed, 0xde75), step as u64, 0);
-    let chosen: Vec<&GtCondition> = (0..b)
-        .map(|_| &items[pick.random_range(0..items.len())])
-        .collect();
+    let chosen = pool.pick(b, mix_seed(seed, 0xde75), step);
     let rows: Vec<_> = chosen
         .par_iter()
         .enumerate()
