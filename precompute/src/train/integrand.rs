@@ -77,6 +77,11 @@ impl Integrand for NeuralIntegrand<'_> {
         }
         let base = tensor2(base, n, FEATURE_DIM + 2, device);
         let wi = tensor2(wi, n, 3, device);
+        // A row whose wo is not finite reads LOG_F_MIN: its components are replaced by 0
+        // first, so that neither its value nor its gradient is NaN.
+        let bad = wo.clone().is_finite().bool_not();
+        let bad_row = bad.clone().any_dim(1);
+        let wo = wo.mask_fill(bad, 0.0);
         // The half vector of the decoder input (`neusample::neural_material::decoder_input`).
         let s = wi + wo.clone();
         let h = s.clone() / s.powi_scalar(2).sum_dim(1).sqrt();
@@ -98,7 +103,7 @@ impl Integrand for NeuralIntegrand<'_> {
             neusample::neural_material::LOG_F_MIN,
             neusample::neural_material::LOG_F_MAX,
         );
-        log_sum_exp_last(o + ln_w)
+        log_sum_exp_last(o + ln_w).mask_fill(bad_row, LOG_F_MIN)
     }
 
     fn f(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32 {
@@ -193,7 +198,11 @@ impl Integrand for MeasuredIntegrand<'_> {
         let value = tensor2(rows.iter().map(|r| r.0).collect(), n, 1, device);
         let grad = tensor2(rows.iter().flat_map(|r| r.1).collect(), n, 3, device);
         let constant = tensor2(host, n, 3, device);
-        value + ((wo - constant) * grad).sum_dim(1)
+        // wo − wo₀ is NaN on a row whose wo is not finite (its value is LOG_F_MIN, its
+        // gradient 0): 0 there, so that the row adds nothing.
+        let step = wo - constant;
+        let step = step.clone().mask_fill(step.is_nan(), 0.0);
+        value + (step * grad).sum_dim(1)
     }
 
     fn f(&self, _phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32 {
@@ -215,6 +224,57 @@ mod tests {
             "/../fixtures/measured/chm_mint_rgb.bsdf"
         );
         OwnedMeasured::open(std::path::Path::new(path)).expect("the mint fixture opens")
+    }
+
+    /// Rows whose `wo` is NaN or infinite read `LOG_F_MIN` with a zero gradient, on both
+    /// integrands, and leave the other rows' values as they are without them.
+    #[test]
+    fn rows_with_a_non_finite_wo_read_the_floor() {
+        let data = mint();
+        let neural = crate::materials::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../fixtures/materials/neural/goat_leather_neural.nsb"
+        )))
+        .expect("the neural fixture opens");
+        let measured = MeasuredIntegrand::new(data.material());
+        let neural = crate::train::source::material_integrand(neural.as_ref())
+            .expect("a neural material has an integrand");
+        let device = train_device();
+        let wi = Vec3::new(0.3, -0.2, 0.93).normalize();
+        let good = Vec3::new(-0.25, 0.2, 0.95).normalize();
+        let rows = [
+            [good.x, good.y, good.z],
+            [f32::NAN, 0.1, 0.9],
+            [0.0, f32::INFINITY, 0.5],
+            [f32::NEG_INFINITY, f32::NAN, f32::INFINITY],
+        ];
+        for (name, integrand) in [
+            ("measured", &measured as &dyn Integrand),
+            ("neural", &*neural),
+        ] {
+            let phi = [0.1; FEATURE_DIM];
+            let run = |rows: &[[f32; 3]]| {
+                let host: Vec<f32> = rows.iter().flatten().copied().collect();
+                let wo = tensor2(host, rows.len(), 3, &device).require_grad();
+                let conds: Vec<_> = rows.iter().map(|_| (phi, wi)).collect();
+                let log_f = integrand.log_f(&conds, 1, wo.clone(), &device);
+                let values = to_host(log_f.clone());
+                let grads = log_f.sum().backward();
+                (values, to_host(wo.grad(&grads).expect("wo has a gradient")))
+            };
+            let (values, grads) = run(&rows);
+            let (alone, alone_grad) = run(&rows[..1]);
+            assert_eq!(values[0], alone[0], "{name}: the finite row's value");
+            assert_eq!(
+                grads[..3],
+                alone_grad[..],
+                "{name}: the finite row's gradient"
+            );
+            for (i, v) in values.iter().enumerate().skip(1) {
+                assert_eq!(*v, LOG_F_MIN, "{name}: row {i}");
+            }
+            assert!(grads[3..].iter().all(|g| *g == 0.0), "{name}: {grads:?}");
+        }
     }
 
     /// On the graph, the measured integrand's value is the host's `ln f⊥` and its gradient
