@@ -4,8 +4,8 @@
 Usage: python3 tools/long_fns.py [--max LINES] DIR [DIR ...]
 
 A function runs from the line of its `fn` keyword to the line of its closing brace; comments,
-string and character literals are read as blanks, so braces inside them do not count. Test
-code counts like any other. Prints every function longer than --max lines (default 120) as
+string and character literals are read as blanks (`module_cycles.blank`), so braces inside
+them do not count. Test code counts like any other. Prints every function longer than --max lines (default 120) as
 `lines  file:line  name`, longest first, and exits 1 when there is one, 0 otherwise.
 """
 import argparse
@@ -13,57 +13,10 @@ import os
 import re
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from module_cycles import blank  # noqa: E402  (the one scanner of Rust source)
+
 FN_RE = re.compile(r"\bfn\s+([A-Za-z_][A-Za-z0-9_]*)")
-
-
-def blank(text):
-    """`text` with comments and literals replaced by spaces (newlines kept, so line numbers
-    stay)."""
-    out = []
-    i, n = 0, len(text)
-
-    def skip(j):
-        out.extend("\n" if c == "\n" else " " for c in text[i:j])
-
-    while i < n:
-        c = text[i]
-        if text.startswith("//", i):
-            j = text.find("\n", i)
-            j = n if j < 0 else j
-            skip(j)
-            i = j
-        elif text.startswith("/*", i):
-            depth, j = 1, i + 2
-            while j < n and depth:
-                if text.startswith("/*", j):
-                    depth, j = depth + 1, j + 2
-                elif text.startswith("*/", j):
-                    depth, j = depth - 1, j + 2
-                else:
-                    j += 1
-            skip(j)
-            i = j
-        elif c in "rb" and (i == 0 or not (text[i - 1].isalnum() or text[i - 1] == "_")) \
-                and re.match(r'b?r(#*)"', text[i:i + 12]):
-            m = re.match(r'b?r(#*)"', text[i:])
-            end = text.find('"' + m.group(1), i + len(m.group(0)))
-            j = n if end < 0 else end + 1 + len(m.group(1))
-            skip(j)
-            i = j
-        elif c == '"':
-            j = i + 1
-            while j < n and text[j] != '"':
-                j += 2 if text[j] == "\\" else 1
-            skip(j + 1)
-            i = j + 1
-        elif c == "'" and re.match(r"'(\\[^']{1,10}|[^\\'])'", text[i:i + 14]):
-            j = i + len(re.match(r"'(\\[^']{1,10}|[^\\'])'", text[i:i + 14]).group(0))
-            skip(j)
-            i = j
-        else:
-            out.append(c)
-            i += 1
-    return "".join(out)
 
 
 def functions(text):

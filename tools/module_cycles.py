@@ -40,43 +40,59 @@ def module_files(src):
     return mods
 
 
-def strip(text):
-    """Source without comments, string and char literals, and test code."""
+def blank(text):
+    """`text` with comments and literals replaced by spaces (newlines kept, so line numbers
+    stay)."""
     out = []
     i, n = 0, len(text)
+
+    def skip(j):
+        out.extend("\n" if c == "\n" else " " for c in text[i:j])
+
     while i < n:
         c = text[i]
         if text.startswith("//", i):
             j = text.find("\n", i)
-            i = n if j < 0 else j
+            j = n if j < 0 else j
+            skip(j)
+            i = j
         elif text.startswith("/*", i):
-            depth, i = 1, i + 2
-            while i < n and depth:
-                if text.startswith("/*", i):
-                    depth, i = depth + 1, i + 2
-                elif text.startswith("*/", i):
-                    depth, i = depth - 1, i + 2
+            depth, j = 1, i + 2
+            while j < n and depth:
+                if text.startswith("/*", j):
+                    depth, j = depth + 1, j + 2
+                elif text.startswith("*/", j):
+                    depth, j = depth - 1, j + 2
                 else:
-                    i += 1
-        elif c == "r" and re.match(r'r#*"', text[i:i + 8]) and (i == 0 or not (text[i - 1].isalnum() or text[i - 1] == "_")):
-            hashes = re.match(r'r(#*)"', text[i:]).group(1)
-            end = text.find('"' + hashes, i + 2 + len(hashes))
-            out.append('""')
-            i = n if end < 0 else end + 1 + len(hashes)
+                    j += 1
+            skip(j)
+            i = j
+        elif c in "rb" and (i == 0 or not (text[i - 1].isalnum() or text[i - 1] == "_")) \
+                and re.match(r'b?r(#*)"', text[i:i + 12]):
+            m = re.match(r'b?r(#*)"', text[i:])
+            end = text.find('"' + m.group(1), i + len(m.group(0)))
+            j = n if end < 0 else end + 1 + len(m.group(1))
+            skip(j)
+            i = j
         elif c == '"':
-            i += 1
-            while i < n and text[i] != '"':
-                i += 2 if text[i] == "\\" else 1
-            out.append('""')
-            i += 1
-        elif c == "'" and re.match(r"'(\\.[^']*|[^\\'])'", text[i:i + 12]):
-            m = re.match(r"'(\\.[^']*|[^\\'])'", text[i:i + 12])
-            out.append("' '")
-            i += len(m.group(0))
+            j = i + 1
+            while j < n and text[j] != '"':
+                j += 2 if text[j] == "\\" else 1
+            skip(j + 1)
+            i = j + 1
+        elif c == "'" and re.match(r"'(\\[^']{1,10}|[^\\'])'", text[i:i + 14]):
+            j = i + len(re.match(r"'(\\[^']{1,10}|[^\\'])'", text[i:i + 14]).group(0))
+            skip(j)
+            i = j
         else:
             out.append(c)
             i += 1
-    text = "".join(out)
+    return "".join(out)
+
+
+def strip(text):
+    """Source without comments, string and char literals (blanked), and test code."""
+    text = blank(text)
     m = re.search(r"#\[cfg\(test\)\]", text)
     if m:
         text = text[: m.start()]
