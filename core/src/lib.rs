@@ -31,8 +31,10 @@
 //! | [`measured`] | measured (RGL) BRDFs: their evaluation and their own VNDF sampler |
 //! | [`blob`] | the file format: layout, reader, validation, writer |
 //!
-//! Everything a renderer needs is re-exported here; the modules add the architecture
-//! constants and building blocks a trainer or a test needs.
+//! Everything a renderer needs is re-exported here: a blob's sampler is dispatched over its
+//! kind ([`AnySampler`], [`BlobSampler`]). A concrete sampler type (for a renderer that knows
+//! its material's kind, or a trainer) is in [`samplers`], its architecture constants and
+//! building blocks in its module.
 //!
 //! ## A renderer's view
 //!
@@ -100,12 +102,7 @@ pub use measured::{
 pub use neural_material::NeuralMaterial;
 pub use nn::FEATURE_DIM;
 pub use samplers::{
-    AffineFlowPrepared, AffineFlowSampler, AnalyticMixturePrepared, AnalyticMixtureSampler,
-    AnyPrepared, AnySampler, BlobSampler, CosinePrepared, CosineSampler, Defensive,
-    DefensivePrepared, DirectHistogramPrepared, DirectHistogramSampler, DiskFlowPrepared,
-    DiskFlowSampler, HistogramMixturePrepared, HistogramMixtureSampler, ImprovedBaselinePrepared,
-    ImprovedBaselineSampler, Prepared, ReparamPrepared, ReparamSampler, Sample, Sampler,
-    SplineFlowPrepared, SplineFlowSampler,
+    AnyPrepared, AnySampler, BlobSampler, Defensive, DefensivePrepared, Prepared, Sample, Sampler,
 };
 pub use warp::Frame;
 pub use weights::{Tensor, Weights};

@@ -166,14 +166,16 @@ fn wrong_magic_version_and_kind() {
     );
     let blob = Blob::open(&bytes).unwrap();
     assert_eq!(
-        blob.sampler_as::<neusample::HistogramMixtureSampler<_>>()
+        blob.sampler_as::<neusample::samplers::HistogramMixtureSampler<_>>()
             .unwrap_err(),
         Error::WrongKind {
             expected: SamplerKind::HistogramMixture.into(),
             found: SamplerKind::Flow.into()
         }
     );
-    assert!(blob.sampler_as::<neusample::SplineFlowSampler<_>>().is_ok());
+    assert!(blob
+        .sampler_as::<neusample::samplers::SplineFlowSampler<_>>()
+        .is_ok());
     // Trailing garbage is refused.
     let mut b = bytes.clone();
     b.push(0);

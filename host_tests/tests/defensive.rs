@@ -35,7 +35,7 @@ fn versions_and_validation() {
     assert_eq!((b.version(), b.defensive()), (2, 0.125));
     assert_eq!(b.sampler().unwrap().alpha(), 0.125);
     assert_eq!(
-        b.sampler_as::<neusample::HistogramMixtureSampler<_>>()
+        b.sampler_as::<neusample::samplers::HistogramMixtureSampler<_>>()
             .unwrap()
             .alpha(),
         0.125

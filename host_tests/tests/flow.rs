@@ -5,7 +5,8 @@
 //! that the densities are far from uniform.
 
 use neusample::samplers::{affine_flow, disk_flow, spline_flow as flow};
-use neusample::{AffineFlowSampler, DiskFlowSampler, SplineFlowSampler, FEATURE_DIM};
+use neusample::samplers::{AffineFlowSampler, DiskFlowSampler, SplineFlowSampler};
+use neusample::FEATURE_DIM;
 use neusample::{DType, Prepared, Sampler, Tensor, Vec2, Vec3};
 use neusample_host_tests::{bonferroni, chi2_test, disk_integral, full_tests, rng, TestRng};
 use rand::RngExt;

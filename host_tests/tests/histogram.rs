@@ -10,11 +10,11 @@ use neusample::samplers::histogram_mixture::{
     bake_slices, try_bake_compact, try_bake_slices, validate_compact_tables, validate_tables,
     BakedTables, CompactTables, BASES, MAX_N, MAX_T,
 };
-use neusample::{DType, Error, Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
-use neusample::{
-    DirectHistogramPrepared, DirectHistogramSampler, HistogramMixtureSampler, Interpolation,
-    Table2D,
+use neusample::samplers::{
+    DirectHistogramPrepared, DirectHistogramSampler, HistogramMixtureSampler,
 };
+use neusample::{DType, Error, Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
+use neusample::{Interpolation, Table2D};
 use neusample_host_tests::{
     bonferroni, chi2_checked, disk_integral, full_tests, pooled_chi2, rng, uniform2, TestRng,
 };
@@ -1296,7 +1296,7 @@ fn compact_blob_round_trips_and_is_smaller() {
     let blob = neusample::Blob::open(&bytes).unwrap();
     assert!(blob.is_compact());
     let from_blob = blob
-        .sampler_as::<neusample::HistogramMixtureSampler<_>>()
+        .sampler_as::<neusample::samplers::HistogramMixtureSampler<_>>()
         .unwrap();
     let cond = c.conditional_f32();
     let host = HistogramMixtureSampler::new_compact(

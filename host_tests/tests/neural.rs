@@ -255,7 +255,7 @@ fn blob_round_trip_f32_and_f16() {
             })
         ));
         assert!(matches!(
-            blob.sampler_as::<neusample::SplineFlowSampler<_>>(),
+            blob.sampler_as::<neusample::samplers::SplineFlowSampler<_>>(),
             Err(Error::WrongKind { .. })
         ));
     }

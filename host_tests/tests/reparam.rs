@@ -14,10 +14,11 @@
 use neusample::samplers::reparam::{
     DENSITY_L1, REPARAM_HIDDEN, REPARAM_INPUTS, WARP_L0, WARP_L1, WARP_L2, WARP_OUTPUTS,
 };
+use neusample::samplers::ReparamSampler;
 use neusample::wavefront::{BatchSampler, SamplesMut, Vec2s, Vec3s, Vec3sMut};
 use neusample::{
-    Blob, BlobWriter, DType, Defensive, Prepared, ReparamSampler, Sampler, SamplerKind, TensorRole,
-    Vec2, Vec3, FEATURE_DIM,
+    Blob, BlobWriter, DType, Defensive, Prepared, Sampler, SamplerKind, TensorRole, Vec2, Vec3,
+    FEATURE_DIM,
 };
 use neusample_host_tests::{rng, small_blob, uniform2};
 use rand::RngExt;
@@ -158,7 +159,9 @@ fn jacobian_matches_central_differences() {
     for seed in 0..6 {
         let (bytes, _) = small_blob(SamplerKind::Reparam, DType::F32, seed);
         let blob = Blob::open(&bytes).unwrap();
-        let s = blob.sampler_as::<neusample::ReparamSampler<_>>().unwrap();
+        let s = blob
+            .sampler_as::<neusample::samplers::ReparamSampler<_>>()
+            .unwrap();
         let s = s.inner();
         let phi: [f32; FEATURE_DIM] = std::array::from_fn(|_| r.random::<f32>() - 0.5);
         let p = s.prepare(&phi, wi()).unwrap();
@@ -320,7 +323,9 @@ fn batched_equals_scalar_with_mis_densities() {
             let d = BlobWriter::from_blob(&blob).defensive(alpha).to_bytes();
             let blob = Blob::open(&d).unwrap();
             let any = blob.sampler().unwrap();
-            let concrete = blob.sampler_as::<neusample::ReparamSampler<_>>().unwrap();
+            let concrete = blob
+                .sampler_as::<neusample::samplers::ReparamSampler<_>>()
+                .unwrap();
             check(&any, &mut r);
             check(&concrete, &mut r);
         }

@@ -3,8 +3,9 @@
 
 use neusample::nn::{encode_condition, CONDITION_DIM};
 use neusample::nn::{encode_scalar, Activation};
+use neusample::samplers::CosineSampler;
 use neusample::warp::{self, Frame};
-use neusample::{CosineSampler, Prepared, Sampler, Vec2, Vec3};
+use neusample::{Prepared, Sampler, Vec2, Vec3};
 use neusample_host_tests::{chi2_test, disk_integral, rng, uniform2};
 use proptest::prelude::*;
 

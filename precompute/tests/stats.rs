@@ -2,7 +2,7 @@
 //! estimator under cosine sampling and uniform light has a closed-form variance.
 
 use glam::{Vec2, Vec3};
-use neusample::CosineSampler;
+use neusample::samplers::CosineSampler;
 use neusample_precompute::eval::metrics::{self, Reference};
 use neusample_render::{
     render_wavefront, Camera, Environment, Material, Object, RenderOptions, Scene, Shape, Sky,

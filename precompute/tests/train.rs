@@ -8,11 +8,12 @@
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
+use neusample::samplers::ReparamSampler;
+use neusample::samplers::{AffineFlowSampler, DiskFlowSampler, SplineFlowSampler};
+use neusample::samplers::{AnalyticMixtureSampler, ImprovedBaselineSampler};
+use neusample::samplers::{DirectHistogramSampler, HistogramMixtureSampler};
 use neusample::SamplerKind;
-use neusample::{AffineFlowSampler, DiskFlowSampler, SplineFlowSampler};
-use neusample::{AnalyticMixtureSampler, ImprovedBaselineSampler};
-use neusample::{DirectHistogramSampler, HistogramMixtureSampler};
-use neusample::{Prepared, ReparamSampler, Sampler, Vec2, Vec3};
+use neusample::{Prepared, Sampler, Vec2, Vec3};
 use neusample_precompute::train::{
     self, graph_log_pdf, model_pdf_disk, parse_method, train_with, SyntheticSource, TargetSource,
     TrainConfig, Trained, METHODS,

@@ -50,7 +50,7 @@
 //! # Example
 //!
 //! ```
-//! use neusample::CosineSampler;
+//! use neusample::samplers::CosineSampler;
 //! use neusample_render::{demo_scene, render, Material, RenderOptions, SceneParams, Surface};
 //! use neusample_render::glam::{Vec2, Vec3};
 //!

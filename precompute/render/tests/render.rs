@@ -2,7 +2,8 @@
 //! environment sampling integrates the sky.
 
 use glam::{Vec2, Vec3};
-use neusample::{CosineSampler, FEATURE_DIM};
+use neusample::samplers::CosineSampler;
+use neusample::FEATURE_DIM;
 use neusample_render::{
     luminance, render, Camera, Environment, Material, Object, RenderOptions, Scene, Shape, Sky,
     Surface,

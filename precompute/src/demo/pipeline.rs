@@ -9,8 +9,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use glam::Vec2;
 use indicatif::ProgressBar;
+use neusample::samplers::CosineSampler;
 use neusample::{Blob, BlobSampler};
-use neusample::{CosineSampler, DType, Prepared, Sampler, SamplerKind};
+use neusample::{DType, Prepared, Sampler, SamplerKind};
 use neusample_render::{demo_scene, Estimator};
 
 use super::config::{

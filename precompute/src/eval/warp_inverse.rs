@@ -277,7 +277,7 @@ pub fn exact_fit(
     }
     let params = reparam_params(&blob)?;
     // The MIS density a renderer uses (with the blob's defensive weight, if any).
-    let sampler = blob.sampler_as::<neusample::ReparamSampler<_>>()?;
+    let sampler = blob.sampler_as::<neusample::samplers::ReparamSampler<_>>()?;
     let conds = groundtruth::conditions(material, conditions, seed);
     let nodes = groundtruth::rim_quadrature(radial, angular);
     let per: Vec<ExactFit> = conds
@@ -449,7 +449,9 @@ mod tests {
         let (m, bytes) = fixture("goat_leather");
         let p = params(&bytes);
         let blob = Blob::open(&bytes).unwrap();
-        let sampler = blob.sampler_as::<neusample::ReparamSampler<_>>().unwrap();
+        let sampler = blob
+            .sampler_as::<neusample::samplers::ReparamSampler<_>>()
+            .unwrap();
         let c = groundtruth::conditions(&m, 1, 11)[0];
         let prep = sampler.prepare(&c.phi, c.wi).unwrap();
         let inv = WarpInverse::new(&p, &c.phi, c.wi, 96);

@@ -5,8 +5,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
+use neusample::samplers::CosineSampler;
+use neusample::DType;
 use neusample::{Blob, SamplerKind};
-use neusample::{CosineSampler, DType};
 use serde::{Deserialize, Serialize};
 
 use crate::bake::{self, Verification};

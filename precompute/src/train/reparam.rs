@@ -25,7 +25,8 @@ use neusample::samplers::reparam::{
     DENSITY_L0, LOG_DENSITY_MAX, LOG_DENSITY_MIN, REPARAM_HIDDEN, REPARAM_INPUTS,
     REPARAM_PARAM_COUNT, WARP_OUTPUTS,
 };
-use neusample::{ReparamSampler, Sampler, FEATURE_DIM};
+use neusample::samplers::ReparamSampler;
+use neusample::{Sampler, FEATURE_DIM};
 use rand::RngExt;
 
 use super::config::{Common, DensityLoss, Reparam, Schedule, TrainConfig};

@@ -41,43 +41,43 @@ fn weights() -> &'static [f32] {
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_cosine() -> f32 {
-    exercise(&neusample::CosineSampler)
+    exercise(&neusample::samplers::CosineSampler)
 }
 
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_flow() -> f32 {
-    exercise(&neusample::SplineFlowSampler::new_unchecked(weights()))
+    exercise(&neusample::samplers::SplineFlowSampler::new_unchecked(weights()))
 }
 
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_affine_flow() -> f32 {
-    exercise(&neusample::AffineFlowSampler::new_unchecked(weights()))
+    exercise(&neusample::samplers::AffineFlowSampler::new_unchecked(weights()))
 }
 
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_baseline() -> f32 {
-    exercise(&neusample::ImprovedBaselineSampler::new_unchecked(weights()))
+    exercise(&neusample::samplers::ImprovedBaselineSampler::new_unchecked(weights()))
 }
 
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_analytic() -> f32 {
-    exercise(&neusample::AnalyticMixtureSampler::new_unchecked(weights()))
+    exercise(&neusample::samplers::AnalyticMixtureSampler::new_unchecked(weights()))
 }
 
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_direct_histogram() -> f32 {
-    exercise(&neusample::DirectHistogramSampler::new_unchecked(weights()))
+    exercise(&neusample::samplers::DirectHistogramSampler::new_unchecked(weights()))
 }
 
 #[inline(never)]
 #[no_mangle]
 pub extern "C" fn ns_histogram_mixture() -> f32 {
-    let s = neusample::HistogramMixtureSampler::new_unchecked(
+    let s = neusample::samplers::HistogramMixtureSampler::new_unchecked(
         weights(),
         weights(),
         weights(),

@@ -634,14 +634,14 @@ fn main() {
     for _ in 0..2 {
         mlp_params(&mut rng, &[(39, 32), (32, 32), (32, 59)], 1.0, &mut flow_w);
     }
-    assert_eq!(flow_w.len(), neusample::SplineFlowSampler::<&[f32]>::PARAM_COUNT);
+    assert_eq!(flow_w.len(), neusample::samplers::SplineFlowSampler::<&[f32]>::PARAM_COUNT);
     let mut affine_w = Vec::new();
     for _ in 0..4 {
         mlp_params(&mut rng, &[(39, 32), (32, 32), (32, 2)], 1.0, &mut affine_w);
     }
     assert_eq!(
         affine_w.len(),
-        neusample::AffineFlowSampler::<&[f32]>::PARAM_COUNT
+        neusample::samplers::AffineFlowSampler::<&[f32]>::PARAM_COUNT
     );
 
     let mut baseline_w = Vec::new();
@@ -653,13 +653,13 @@ fn main() {
     );
     assert_eq!(
         baseline_w.len(),
-        neusample::ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT
+        neusample::samplers::ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT
     );
     let mut analytic_w = Vec::new();
     mlp_params(&mut rng, &[(30, 32), (32, 11)], 1.0, &mut analytic_w);
     assert_eq!(
         analytic_w.len(),
-        neusample::AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT
+        neusample::samplers::AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT
     );
     let mut direct_w = Vec::new();
     mlp_params(
@@ -670,7 +670,7 @@ fn main() {
     );
     assert_eq!(
         direct_w.len(),
-        neusample::DirectHistogramSampler::<&[f32]>::PARAM_COUNT
+        neusample::samplers::DirectHistogramSampler::<&[f32]>::PARAM_COUNT
     );
     let mut hm_w = Vec::new();
     mlp_params(
@@ -681,7 +681,7 @@ fn main() {
     );
     assert_eq!(
         hm_w.len(),
-        neusample::HistogramMixtureSampler::<&[f32]>::PARAM_COUNT
+        neusample::samplers::HistogramMixtureSampler::<&[f32]>::PARAM_COUNT
     );
     let (levels, cells) = (HM_LEVELS, HM_CELLS);
     let tables = histogram_tables(&mut rng, levels, cells);
@@ -696,7 +696,7 @@ fn main() {
     );
     assert_eq!(
         reparam_w.len(),
-        neusample::ReparamSampler::<&[f32]>::PARAM_COUNT
+        neusample::samplers::ReparamSampler::<&[f32]>::PARAM_COUNT
     );
     // Drawn last, for the same reason.
     let mut disk_w = Vec::new();
@@ -705,7 +705,7 @@ fn main() {
     }
     assert_eq!(
         disk_w.len(),
-        neusample::DiskFlowSampler::<&[f32]>::PARAM_COUNT
+        neusample::samplers::DiskFlowSampler::<&[f32]>::PARAM_COUNT
     );
 
     let p = |n: usize| Params {

@@ -57,7 +57,7 @@ pub fn cosine(
 ) {
     let i = id.x;
     if i < params.n && kernel::in_range(i, input.len(), output.len()) {
-        kernel::run(&neusample::CosineSampler, i, input, output);
+        kernel::run(&neusample::samplers::CosineSampler, i, input, output);
     }
 }
 
@@ -75,7 +75,7 @@ macro_rules! weighted_entry {
         ) {
             let i = id.x;
             if i < params.n && kernel::in_range(i, input.len(), output.len()) {
-                let s = neusample::$sampler::new_unchecked(weights);
+                let s = neusample::samplers::$sampler::new_unchecked(weights);
                 kernel::run(&s, i, input, output);
             }
         }
@@ -136,7 +136,7 @@ pub fn defensive_flow(
     let i = id.x;
     if i < params.n && kernel::in_range(i, input.len(), output.len()) {
         let s = neusample::Defensive::new_unchecked(
-            neusample::SplineFlowSampler::new_unchecked(weights),
+            neusample::samplers::SplineFlowSampler::new_unchecked(weights),
             DEFENSIVE_ALPHA,
         );
         kernel::run(&s, i, input, output);
@@ -156,7 +156,7 @@ pub fn defensive_reparam(
     let i = id.x;
     if i < params.n && kernel::in_range(i, input.len(), output.len()) {
         let s = neusample::Defensive::new_unchecked(
-            neusample::ReparamSampler::new_unchecked(weights),
+            neusample::samplers::ReparamSampler::new_unchecked(weights),
             DEFENSIVE_ALPHA,
         );
         kernel::run(&s, i, input, output);
@@ -186,7 +186,7 @@ pub fn histogram_mixture(
         } else {
             neusample::Interpolation::Nearest
         };
-        let s = neusample::HistogramMixtureSampler::new_unchecked(
+        let s = neusample::samplers::HistogramMixtureSampler::new_unchecked(
             weights,
             mass,
             table,

@@ -83,7 +83,7 @@ pub fn run(a: &ReparamExactArgs) -> Result<()> {
         .with_context(|| name.clone())?;
         let blob = Blob::open(&bytes)?;
         let sampled: Fit = fit(
-            &blob.sampler_as::<neusample::ReparamSampler<_>>()?,
+            &blob.sampler_as::<neusample::samplers::ReparamSampler<_>>()?,
             &m,
             a.conditions,
             32,
