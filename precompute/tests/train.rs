@@ -322,7 +322,7 @@ fn names_round_trip() {
 #[test]
 fn training_is_reproducible() {
     let mut cfg = TrainConfig::quick();
-    cfg.flow.schedule.steps = 30;
+    cfg.max_likelihood[SamplerKind::Flow].schedule.steps = 30;
     let a = train_with(&SyntheticSource, SamplerKind::Flow, &cfg).unwrap();
     let b = train_with(&SyntheticSource, SamplerKind::Flow, &cfg).unwrap();
     assert!(a
@@ -435,7 +435,9 @@ fn histogram_mixture_diagnostics() {
         let source = train::MaterialSource::new(m.as_ref());
         let t0 = std::time::Instant::now();
         let mut one_step = cfg.clone();
-        one_step.baseline.schedule.steps = 1;
+        one_step.max_likelihood[SamplerKind::ImprovedBaseline]
+            .schedule
+            .steps = 1;
         let pool_only = train_with(&source, SamplerKind::ImprovedBaseline, &one_step).unwrap();
         let t_pool = t0.elapsed().as_secs_f64();
         drop(pool_only);

@@ -3,6 +3,10 @@
 //! `default()` (the default run: about a minute per method on two cores); the quick settings
 //! are written as changes to the default ones.
 
+use std::ops::{Index, IndexMut};
+
+use neusample::SamplerKind;
+
 /// Settings every method shares.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Common {
@@ -99,8 +103,8 @@ pub struct MaxLikelihood {
 }
 
 impl Default for MaxLikelihood {
-    /// The default run of the lobe mixtures and the direct histogram; the flows change the
-    /// schedule ([`TrainConfig::default`]).
+    /// The default run of the lobe mixtures and the direct histogram; the flows' trainers
+    /// change the schedule.
     fn default() -> Self {
         MaxLikelihood {
             schedule: Schedule {
@@ -289,66 +293,64 @@ impl Reparam {
     }
 }
 
-/// Training hyper-parameters of every method.
+/// Training hyper-parameters of every method. Its `Default` (the default run: about a
+/// minute per method on two cores) and `quick()` (a few seconds per method) take each
+/// method's settings from its trainer (`method.rs`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrainConfig {
     /// Settings every method shares.
     pub common: Common,
-    /// Improved baseline.
-    pub baseline: MaxLikelihood,
-    /// Analytic mixture.
-    pub analytic: MaxLikelihood,
-    /// RQ-spline flow.
-    pub flow: MaxLikelihood,
-    /// Disk flow.
-    pub disk_flow: MaxLikelihood,
-    /// Affine-coupling flow.
-    pub affine_flow: MaxLikelihood,
-    /// Direct histogram.
-    pub direct_histogram: MaxLikelihood,
+    /// The settings of the methods trained by maximum likelihood alone (the lobe mixtures,
+    /// the flows, the direct histogram), by kind.
+    pub max_likelihood: ByKind<MaxLikelihood>,
     /// Histogram mixture.
     pub histogram_mixture: HistogramMixture,
     /// Reparameterization sampler.
     pub reparam: Reparam,
 }
 
-impl Default for TrainConfig {
-    /// The default run of every method: about a minute per method on two cores.
-    fn default() -> Self {
-        TrainConfig {
-            common: Common::default(),
-            baseline: MaxLikelihood::default(),
-            analytic: MaxLikelihood::default(),
-            flow: MaxLikelihood::with_schedule(2000, 5e-3),
-            disk_flow: MaxLikelihood::with_schedule(2000, 5e-3),
-            affine_flow: MaxLikelihood::with_schedule(2000, 4e-3),
-            direct_histogram: MaxLikelihood::default(),
-            histogram_mixture: HistogramMixture::default(),
-            reparam: Reparam::default(),
-        }
+/// Settings by sampler kind: one value for each kind whose trainer has them. Indexing by a
+/// kind without a value panics; [`ByKind::get`] does not.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ByKind<T>(Vec<(SamplerKind, T)>);
+
+impl<T> ByKind<T> {
+    /// The value of each kind `f` gives one for, in the order of `kinds`.
+    pub(crate) fn from_fn(
+        kinds: &[SamplerKind],
+        mut f: impl FnMut(SamplerKind) -> Option<T>,
+    ) -> Self {
+        ByKind(kinds.iter().filter_map(|&k| Some((k, f(k)?))).collect())
+    }
+
+    /// The value of `kind`, if it has one.
+    #[must_use]
+    pub fn get(&self, kind: SamplerKind) -> Option<&T> {
+        self.0.iter().find(|(k, _)| *k == kind).map(|(_, v)| v)
+    }
+
+    /// The value of `kind`, to change it, if it has one.
+    pub fn get_mut(&mut self, kind: SamplerKind) -> Option<&mut T> {
+        self.0.iter_mut().find(|(k, _)| *k == kind).map(|(_, v)| v)
+    }
+
+    /// Every kind with its value.
+    pub fn iter_mut(&mut self) -> impl Iterator<Item = (SamplerKind, &mut T)> {
+        self.0.iter_mut().map(|(k, v)| (*k, v))
     }
 }
 
-impl TrainConfig {
-    /// A short run for tests and CI (a few seconds per method).
-    #[must_use]
-    pub fn quick() -> Self {
-        TrainConfig {
-            common: Common::quick(),
-            baseline: MaxLikelihood::quick(),
-            analytic: MaxLikelihood::quick(),
-            flow: MaxLikelihood::quick(),
-            disk_flow: MaxLikelihood::quick(),
-            affine_flow: MaxLikelihood::quick(),
-            direct_histogram: MaxLikelihood::quick(),
-            histogram_mixture: HistogramMixture::quick(),
-            reparam: Reparam::quick(),
-        }
+impl<T> Index<SamplerKind> for ByKind<T> {
+    type Output = T;
+    fn index(&self, kind: SamplerKind) -> &T {
+        self.get(kind)
+            .unwrap_or_else(|| panic!("no {} settings", kind.name()))
     }
+}
 
-    /// The settings of the flows (the spline flow's and the disk flow's), which share the
-    /// χ² fine-tuning options.
-    pub fn spline_flows_mut(&mut self) -> [&mut MaxLikelihood; 2] {
-        [&mut self.flow, &mut self.disk_flow]
+impl<T> IndexMut<SamplerKind> for ByKind<T> {
+    fn index_mut(&mut self, kind: SamplerKind) -> &mut T {
+        self.get_mut(kind)
+            .unwrap_or_else(|| panic!("no {} settings", kind.name()))
     }
 }

@@ -13,7 +13,7 @@ use glam::{Vec2, Vec3};
 use neusample::distrib::table2d::cell_outside_disk;
 use neusample::nn::CONDITION_DIM;
 use neusample::samplers::direct_histogram::DIRECT_N;
-use neusample::FEATURE_DIM;
+use neusample::{SamplerKind, FEATURE_DIM};
 
 use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
@@ -87,12 +87,22 @@ pub(crate) struct DirectHistogramTrainer;
 pub(crate) const TRAINER: DirectHistogramTrainer = DirectHistogramTrainer;
 
 impl Trainer for DirectHistogramTrainer {
+    fn kind(&self) -> SamplerKind {
+        SamplerKind::DirectHistogram
+    }
+    fn max_likelihood(&self, quick: bool) -> Option<MaxLikelihood> {
+        Some(if quick {
+            MaxLikelihood::quick()
+        } else {
+            MaxLikelihood::default()
+        })
+    }
     fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
-        &mut cfg.direct_histogram.schedule
+        &mut cfg.max_likelihood[self.kind()].schedule
     }
     fn train(&self, run: Run<'_, '_>) -> anyhow::Result<Fitted> {
         let (pool, cfg) = (run.pool, run.cfg);
-        let (p, h) = train(pool, &cfg.common, &cfg.direct_histogram)?;
+        let (p, h) = train(pool, &cfg.common, &cfg.max_likelihood[self.kind()])?;
         Ok((p, None, h))
     }
     fn pdf_f64(&self, t: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {

@@ -26,7 +26,7 @@ use neusample::samplers::spline_flow::{
     BASE_OUTPUTS, COUPLING_INPUTS, FLOW_BASE_LEN, FLOW_COUPLING0, FLOW_COUPLING1, HIDDEN,
     OTHER_BANDS, SPLINE_BINS, SPLINE_NET_LEN, SPLINE_RAW_LEN, TAIL_BOUND,
 };
-use neusample::FEATURE_DIM;
+use neusample::{SamplerKind, FEATURE_DIM};
 
 use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
@@ -287,27 +287,32 @@ pub(crate) const AFFINE: FlowTrainer = FlowTrainer::Affine;
 /// (`host_tests/tests/flow.rs` measures it against an f64 reference).
 pub const DISK_POLE_TOLERANCE: f64 = 1e-2;
 
-impl FlowTrainer {
-    fn settings<'c>(&self, cfg: &'c TrainConfig) -> &'c MaxLikelihood {
+impl Trainer for FlowTrainer {
+    fn kind(&self) -> SamplerKind {
         match self {
-            FlowTrainer::Spline => &cfg.flow,
-            FlowTrainer::Disk => &cfg.disk_flow,
-            FlowTrainer::Affine => &cfg.affine_flow,
+            FlowTrainer::Spline => SamplerKind::Flow,
+            FlowTrainer::Disk => SamplerKind::DiskFlow,
+            FlowTrainer::Affine => SamplerKind::AffineFlow,
         }
     }
-}
-
-impl Trainer for FlowTrainer {
+    /// The flows' default run is shorter than the lobe mixtures', at a lower learning rate
+    /// for the affine flow.
+    fn max_likelihood(&self, quick: bool) -> Option<MaxLikelihood> {
+        Some(match self {
+            _ if quick => MaxLikelihood::quick(),
+            FlowTrainer::Spline | FlowTrainer::Disk => MaxLikelihood::with_schedule(2000, 5e-3),
+            FlowTrainer::Affine => MaxLikelihood::with_schedule(2000, 4e-3),
+        })
+    }
+    fn fine_tunes_chi2(&self) -> bool {
+        matches!(self, FlowTrainer::Spline | FlowTrainer::Disk)
+    }
     fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
-        match self {
-            FlowTrainer::Spline => &mut cfg.flow.schedule,
-            FlowTrainer::Disk => &mut cfg.disk_flow.schedule,
-            FlowTrainer::Affine => &mut cfg.affine_flow.schedule,
-        }
+        &mut cfg.max_likelihood[self.kind()].schedule
     }
     fn train(&self, run: Run<'_, '_>) -> anyhow::Result<Fitted> {
         let (pool, cfg) = (run.pool, run.cfg);
-        let (c, m) = (&cfg.common, self.settings(cfg));
+        let (c, m) = (&cfg.common, &cfg.max_likelihood[self.kind()]);
         let (p, h) = match self {
             FlowTrainer::Spline => train_spline(pool, c, m),
             FlowTrainer::Disk => train_disk(pool, c, m),

@@ -42,7 +42,7 @@ use neusample::distrib::table2d::cell_outside_disk;
 use neusample::nn::RAW_CONDITION_DIM;
 use neusample::samplers::histogram_mixture::{self as histogram, BASES};
 use neusample::Interpolation;
-use neusample::{DType, FEATURE_DIM};
+use neusample::{DType, SamplerKind, FEATURE_DIM};
 
 use super::config::{Common, HistogramMixture as Config, Schedule, TrainConfig};
 use super::data::{fit, raw_condition_f64, Batch, HostBatch, PointKind, Pool};
@@ -273,6 +273,9 @@ pub(crate) struct HistogramMixtureTrainer;
 pub(crate) const TRAINER: HistogramMixtureTrainer = HistogramMixtureTrainer;
 
 impl Trainer for HistogramMixtureTrainer {
+    fn kind(&self) -> SamplerKind {
+        SamplerKind::HistogramMixture
+    }
     fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
         &mut cfg.histogram_mixture.schedule
     }

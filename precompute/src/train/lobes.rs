@@ -16,7 +16,7 @@ use burn::tensor::Tensor;
 use glam::{Vec2, Vec3};
 use neusample::distrib::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
 use neusample::nn::CONDITION_DIM;
-use neusample::FEATURE_DIM;
+use neusample::{SamplerKind, FEATURE_DIM};
 
 use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
@@ -115,20 +115,26 @@ pub(crate) const BASELINE: Lobes = Lobes { analytic: false };
 pub(crate) const ANALYTIC: Lobes = Lobes { analytic: true };
 
 impl Trainer for Lobes {
-    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
+    fn kind(&self) -> SamplerKind {
         if self.analytic {
-            &mut cfg.analytic.schedule
+            SamplerKind::AnalyticMixture
         } else {
-            &mut cfg.baseline.schedule
+            SamplerKind::ImprovedBaseline
         }
+    }
+    fn max_likelihood(&self, quick: bool) -> Option<MaxLikelihood> {
+        Some(if quick {
+            MaxLikelihood::quick()
+        } else {
+            MaxLikelihood::default()
+        })
+    }
+    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
+        &mut cfg.max_likelihood[self.kind()].schedule
     }
     fn train(&self, run: Run<'_, '_>) -> Result<Fitted> {
         let (pool, cfg) = (run.pool, run.cfg);
-        let m = if self.analytic {
-            &cfg.analytic
-        } else {
-            &cfg.baseline
-        };
+        let m = &cfg.max_likelihood[self.kind()];
         let (p, h) = train(pool, &cfg.common, m, self.analytic)?;
         Ok((p, None, h))
     }

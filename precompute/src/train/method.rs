@@ -1,27 +1,30 @@
 //! The trainable methods, named by the runtime's [`SamplerKind`], and their trainers: the
-//! one list of the trainer's per-kind code ([`trainer`]). A method's trainer lives in its
-//! file (`lobes`, `flow`, `direct_histogram`, `histogram_mixture`, `reparam`); adding one is
-//! that file, its settings block in `config` and a line here.
+//! one list of trainers ([`TRAINERS`]). A method's trainer lives in its file (`lobes`,
+//! `flow`, `direct_histogram`, `histogram_mixture`, `reparam`) and gives its kind and
+//! default settings; adding one is that file and a line here.
 
 use neusample::SamplerKind;
 
-use super::config::{Schedule, TrainConfig};
+use super::config::TrainConfig;
+use super::config::{ByKind, Common, HistogramMixture, MaxLikelihood, Reparam, Schedule};
 use super::trainer::Trainer;
 use super::{direct_histogram, flow, histogram_mixture, lobes, reparam};
 
+/// Every trainer, one per trainable kind ([`Trainer::kind`]).
+const TRAINERS: [&dyn Trainer; 8] = [
+    &lobes::BASELINE,
+    &lobes::ANALYTIC,
+    &flow::SPLINE,
+    &flow::DISK,
+    &flow::AFFINE,
+    &direct_histogram::TRAINER,
+    &histogram_mixture::TRAINER,
+    &reparam::TRAINER,
+];
+
 /// The trainer of `kind`; `None` for cosine sampling, which has nothing to train.
 pub(crate) fn trainer(kind: SamplerKind) -> Option<&'static dyn Trainer> {
-    Some(match kind {
-        SamplerKind::Cosine => return None,
-        SamplerKind::ImprovedBaseline => &lobes::BASELINE,
-        SamplerKind::AnalyticMixture => &lobes::ANALYTIC,
-        SamplerKind::Flow => &flow::SPLINE,
-        SamplerKind::DiskFlow => &flow::DISK,
-        SamplerKind::AffineFlow => &flow::AFFINE,
-        SamplerKind::DirectHistogram => &direct_histogram::TRAINER,
-        SamplerKind::HistogramMixture => &histogram_mixture::TRAINER,
-        SamplerKind::Reparam => &reparam::TRAINER,
-    })
+    TRAINERS.into_iter().find(|t| t.kind() == kind)
 }
 
 /// Every trainable method: every sampler kind but cosine, in the runtime's order (the paper's
@@ -67,8 +70,40 @@ pub fn pole_tolerance(method: SamplerKind) -> Option<f64> {
     trainer(method).and_then(|t| t.pole_tolerance())
 }
 
+impl Default for TrainConfig {
+    /// The default run of every method: about a minute per method on two cores.
+    fn default() -> Self {
+        TrainConfig {
+            common: Common::default(),
+            max_likelihood: ByKind::from_fn(&METHODS, |k| trainer(k)?.max_likelihood(false)),
+            histogram_mixture: HistogramMixture::default(),
+            reparam: Reparam::default(),
+        }
+    }
+}
+
 /// The per-method settings of a [`TrainConfig`], reached through the methods' trainers.
 impl TrainConfig {
+    /// A short run for tests and CI (a few seconds per method).
+    #[must_use]
+    pub fn quick() -> Self {
+        TrainConfig {
+            common: Common::quick(),
+            max_likelihood: ByKind::from_fn(&METHODS, |k| trainer(k)?.max_likelihood(true)),
+            histogram_mixture: HistogramMixture::quick(),
+            reparam: Reparam::quick(),
+        }
+    }
+
+    /// The settings of the methods with a χ² fine-tuning phase after maximum likelihood
+    /// (the spline flows), which the command line's χ² options change together.
+    pub fn fine_tuned_mut(&mut self) -> impl Iterator<Item = &mut MaxLikelihood> {
+        self.max_likelihood
+            .iter_mut()
+            .filter(|(k, _)| trainer(*k).is_some_and(|t| t.fine_tunes_chi2()))
+            .map(|(_, m)| m)
+    }
+
     /// The schedule of `method`; `None` for the kinds that are not trained (cosine, the
     /// neural material).
     #[must_use]
@@ -106,9 +141,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_method_has_a_trainer_and_cosine_none() {
+    fn every_method_has_one_trainer_and_cosine_none() {
         for k in METHODS {
-            assert!(trainer(k).is_some(), "{k:?}");
+            let n = TRAINERS.iter().filter(|t| t.kind() == k).count();
+            assert_eq!(n, 1, "{k:?}");
         }
         assert!(trainer(SamplerKind::Cosine).is_none());
         assert_eq!(METHODS.len(), SamplerKind::ALL.len() - 1);

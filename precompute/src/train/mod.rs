@@ -53,7 +53,7 @@ pub mod reparam;
 pub mod spline;
 
 pub use config::{
-    Common, DensityLoss, HistogramMixture, MaxLikelihood, Reparam, Schedule, TrainConfig,
+    ByKind, Common, DensityLoss, HistogramMixture, MaxLikelihood, Reparam, Schedule, TrainConfig,
 };
 pub use data::{Batch, HostBatch, PointKind, Pool};
 pub use dispatch::{

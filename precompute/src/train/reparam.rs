@@ -26,7 +26,7 @@ use neusample::samplers::reparam::{
     REPARAM_PARAM_COUNT, WARP_OUTPUTS,
 };
 use neusample::samplers::ReparamSampler;
-use neusample::{Sampler, FEATURE_DIM};
+use neusample::{Sampler, SamplerKind, FEATURE_DIM};
 use rand::RngExt;
 
 use super::config::{Common, DensityLoss, Reparam, Schedule, TrainConfig};
@@ -451,6 +451,9 @@ pub(crate) struct ReparamTrainer;
 pub(crate) const TRAINER: ReparamTrainer = ReparamTrainer;
 
 impl Trainer for ReparamTrainer {
+    fn kind(&self) -> SamplerKind {
+        SamplerKind::Reparam
+    }
     fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
         &mut cfg.reparam.schedule
     }

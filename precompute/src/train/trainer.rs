@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3};
 use neusample::samplers::histogram_mixture as histogram;
 use neusample::{DType, Interpolation, SamplerKind, FEATURE_DIM};
 
-use super::config::{Common, Schedule, TrainConfig};
+use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
 use super::data::{Batch, HostBatch, Pool};
 use super::source::TargetSource;
 use crate::nn::{infer_device, to_host};
@@ -75,6 +75,18 @@ pub(crate) type Fitted = (Vec<f32>, Option<BakedTables>, Vec<f32>);
 
 /// How one method trains, and its trained model in f64 and as a training graph.
 pub(crate) trait Trainer: Sync {
+    /// The kind it trains.
+    fn kind(&self) -> SamplerKind;
+    /// Its settings in `TrainConfig::max_likelihood` (`quick`: those of the quick run);
+    /// `None` for a method with settings of their own type.
+    fn max_likelihood(&self, quick: bool) -> Option<MaxLikelihood> {
+        let _ = quick;
+        None
+    }
+    /// Whether its `max_likelihood` settings' χ² fine-tuning options apply (the spline flows).
+    fn fine_tunes_chi2(&self) -> bool {
+        false
+    }
     /// The method's schedule in `cfg`.
     fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule;
     /// `scale` applied to every step count of the method in `cfg` (by default, its schedule).

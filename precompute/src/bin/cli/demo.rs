@@ -76,8 +76,8 @@ pub struct DemoArgs {
     /// Skip the rendering evaluation (fit and cost only).
     #[arg(long)]
     pub no_render: bool,
-    /// Trained methods to evaluate, e.g. `flow,disk-flow` (cosine, the improved baseline and
-    /// the oracle are always evaluated); default: all.
+    /// Trained methods to evaluate, comma-separated, of the names listed below (cosine, the
+    /// improved baseline and the oracle are always evaluated); default: all.
     #[arg(long, value_delimiter = ',', value_parser = method_parser())]
     pub methods: Vec<SamplerKind>,
 }

@@ -177,7 +177,7 @@ impl TryFrom<&TrainArgs> for TrainConfig {
             cfg.histogram_mixture.chi2_weight = w;
             cfg.reparam.chi2_weight = w;
         }
-        for flow in cfg.spline_flows_mut() {
+        for flow in cfg.fine_tuned_mut() {
             if let Some(w) = a.chi2 {
                 flow.chi2_weight = w;
             }
