@@ -83,8 +83,8 @@ pub fn graph_log_pdf(params: &[f32], batch: &Batch) -> Tensor<2> {
 /// The direct histogram's trainer.
 pub(crate) struct DirectHistogramTrainer;
 
-/// The direct histogram's trainer.
-pub(crate) const TRAINER: DirectHistogramTrainer = DirectHistogramTrainer;
+/// The module's trainer: the direct histogram's.
+pub(crate) const TRAINERS: &[&dyn Trainer] = &[&DirectHistogramTrainer];
 
 impl Trainer for DirectHistogramTrainer {
     fn kind(&self) -> SamplerKind {

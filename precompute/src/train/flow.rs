@@ -275,12 +275,12 @@ pub(crate) enum FlowTrainer {
     Affine,
 }
 
-/// The RQ-spline flow's trainer.
-pub(crate) const SPLINE: FlowTrainer = FlowTrainer::Spline;
-/// The disk flow's trainer.
-pub(crate) const DISK: FlowTrainer = FlowTrainer::Disk;
-/// The affine flow's trainer.
-pub(crate) const AFFINE: FlowTrainer = FlowTrainer::Affine;
+/// The module's trainers: the RQ-spline flow's, the disk flow's and the affine flow's.
+pub(crate) const TRAINERS: &[&dyn Trainer] = &[
+    &FlowTrainer::Spline,
+    &FlowTrainer::Disk,
+    &FlowTrainer::Affine,
+];
 
 /// The disk flow's blob-check tolerance within 1e-2 of a pole of the disk (`|y| > 0.99`),
 /// where `1 ± y/C(x)` cancels in f32 before the second spline sees it

@@ -269,8 +269,8 @@ fn log_normaliser(p: Tensor<2>, target: Tensor<2>) -> Tensor<2> {
 /// baked one: no [`Trainer::graph_log_pdf`].
 pub(crate) struct HistogramMixtureTrainer;
 
-/// The histogram mixture's trainer.
-pub(crate) const TRAINER: HistogramMixtureTrainer = HistogramMixtureTrainer;
+/// The module's trainer: the histogram mixture's.
+pub(crate) const TRAINERS: &[&dyn Trainer] = &[&HistogramMixtureTrainer];
 
 impl Trainer for HistogramMixtureTrainer {
     fn kind(&self) -> SamplerKind {

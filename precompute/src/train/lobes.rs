@@ -113,6 +113,8 @@ pub(crate) struct Lobes {
 pub(crate) const BASELINE: Lobes = Lobes { analytic: false };
 /// The analytic mixture's trainer.
 pub(crate) const ANALYTIC: Lobes = Lobes { analytic: true };
+/// The module's trainers.
+pub(crate) const TRAINERS: &[&dyn Trainer] = &[&BASELINE, &ANALYTIC];
 
 impl Trainer for Lobes {
     fn kind(&self) -> SamplerKind {

@@ -1,7 +1,8 @@
 //! The trainable methods, named by the runtime's [`SamplerKind`], and their trainers: the
-//! one list of trainers ([`TRAINERS`]). A method's trainer lives in its file (`lobes`,
-//! `flow`, `direct_histogram`, `histogram_mixture`, `reparam`) and gives its kind and
-//! default settings; adding one is that file and a line here.
+//! one list of trainer modules ([`TRAINERS`]). A method's trainer lives in its module
+//! (`lobes`, `flow`, `direct_histogram`, `histogram_mixture`, `reparam`), which lists it in
+//! its `TRAINERS`; the trainer gives its kind and default settings. Adding a method to a
+//! module is that module alone; a new module is one line here.
 
 use neusample::SamplerKind;
 
@@ -10,21 +11,23 @@ use super::config::{ByKind, Common, HistogramMixture, MaxLikelihood, Reparam, Sc
 use super::trainer::Trainer;
 use super::{direct_histogram, flow, histogram_mixture, lobes, reparam};
 
-/// Every trainer, one per trainable kind ([`Trainer::kind`]).
-const TRAINERS: [&dyn Trainer; 8] = [
-    &lobes::BASELINE,
-    &lobes::ANALYTIC,
-    &flow::SPLINE,
-    &flow::DISK,
-    &flow::AFFINE,
-    &direct_histogram::TRAINER,
-    &histogram_mixture::TRAINER,
-    &reparam::TRAINER,
+/// The trainers of each trainer module, one per trainable kind ([`Trainer::kind`]).
+const TRAINERS: [&[&dyn Trainer]; 5] = [
+    lobes::TRAINERS,
+    flow::TRAINERS,
+    direct_histogram::TRAINERS,
+    histogram_mixture::TRAINERS,
+    reparam::TRAINERS,
 ];
+
+/// Every trainer.
+fn trainers() -> impl Iterator<Item = &'static dyn Trainer> {
+    TRAINERS.into_iter().flatten().copied()
+}
 
 /// The trainer of `kind`; `None` for cosine sampling, which has nothing to train.
 pub(crate) fn trainer(kind: SamplerKind) -> Option<&'static dyn Trainer> {
-    TRAINERS.into_iter().find(|t| t.kind() == kind)
+    trainers().find(|t| t.kind() == kind)
 }
 
 /// Every trainable method: every sampler kind but cosine, in the runtime's order (the paper's
@@ -143,7 +146,7 @@ mod tests {
     #[test]
     fn every_method_has_one_trainer_and_cosine_none() {
         for k in METHODS {
-            let n = TRAINERS.iter().filter(|t| t.kind() == k).count();
+            let n = trainers().filter(|t| t.kind() == k).count();
             assert_eq!(n, 1, "{k:?}");
         }
         assert!(trainer(SamplerKind::Cosine).is_none());

@@ -447,8 +447,8 @@ const POOL_RES: usize = 8;
 /// The reparameterization sampler's trainer.
 pub(crate) struct ReparamTrainer;
 
-/// The reparameterization sampler's trainer.
-pub(crate) const TRAINER: ReparamTrainer = ReparamTrainer;
+/// The module's trainer: the reparameterization sampler's.
+pub(crate) const TRAINERS: &[&dyn Trainer] = &[&ReparamTrainer];
 
 impl Trainer for ReparamTrainer {
     fn kind(&self) -> SamplerKind {
