@@ -15,9 +15,9 @@ use neusample::nn::CONDITION_DIM;
 use neusample::samplers::direct_histogram::DIRECT_N;
 use neusample::{SamplerKind, FEATURE_DIM};
 
-use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
-use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
-use super::trainer::{Fitted, Run, Trained, Trainer};
+use super::config::{Common, MaxLikelihood};
+use super::data::{encoded_condition_f64, Batch, Pool};
+use super::trainer::{fit_max_likelihood, Fitted, Run, Trained, Trainer};
 use crate::nn::{mlp_f64, softmax_f64, tensor2, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -90,16 +90,6 @@ impl Trainer for DirectHistogramTrainer {
     fn kind(&self) -> SamplerKind {
         SamplerKind::DirectHistogram
     }
-    fn max_likelihood(&self, quick: bool) -> Option<MaxLikelihood> {
-        Some(if quick {
-            MaxLikelihood::quick()
-        } else {
-            MaxLikelihood::default()
-        })
-    }
-    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
-        &mut cfg.max_likelihood[self.kind()].schedule
-    }
     fn train(&self, run: Run<'_, '_>) -> anyhow::Result<Fitted> {
         let (pool, cfg) = (run.pool, run.cfg);
         let (p, h) = train(pool, &cfg.common, &cfg.max_likelihood[self.kind()])?;
@@ -124,16 +114,10 @@ pub fn train(
     let model = DirectHistogram {
         net: Mlp::new(&SIZES, 0.1, &mut rng, &device),
     };
-    let (model, history) = fit(
-        model,
-        "direct-histogram",
-        common,
-        &cfg.schedule,
-        pool,
-        PointKind::FromTarget,
-        (cfg.batch_conditions, cfg.samples_per_condition),
-        |m: &DirectHistogram, batch: &Batch| log_pdf(&m.net, batch).mean().neg(),
-    )?;
+    let (model, history) =
+        fit_max_likelihood(model, "direct-histogram", pool, common, cfg, |m, b| {
+            log_pdf(&m.net, b)
+        })?;
     let mut params = Vec::new();
     model.net.export(&mut params);
     Ok((params, history))

@@ -28,11 +28,10 @@ use neusample::samplers::spline_flow::{
 };
 use neusample::{SamplerKind, FEATURE_DIM};
 
-use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
+use super::config::{Common, MaxLikelihood};
 use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
-use super::objective;
 use super::spline::{rq_forward, rq_forward_f64, rq_forward_free, rq_forward_free_f64};
-use super::trainer::{Fitted, Run, Trained, Trainer};
+use super::trainer::{fit_max_likelihood, Fitted, Run, Trained, Trainer};
 use crate::nn::{self, encode, encode_f64, mlp_f64, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -217,54 +216,6 @@ impl AffineFlow {
     }
 }
 
-/// Maximum likelihood of samples of p* over `cfg.schedule`, then, when `cfg.chi2_weight > 0`,
-/// the fine-tuning phase of [`objective::nll_and_chi2`] (`cfg.chi2_fraction` of the steps,
-/// a fifth of the learning rate, regression batches of `samples_per_condition` samples of
-/// p* and as many uniform points, its own batch seeds). The loss history holds both phases.
-fn fit_ml_then_chi2<M: Module>(
-    model: M,
-    name: &str,
-    pool: &mut Pool<'_>,
-    common: &Common,
-    cfg: &MaxLikelihood,
-    log_pdf: impl Fn(&M, &Batch) -> Tensor<2>,
-) -> anyhow::Result<(M, Vec<f32>)> {
-    let (model, mut history) = fit(
-        model,
-        name,
-        common,
-        &cfg.schedule,
-        pool,
-        PointKind::FromTarget,
-        (cfg.batch_conditions, cfg.samples_per_condition),
-        |m: &M, batch: &Batch| log_pdf(m, batch).mean().neg(),
-    )?;
-    let steps = (cfg.schedule.steps as f64 * cfg.chi2_fraction).round() as usize;
-    if !(cfg.chi2_weight > 0.0) || steps == 0 {
-        return Ok((model, history));
-    }
-    let tune = Schedule {
-        steps,
-        lr: cfg.schedule.lr * 0.2,
-    };
-    let tune_common = Common {
-        seed: mix_seed(common.seed, 0xc412),
-        ..common.clone()
-    };
-    let (model, more) = fit(
-        model,
-        &format!("{name} (χ²)"),
-        &tune_common,
-        &tune,
-        pool,
-        PointKind::Regression,
-        (cfg.batch_conditions, 2 * cfg.samples_per_condition),
-        |m: &M, batch: &Batch| objective::nll_and_chi2(log_pdf(m, batch), batch, cfg.chi2_weight),
-    )?;
-    history.extend(more);
-    Ok((model, history))
-}
-
 /// The trainer of one of the three flows.
 pub(crate) enum FlowTrainer {
     /// The RQ-spline flow.
@@ -306,9 +257,6 @@ impl Trainer for FlowTrainer {
     }
     fn fine_tunes_chi2(&self) -> bool {
         matches!(self, FlowTrainer::Spline | FlowTrainer::Disk)
-    }
-    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
-        &mut cfg.max_likelihood[self.kind()].schedule
     }
     fn train(&self, run: Run<'_, '_>) -> anyhow::Result<Fitted> {
         let (pool, cfg) = (run.pool, run.cfg);
@@ -355,7 +303,7 @@ pub fn train_spline(
         c1: Mlp::new(&SPLINE_NET_SIZES, 0.1, &mut rng, &device),
     };
     let (model, history) =
-        fit_ml_then_chi2(model, "flow", pool, common, cfg, |m: &SplineFlow, b| {
+        fit_max_likelihood(model, "flow", pool, common, cfg, |m: &SplineFlow, b| {
             m.log_pdf(b)
         })?;
     let mut params = Vec::with_capacity(FLOW_COUPLING1 + SPLINE_NET_LEN);
@@ -390,7 +338,7 @@ pub fn train_disk(
         c1: disk_coupling_net(&mut rng, &device),
     };
     let (model, history) =
-        fit_ml_then_chi2(model, "disk-flow", pool, common, cfg, |m: &DiskFlow, b| {
+        fit_max_likelihood(model, "disk-flow", pool, common, cfg, |m: &DiskFlow, b| {
             m.log_pdf(b)
         })?;
     let mut params = Vec::with_capacity(2 * DISK_NET_LEN);

@@ -18,9 +18,9 @@ use neusample::distrib::gaussian::{LOG_SIGMA_MAX, LOG_SIGMA_MIN};
 use neusample::nn::CONDITION_DIM;
 use neusample::{SamplerKind, FEATURE_DIM};
 
-use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
-use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
-use super::trainer::{Fitted, Run, Trained, Trainer};
+use super::config::{Common, MaxLikelihood};
+use super::data::{encoded_condition_f64, Batch, Pool};
+use super::trainer::{fit_max_likelihood, Fitted, Run, Trained, Trainer};
 use crate::nn::{self, log_sum_exp_last, mlp_f64, softmax_f64, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 use anyhow::Result;
@@ -124,16 +124,6 @@ impl Trainer for Lobes {
             SamplerKind::ImprovedBaseline
         }
     }
-    fn max_likelihood(&self, quick: bool) -> Option<MaxLikelihood> {
-        Some(if quick {
-            MaxLikelihood::quick()
-        } else {
-            MaxLikelihood::default()
-        })
-    }
-    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
-        &mut cfg.max_likelihood[self.kind()].schedule
-    }
     fn train(&self, run: Run<'_, '_>) -> Result<Fitted> {
         let (pool, cfg) = (run.pool, run.cfg);
         let m = &cfg.max_likelihood[self.kind()];
@@ -173,24 +163,14 @@ pub fn train(
         net: Mlp::new_with_output_bias(sizes, 0.1, bias, &mut rng, &device),
     };
     let name = if analytic { "analytic" } else { "baseline" };
-    let (model, history) = fit(
-        model,
-        name,
-        common,
-        &cfg.schedule,
-        pool,
-        PointKind::FromTarget,
-        (cfg.batch_conditions, cfg.samples_per_condition),
-        |m: &LobeModel, batch: &Batch| {
-            let o = m.net.forward(batch.cond.clone(), Activation::Relu);
-            let lp = if analytic {
-                analytic_log_pdf(o, batch)
-            } else {
-                baseline_log_pdf(o, batch)
-            };
-            lp.mean().neg()
-        },
-    )?;
+    let (model, history) = fit_max_likelihood(model, name, pool, common, cfg, |m, batch| {
+        let o = m.net.forward(batch.cond.clone(), Activation::Relu);
+        if analytic {
+            analytic_log_pdf(o, batch)
+        } else {
+            baseline_log_pdf(o, batch)
+        }
+    })?;
     let mut params = Vec::new();
     model.net.export(&mut params);
     Ok((params, history))

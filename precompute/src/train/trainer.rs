@@ -3,15 +3,18 @@
 //! them is `method`.
 
 use anyhow::Result;
+use burn::module::Module;
 use burn::tensor::Tensor;
 use glam::{Vec2, Vec3};
 use neusample::samplers::histogram_mixture as histogram;
 use neusample::{DType, Interpolation, SamplerKind, FEATURE_DIM};
 
 use super::config::{Common, MaxLikelihood, Schedule, TrainConfig};
-use super::data::{Batch, HostBatch, Pool};
+use super::data::{fit, Batch, HostBatch, PointKind, Pool};
+use super::objective;
 use super::source::TargetSource;
 use crate::nn::{infer_device, to_host};
+use crate::util::rng::mix_seed;
 
 /// A trained sampler.
 #[derive(Clone, Debug)]
@@ -77,18 +80,24 @@ pub(crate) type Fitted = (Vec<f32>, Option<BakedTables>, Vec<f32>);
 pub(crate) trait Trainer: Sync {
     /// The kind it trains.
     fn kind(&self) -> SamplerKind;
-    /// Its settings in `TrainConfig::max_likelihood` (`quick`: those of the quick run);
-    /// `None` for a method with settings of their own type.
+    /// Its settings in `TrainConfig::max_likelihood` (`quick`: those of the quick run); by
+    /// default the presets; `None` for a method with settings of their own type.
     fn max_likelihood(&self, quick: bool) -> Option<MaxLikelihood> {
-        let _ = quick;
-        None
+        Some(if quick {
+            MaxLikelihood::quick()
+        } else {
+            MaxLikelihood::default()
+        })
     }
     /// Whether its `max_likelihood` settings' χ² fine-tuning options apply (the spline flows).
     fn fine_tunes_chi2(&self) -> bool {
         false
     }
-    /// The method's schedule in `cfg`.
-    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule;
+    /// The method's schedule in `cfg`; by default its `max_likelihood` settings' (a method
+    /// with settings of their own type overrides it).
+    fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
+        &mut cfg.max_likelihood[self.kind()].schedule
+    }
     /// `scale` applied to every step count of the method in `cfg` (by default, its schedule).
     fn scale_steps(&self, cfg: &mut TrainConfig, scale: &dyn Fn(&mut Schedule)) {
         scale(self.schedule_mut(cfg));
@@ -130,4 +139,52 @@ pub(crate) trait Trainer: Sync {
     fn pole_tolerance(&self) -> Option<f64> {
         None
     }
+}
+
+/// Maximum likelihood of samples of p* over `cfg.schedule`, then, when `cfg.chi2_weight > 0`,
+/// the fine-tuning phase of [`objective::nll_and_chi2`] (`cfg.chi2_fraction` of the steps,
+/// a fifth of the learning rate, regression batches of `samples_per_condition` samples of
+/// p* and as many uniform points, its own batch seeds). The loss history holds both phases.
+pub(crate) fn fit_max_likelihood<M: Module>(
+    model: M,
+    name: &str,
+    pool: &mut Pool<'_>,
+    common: &Common,
+    cfg: &MaxLikelihood,
+    log_pdf: impl Fn(&M, &Batch) -> Tensor<2>,
+) -> anyhow::Result<(M, Vec<f32>)> {
+    let (model, mut history) = fit(
+        model,
+        name,
+        common,
+        &cfg.schedule,
+        pool,
+        PointKind::FromTarget,
+        (cfg.batch_conditions, cfg.samples_per_condition),
+        |m: &M, batch: &Batch| log_pdf(m, batch).mean().neg(),
+    )?;
+    let steps = (cfg.schedule.steps as f64 * cfg.chi2_fraction).round() as usize;
+    if !(cfg.chi2_weight > 0.0) || steps == 0 {
+        return Ok((model, history));
+    }
+    let tune = Schedule {
+        steps,
+        lr: cfg.schedule.lr * 0.2,
+    };
+    let tune_common = Common {
+        seed: mix_seed(common.seed, 0xc412),
+        ..common.clone()
+    };
+    let (model, more) = fit(
+        model,
+        &format!("{name} (χ²)"),
+        &tune_common,
+        &tune,
+        pool,
+        PointKind::Regression,
+        (cfg.batch_conditions, 2 * cfg.samples_per_condition),
+        |m: &M, batch: &Batch| objective::nll_and_chi2(log_pdf(m, batch), batch, cfg.chi2_weight),
+    )?;
+    history.extend(more);
+    Ok((model, history))
 }
