@@ -75,6 +75,30 @@ impl<'a> Pool<'a> {
             .collect()
     }
 
+    /// `row(rng, condition, wi)` for each condition [`Pool::pick`] draws for `step` from
+    /// `seed` mixed with `salts.0`, in parallel. Row `j` draws from its own stream (`seed`
+    /// mixed with `salts.1`, at `step` and `j`) and gets its condition's `wi` as the runtime
+    /// checks it (`+z` where the runtime refuses the condition).
+    pub fn map_picked<R: Send>(
+        &self,
+        b: usize,
+        seed: u64,
+        salts: (u64, u64),
+        step: usize,
+        row: impl Fn(&mut Pcg64, &GtCondition, Vec3) -> R + Sync + Send,
+    ) -> Vec<R> {
+        let chosen = self.pick(b, mix_seed(seed, salts.0), step);
+        chosen
+            .par_iter()
+            .enumerate()
+            .map(|(j, g)| {
+                let mut rng = rng_for(mix_seed(seed, salts.1), step as u64, j as u64);
+                let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
+                row(&mut rng, g, wi)
+            })
+            .collect()
+    }
+
     /// Replaces a quarter of the pool when `step` is a refresh step (not step 0).
     pub fn maybe_refresh(&mut self, step: usize) -> anyhow::Result<()> {
         if self.refresh_every == 0 || step == 0 || !step.is_multiple_of(self.refresh_every) {
@@ -199,33 +223,26 @@ pub fn make_batch(
     seed: u64,
     step: usize,
 ) -> HostBatch {
-    let chosen = pool.pick(b, mix_seed(seed, 0xba7c), step);
-    let rows: Vec<_> = chosen
-        .par_iter()
-        .enumerate()
-        .map(|(j, g)| {
-            let mut rng = rng_for(mix_seed(seed, 0x9017), step as u64, j as u64);
-            let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
-            let cond = encode_condition(&g.phi, wi);
-            let raw = raw_condition(&g.phi, wi);
-            let mut xs = Vec::with_capacity(s);
-            let mut ys = Vec::with_capacity(s);
-            let mut ts = Vec::new();
-            for k in 0..s {
-                let p = match kind {
-                    PointKind::FromTarget => sample_target(&g.target, &mut rng),
-                    PointKind::Regression if k % 2 == 0 => uniform_disk(&mut rng),
-                    PointKind::Regression => sample_target(&g.target, &mut rng),
-                };
-                xs.push(p.x);
-                ys.push(p.y);
-                if kind == PointKind::Regression {
-                    ts.push(g.target.pdf(p));
-                }
+    let rows = pool.map_picked(b, seed, (0xba7c, 0x9017), step, |rng, g, wi| {
+        let cond = encode_condition(&g.phi, wi);
+        let raw = raw_condition(&g.phi, wi);
+        let mut xs = Vec::with_capacity(s);
+        let mut ys = Vec::with_capacity(s);
+        let mut ts = Vec::new();
+        for k in 0..s {
+            let p = match kind {
+                PointKind::FromTarget => sample_target(&g.target, rng),
+                PointKind::Regression if k % 2 == 0 => uniform_disk(rng),
+                PointKind::Regression => sample_target(&g.target, rng),
+            };
+            xs.push(p.x);
+            ys.push(p.y);
+            if kind == PointKind::Regression {
+                ts.push(g.target.pdf(p));
             }
-            (cond, raw, xs, ys, ts)
-        })
-        .collect();
+        }
+        (cond, raw, xs, ys, ts)
+    });
     let mut out = HostBatch {
         b,
         s,

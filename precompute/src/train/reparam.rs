@@ -20,7 +20,7 @@ use burn::tensor::activation;
 use burn::tensor::{Device, Tensor};
 use glam::{Vec2, Vec3};
 use neusample::distrib::gaussian::box_muller;
-use neusample::nn::{check_condition, encode_condition, CONDITION_DIM};
+use neusample::nn::{encode_condition, CONDITION_DIM};
 use neusample::samplers::reparam::{
     DENSITY_L0, LOG_DENSITY_MAX, LOG_DENSITY_MIN, REPARAM_HIDDEN, REPARAM_INPUTS,
     REPARAM_PARAM_COUNT, WARP_OUTPUTS,
@@ -186,25 +186,17 @@ fn warp_batch(
     seed: u64,
     step: usize,
 ) -> WarpBatch {
-    use rayon::prelude::*;
-    let chosen = pool.pick(b, mix_seed(seed, 0x7e9a), step);
-    let rows: Vec<_> = chosen
-        .par_iter()
-        .enumerate()
-        .map(|(j, g)| {
-            let mut rng = rng_for(mix_seed(seed, 0x2a7b), step as u64, j as u64);
-            let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
-            let z = stratified_z(s, &mut rng);
-            let fixed: Vec<f32> = z
-                .iter()
-                .map(|&z| {
-                    let (wo, det) = fixed_warp(z);
-                    integrand.f(&g.phi, wi, wo) * det
-                })
-                .collect();
-            ((g.phi, wi), encode_condition(&g.phi, wi), z, fixed)
-        })
-        .collect();
+    let rows = pool.map_picked(b, seed, (0x7e9a, 0x2a7b), step, |rng, g, wi| {
+        let z = stratified_z(s, rng);
+        let fixed: Vec<f32> = z
+            .iter()
+            .map(|&z| {
+                let (wo, det) = fixed_warp(z);
+                integrand.f(&g.phi, wi, wo) * det
+            })
+            .collect();
+        ((g.phi, wi), encode_condition(&g.phi, wi), z, fixed)
+    });
     let mut out = WarpBatch {
         conds: Vec::with_capacity(b),
         cond: Vec::with_capacity(b * s * CONDITION_DIM),
@@ -331,36 +323,27 @@ fn density_batch(
     seed: u64,
     step: usize,
 ) -> DensityBatch {
-    use rayon::prelude::*;
-    let chosen = pool.pick(b, mix_seed(seed, 0xde75), step);
-    let rows: Vec<_> = chosen
-        .par_iter()
-        .enumerate()
-        .map(|(j, g)| {
-            let mut rng = rng_for(mix_seed(seed, 0x9d3e), step as u64, j as u64);
-            let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
-            let enc = encode_condition(&g.phi, wi);
-            let mut xs = Vec::with_capacity(s);
-            if let Some(p) = warp.prepare(&g.phi, wi) {
-                for z in stratified_z(s, &mut rng) {
-                    let t = p.warp(z);
-                    let lq =
-                        -0.5 * f64::from(z.length_squared()) - LN_TWO_PI - f64::from(t.det).ln();
-                    if t.det > 0.0 && lq.is_finite() && t.point.length_squared() < 1.0 {
-                        xs.push((t.point, lq as f32));
-                    }
+    let rows = pool.map_picked(b, seed, (0xde75, 0x9d3e), step, |rng, g, wi| {
+        let enc = encode_condition(&g.phi, wi);
+        let mut xs = Vec::with_capacity(s);
+        if let Some(p) = warp.prepare(&g.phi, wi) {
+            for z in stratified_z(s, rng) {
+                let t = p.warp(z);
+                let lq = -0.5 * f64::from(z.length_squared()) - LN_TWO_PI - f64::from(t.det).ln();
+                if t.det > 0.0 && lq.is_finite() && t.point.length_squared() < 1.0 {
+                    xs.push((t.point, lq as f32));
                 }
             }
-            let us: Vec<Vec2> = (0..s)
-                .map(|_| {
-                    let r = rng.random::<f32>().sqrt();
-                    let a = std::f32::consts::TAU * rng.random::<f32>();
-                    Vec2::new(r * a.cos(), r * a.sin()) * 0.9999
-                })
-                .collect();
-            (enc, xs, us)
-        })
-        .collect();
+        }
+        let us: Vec<Vec2> = (0..s)
+            .map(|_| {
+                let r = rng.random::<f32>().sqrt();
+                let a = std::f32::consts::TAU * rng.random::<f32>();
+                Vec2::new(r * a.cos(), r * a.sin()) * 0.9999
+            })
+            .collect();
+        (enc, xs, us)
+    });
     let mut out = DensityBatch {
         cond_q: Vec::new(),
         x: Vec::new(),
