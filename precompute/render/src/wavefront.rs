@@ -194,6 +194,38 @@ impl<L: LaneState> Batch<L> {
             env_f: Rows::new(cap),
         }
     }
+
+    /// Gathers the shading points on surface `surface_index`: the slots whose vertex lies
+    /// on it with `wi` above it, with their frames, texture coordinates, `wi` and BSDF
+    /// random numbers. Returns how many.
+    fn gather(
+        &mut self,
+        surface_index: usize,
+        hits: &[Option<Hit>],
+        rays: &[Ray],
+        randoms: &[VertexRandoms],
+    ) -> usize {
+        self.slots.clear();
+        self.frames.clear();
+        for (slot, hit) in hits.iter().enumerate() {
+            let Some(hit) = hit else { continue };
+            if hit.surface != surface_index {
+                continue;
+            }
+            let frame = Frame::from_normal_tangent(hit.n, hit.tangent);
+            let wi = frame.to_local(-rays[slot].d);
+            if !(wi.z > 0.0) {
+                continue;
+            }
+            let i = self.slots.len();
+            self.slots.push(slot);
+            self.frames.push(frame);
+            self.uv.set(i, hit.uv.to_array());
+            self.wi.set(i, wi.to_array());
+            self.u.set(i, randoms[slot].bsdf.to_array());
+        }
+        self.slots.len()
+    }
 }
 
 /// The per-tile state of the integrator.
@@ -239,27 +271,7 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
             }
         }
         for (surface_index, surface) in surfaces.iter().enumerate() {
-            // Gather the shading points on this surface.
-            b.slots.clear();
-            b.frames.clear();
-            for (slot, hit) in hits.iter().enumerate() {
-                let Some(hit) = hit else { continue };
-                if hit.surface != surface_index {
-                    continue;
-                }
-                let frame = Frame::from_normal_tangent(hit.n, hit.tangent);
-                let wi = frame.to_local(-rays[slot].d);
-                if !(wi.z > 0.0) {
-                    continue;
-                }
-                let i = b.slots.len();
-                b.slots.push(slot);
-                b.frames.push(frame);
-                b.uv.set(i, hit.uv.to_array());
-                b.wi.set(i, wi.to_array());
-                b.u.set(i, randoms[slot].bsdf.to_array());
-            }
-            let n = b.slots.len();
+            let n = b.gather(surface_index, hits, rays, randoms);
             if n == 0 {
                 continue;
             }
