@@ -20,9 +20,9 @@ pub struct SceneArgs {
     /// of reports whose sky-sun/report.json is used.
     #[arg(long, value_name = "FILE|DIR")]
     pub table: Option<PathBuf>,
-    /// Methods per material, before the table's: material=method,… (cosine, baseline,
-    /// analytic, flow, affine-flow, direct-histogram, histogram-mixture); a material named
-    /// by neither gets flow.
+    /// Methods per material, before the table's: material=method,… (a sampler kind's name;
+    /// an unknown name is answered with the list of names); a material named by neither
+    /// gets flow.
     #[arg(long, value_delimiter = ',', value_parser = parse_choice)]
     pub methods: Vec<(String, String)>,
     /// Seed of every render.

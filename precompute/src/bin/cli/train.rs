@@ -17,9 +17,9 @@ pub struct TrainArgs {
     /// A material file (TOML/JSON) or the name of a built-in material.
     #[arg(long)]
     material: String,
-    /// The method: baseline, analytic, flow, affine-flow, direct-histogram, histogram-mixture,
-    /// `all` (every method in turn, evaluated; needs --out-dir) or a comma-separated list
-    /// (`flow,` for a one-method sweep).
+    /// The method, by its name (an unknown name is answered with the list of names), `all`
+    /// (every method in turn, evaluated; needs --out-dir) or a comma-separated list (`flow,`
+    /// for a one-method sweep).
     #[arg(long)]
     method: MethodArg,
     /// Where to write the blob (atomically); one method.
