@@ -44,7 +44,7 @@ use neusample::samplers::histogram_mixture::{self as histogram, BASES};
 use neusample::Interpolation;
 use neusample::{DType, SamplerKind, FEATURE_DIM};
 
-use super::config::{Common, HistogramMixture as Config, Schedule, TrainConfig};
+use super::config::{Common, HistogramMixture as Config, MaxLikelihood, Schedule, TrainConfig};
 use super::data::{fit, raw_condition_f64, Batch, HostBatch, PointKind, Pool};
 use super::objective;
 pub use super::trainer::BakedTables;
@@ -275,6 +275,9 @@ pub(crate) const TRAINERS: &[&dyn Trainer] = &[&HistogramMixtureTrainer];
 impl Trainer for HistogramMixtureTrainer {
     fn kind(&self) -> SamplerKind {
         SamplerKind::HistogramMixture
+    }
+    fn max_likelihood(&self, _quick: bool) -> Option<MaxLikelihood> {
+        None
     }
     fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
         &mut cfg.histogram_mixture.schedule

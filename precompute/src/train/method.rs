@@ -144,6 +144,57 @@ mod tests {
     use super::*;
 
     #[test]
+    fn settings_by_kind() {
+        let ml = [
+            SamplerKind::ImprovedBaseline,
+            SamplerKind::AnalyticMixture,
+            SamplerKind::Flow,
+            SamplerKind::DiskFlow,
+            SamplerKind::AffineFlow,
+            SamplerKind::DirectHistogram,
+        ];
+        for (cfg, quick) in [
+            (TrainConfig::default(), false),
+            (TrainConfig::quick(), true),
+        ] {
+            for k in SamplerKind::ALL {
+                let m = cfg.max_likelihood.get(k);
+                assert_eq!(m.is_some(), ml.contains(&k), "{k:?}");
+                if let Some(m) = m {
+                    assert_eq!(Some(m.schedule), cfg.schedule(k), "{k:?}");
+                }
+            }
+            assert_eq!(cfg.schedule(SamplerKind::Cosine), None);
+            let hm = cfg.schedule(SamplerKind::HistogramMixture);
+            assert_eq!(hm, Some(cfg.histogram_mixture.schedule));
+            assert_eq!(
+                cfg.schedule(SamplerKind::Reparam),
+                Some(cfg.reparam.schedule)
+            );
+            let flow = cfg.max_likelihood[SamplerKind::Flow].schedule;
+            if quick {
+                assert_eq!(flow, Schedule::quick());
+            } else {
+                // The flows' shorter default run.
+                assert_eq!((flow.steps, flow.lr), (2000, 5e-3));
+            }
+        }
+        // The command line's χ² options reach the two spline flows only.
+        let mut cfg = TrainConfig::default();
+        for m in cfg.fine_tuned_mut() {
+            m.chi2_weight = 7.0;
+        }
+        for k in ml {
+            let tuned = cfg.max_likelihood[k].chi2_weight == 7.0;
+            assert_eq!(
+                tuned,
+                matches!(k, SamplerKind::Flow | SamplerKind::DiskFlow),
+                "{k:?}"
+            );
+        }
+    }
+
+    #[test]
     fn every_method_has_one_trainer_and_cosine_none() {
         for k in METHODS {
             let n = trainers().filter(|t| t.kind() == k).count();

@@ -29,7 +29,7 @@ use neusample::samplers::ReparamSampler;
 use neusample::{Sampler, SamplerKind, FEATURE_DIM};
 use rand::RngExt;
 
-use super::config::{Common, DensityLoss, Reparam, Schedule, TrainConfig};
+use super::config::{Common, DensityLoss, MaxLikelihood, Reparam, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, Pool};
 use super::integrand::Integrand;
 use super::trainer::{Fitted, Run, Trained, Trainer};
@@ -436,6 +436,9 @@ pub(crate) const TRAINERS: &[&dyn Trainer] = &[&ReparamTrainer];
 impl Trainer for ReparamTrainer {
     fn kind(&self) -> SamplerKind {
         SamplerKind::Reparam
+    }
+    fn max_likelihood(&self, _quick: bool) -> Option<MaxLikelihood> {
+        None
     }
     fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
         &mut cfg.reparam.schedule
