@@ -1,4 +1,5 @@
-//! Training hyper-parameters: the settings every method shares, plus one block per method.
+//! Training hyper-parameters: the settings every method shares, plus each method's block (a
+//! [`MaxLikelihood`] per kind for the methods trained by maximum likelihood alone).
 //! Each block has one `quick()` (a few seconds per method, for tests and CI) and one
 //! `default()` (the default run: about a minute per method on two cores); the quick settings
 //! are written as changes to the default ones.

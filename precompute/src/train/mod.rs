@@ -22,12 +22,12 @@
 //!
 //! Methods are named by the runtime's [`neusample::SamplerKind`] ([`METHODS`]).
 //!
-//! Files: `config` (the hyper-parameters: common settings plus one block per method),
+//! Files: `config` (the hyper-parameters: common settings plus each method's block, by kind),
 //! `source` (where conditions come from), `data` (pool, batches, the loop feeding the
 //! optimiser), one file per method family (`lobes`: baseline and analytic; `flow` with its
 //! `spline`: the three flows; `direct_histogram`; `histogram_mixture`; `reparam`), each with
 //! its method's trainer (`trainer`: what a trainer provides and what training returns),
-//! `method` (the list of trainers, by kind), `dispatch` (the entry points and the trained
+//! `method` (the list of trainer modules; a trainer is found by its kind), `dispatch` (the entry points and the trained
 //! model's f64 mirror), and [`neural_material`] (fitting a neural material to a material:
 //! the same building blocks, another model).
 //!
