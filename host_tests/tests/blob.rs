@@ -94,7 +94,7 @@ fn every_kind_round_trips_in_f32_and_f16() {
 
 #[test]
 fn aligned_f32_tensors_are_zero_copy() {
-    let (bytes, _) = small_blob(SamplerKind::Flow, DType::F32, 3);
+    let (bytes, _) = small_blob(SamplerKind::SplineFlow, DType::F32, 3);
     // Copy into a 16-byte aligned buffer.
     let mut store = vec![0u128; bytes.len().div_ceil(16)];
     let aligned: &mut [u8] = bytemuck_cast(&mut store);
@@ -142,7 +142,7 @@ fn truncation_at_every_length_is_a_typed_error() {
 
 #[test]
 fn wrong_magic_version_and_kind() {
-    let (bytes, _) = small_blob(SamplerKind::Flow, DType::F32, 5);
+    let (bytes, _) = small_blob(SamplerKind::SplineFlow, DType::F32, 5);
     let mut b = bytes.clone();
     b[0] = b'X';
     assert_eq!(Blob::open(&b).unwrap_err(), Error::BadMagic);
@@ -170,7 +170,7 @@ fn wrong_magic_version_and_kind() {
             .unwrap_err(),
         Error::WrongKind {
             expected: SamplerKind::HistogramMixture.into(),
-            found: SamplerKind::Flow.into()
+            found: SamplerKind::SplineFlow.into()
         }
     );
     assert!(blob
@@ -184,8 +184,8 @@ fn wrong_magic_version_and_kind() {
 
 #[test]
 fn wrong_dimensions_are_refused() {
-    let params = vec![0.01f32; SamplerKind::Flow.param_count()];
-    let mut w = BlobWriter::new(SamplerKind::Flow, DType::F32, "");
+    let params = vec![0.01f32; SamplerKind::SplineFlow.param_count()];
+    let mut w = BlobWriter::new(SamplerKind::SplineFlow, DType::F32, "");
     w.tensor(TensorRole::Params, &params);
     w.header_mut().feature_dim = 9;
     assert!(matches!(
@@ -196,7 +196,7 @@ fn wrong_dimensions_are_refused() {
             found: 9
         })
     ));
-    let mut w = BlobWriter::new(SamplerKind::Flow, DType::F32, "");
+    let mut w = BlobWriter::new(SamplerKind::SplineFlow, DType::F32, "");
     w.tensor(TensorRole::Params, &params[1..]);
     w.header_mut().param_count -= 1;
     assert!(matches!(
@@ -207,14 +207,14 @@ fn wrong_dimensions_are_refused() {
         })
     ));
     // A tensor shorter than the header says.
-    let mut w = BlobWriter::new(SamplerKind::Flow, DType::F32, "");
+    let mut w = BlobWriter::new(SamplerKind::SplineFlow, DType::F32, "");
     w.tensor(TensorRole::Params, &params[1..]);
     assert!(matches!(
         Blob::open(&w.to_bytes()),
         Err(Error::TensorShape { role: "params", .. })
     ));
     // Missing tensor.
-    let w = BlobWriter::new(SamplerKind::Flow, DType::F32, "");
+    let w = BlobWriter::new(SamplerKind::SplineFlow, DType::F32, "");
     assert!(matches!(
         Blob::open(&w.to_bytes()),
         Err(Error::HeaderInvalid | Error::TensorMissing { .. })

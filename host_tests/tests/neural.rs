@@ -378,8 +378,8 @@ fn corrupted_blobs_give_typed_errors() {
         "{e:?}"
     );
     // A sampler blob carrying a features tensor.
-    let params = vec![0.0f32; SamplerKind::Flow.param_count()];
-    let mut bw = BlobWriter::new(SamplerKind::Flow, DType::F32, "");
+    let params = vec![0.0f32; SamplerKind::SplineFlow.param_count()];
+    let mut bw = BlobWriter::new(SamplerKind::SplineFlow, DType::F32, "");
     bw.tensor(TensorRole::Params, &params)
         .tensor(TensorRole::Features, &[0.0; 8]);
     let e = Blob::open(&bw.to_bytes()).map(|_| ());

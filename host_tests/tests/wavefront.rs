@@ -476,7 +476,7 @@ fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) -> Deviation {
         AnySampler::Cosine(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
         AnySampler::ImprovedBaseline(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
         AnySampler::AnalyticMixture(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
-        AnySampler::Flow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::SplineFlow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
         AnySampler::DiskFlow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
         AnySampler::AffineFlow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
         AnySampler::DirectHistogram(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),

@@ -52,7 +52,7 @@ fn core_pdf(t: &Trained, phi: &[f32; 8], wi: Vec3, p: Vec2) -> f32 {
             .expect("analytic parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
-        SamplerKind::Flow => SplineFlowSampler::new(w)
+        SamplerKind::SplineFlow => SplineFlowSampler::new(w)
             .expect("flow parameter count")
             .prepare(phi, wi)
             .map_or(0.0, |s| s.pdf_disk(p)),
@@ -97,7 +97,7 @@ fn expected_len(m: SamplerKind) -> usize {
     match m {
         SamplerKind::ImprovedBaseline => ImprovedBaselineSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::AnalyticMixture => AnalyticMixtureSampler::<&[f32]>::PARAM_COUNT,
-        SamplerKind::Flow => SplineFlowSampler::<&[f32]>::PARAM_COUNT,
+        SamplerKind::SplineFlow => SplineFlowSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::DiskFlow => DiskFlowSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::AffineFlow => AffineFlowSampler::<&[f32]>::PARAM_COUNT,
         SamplerKind::DirectHistogram => DirectHistogramSampler::<&[f32]>::PARAM_COUNT,
@@ -215,7 +215,7 @@ fn analytic_learns_and_matches_runtime() {
 
 #[test]
 fn flow_learns_and_matches_runtime() {
-    check(SamplerKind::Flow);
+    check(SamplerKind::SplineFlow);
 }
 
 #[test]
@@ -322,9 +322,9 @@ fn names_round_trip() {
 #[test]
 fn training_is_reproducible() {
     let mut cfg = TrainConfig::quick();
-    cfg.max_likelihood[SamplerKind::Flow].schedule.steps = 30;
-    let a = train_with(&SyntheticSource, SamplerKind::Flow, &cfg).unwrap();
-    let b = train_with(&SyntheticSource, SamplerKind::Flow, &cfg).unwrap();
+    cfg.max_likelihood[SamplerKind::SplineFlow].schedule.steps = 30;
+    let a = train_with(&SyntheticSource, SamplerKind::SplineFlow, &cfg).unwrap();
+    let b = train_with(&SyntheticSource, SamplerKind::SplineFlow, &cfg).unwrap();
     assert!(a
         .params
         .iter()
@@ -332,7 +332,7 @@ fn training_is_reproducible() {
         .all(|(x, y)| x.to_bits() == y.to_bits()));
     assert_eq!(a.loss_history, b.loss_history);
     cfg.common.seed = 2;
-    let c = train_with(&SyntheticSource, SamplerKind::Flow, &cfg).unwrap();
+    let c = train_with(&SyntheticSource, SamplerKind::SplineFlow, &cfg).unwrap();
     assert!(a.params != c.params);
 }
 
@@ -507,7 +507,7 @@ fn histogram_mixture_bakes_compact_tables_that_verify() {
     bake::verify(&t, &converted, m.as_ref(), 8, 2).unwrap();
     // Nothing to convert: compact already, or another kind.
     assert!(bake::compact_blob(&compact).is_err());
-    let flow = bake::blob_bytes(&quick(SamplerKind::Flow), DType::F32, "test").unwrap();
+    let flow = bake::blob_bytes(&quick(SamplerKind::SplineFlow), DType::F32, "test").unwrap();
     assert!(bake::compact_blob(&flow).is_err());
 }
 
@@ -546,7 +546,7 @@ fn histogram_mixture_falls_back_to_value_tables() {
         "{msg}"
     );
     // Another kind has no fallback: its failure is the error.
-    let flow = quick(SamplerKind::Flow);
+    let flow = quick(SamplerKind::SplineFlow);
     assert!(bake::checked_blob_bytes_by(&flow, DType::F32, "test", |_| {
         anyhow::bail!("refused by the test")
     })

@@ -108,7 +108,7 @@ impl From<BlobKind> for NsKind {
             BlobKind::Sampler(SamplerKind::Cosine) => NsKind::NS_KIND_COSINE,
             BlobKind::Sampler(SamplerKind::ImprovedBaseline) => NsKind::NS_KIND_IMPROVED_BASELINE,
             BlobKind::Sampler(SamplerKind::AnalyticMixture) => NsKind::NS_KIND_ANALYTIC_MIXTURE,
-            BlobKind::Sampler(SamplerKind::Flow) => NsKind::NS_KIND_FLOW,
+            BlobKind::Sampler(SamplerKind::SplineFlow) => NsKind::NS_KIND_FLOW,
             BlobKind::Sampler(SamplerKind::AffineFlow) => NsKind::NS_KIND_AFFINE_FLOW,
             BlobKind::Sampler(SamplerKind::DirectHistogram) => NsKind::NS_KIND_DIRECT_HISTOGRAM,
             BlobKind::Sampler(SamplerKind::HistogramMixture) => NsKind::NS_KIND_HISTOGRAM_MIXTURE,

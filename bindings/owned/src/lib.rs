@@ -343,7 +343,7 @@ mod tests {
         let blob = OwnedBlob::open(&fixture("blobs/goat_leather_neural/flow.nsb")).unwrap();
         let sampler = OwnedSampler::new(&blob).unwrap();
         drop(blob);
-        assert_eq!(sampler.kind(), SamplerKind::Flow);
+        assert_eq!(sampler.kind(), SamplerKind::SplineFlow);
         let m = OwnedBlob::open(&fixture("materials/neural/goat_leather_neural.nsb")).unwrap();
         assert_eq!(m.kind(), BlobKind::NeuralMaterial);
         let mat = OwnedMaterial::new(&m).unwrap();

@@ -16,7 +16,7 @@ macro_rules! sampler_kinds {
             /// Analytic mixture: Lambert + two anisotropic Gaussians (paper Eq. 2).
             AnalyticMixture = 2, "analytic", AnalyticMixtureSampler<Tensor<'a>>, AnalyticMixturePrepared;
             /// Conditional rational-quadratic spline flow (paper Eq. 3–4).
-            Flow = 3, "flow", SplineFlowSampler<Tensor<'a>>, SplineFlowLane;
+            SplineFlow = 3, "flow", SplineFlowSampler<Tensor<'a>>, SplineFlowLane;
             /// Disk flow: the paper's spline couplings on a uniform base with every mass inside
             /// the disk (`core/ARCHITECTURES.md` §9).
             DiskFlow = 9, "disk-flow", DiskFlowSampler<Tensor<'a>>, DiskFlowLane;

@@ -94,7 +94,7 @@ pub struct SplineFlowSampler<W> {
 
 super::traits::flat_params_sampler!(
     SplineFlowSampler,
-    Flow,
+    SplineFlow,
     FLOW_PARAM_COUNT,
     "Length of the flat parameter array: base, coupling 0, coupling 1 (9690)."
 );

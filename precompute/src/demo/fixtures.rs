@@ -34,7 +34,7 @@ pub const FIXTURE_SLOW_LEARNER_STEPS: usize = 3;
 fn fixture_config() -> TrainConfig {
     let mut c = TrainConfig::default();
     for kind in [
-        SamplerKind::Flow,
+        SamplerKind::SplineFlow,
         SamplerKind::HistogramMixture,
         SamplerKind::Reparam,
     ] {

@@ -241,7 +241,7 @@ pub const DISK_POLE_TOLERANCE: f64 = 1e-2;
 impl Trainer for FlowTrainer {
     fn kind(&self) -> SamplerKind {
         match self {
-            FlowTrainer::Spline => SamplerKind::Flow,
+            FlowTrainer::Spline => SamplerKind::SplineFlow,
             FlowTrainer::Disk => SamplerKind::DiskFlow,
             FlowTrainer::Affine => SamplerKind::AffineFlow,
         }

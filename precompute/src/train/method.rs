@@ -148,7 +148,7 @@ mod tests {
         let ml = [
             SamplerKind::ImprovedBaseline,
             SamplerKind::AnalyticMixture,
-            SamplerKind::Flow,
+            SamplerKind::SplineFlow,
             SamplerKind::DiskFlow,
             SamplerKind::AffineFlow,
             SamplerKind::DirectHistogram,
@@ -171,7 +171,7 @@ mod tests {
                 cfg.schedule(SamplerKind::Reparam),
                 Some(cfg.reparam.schedule)
             );
-            let flow = cfg.max_likelihood[SamplerKind::Flow].schedule;
+            let flow = cfg.max_likelihood[SamplerKind::SplineFlow].schedule;
             if quick {
                 assert_eq!(flow, Schedule::quick());
             } else {
@@ -188,7 +188,7 @@ mod tests {
             let tuned = cfg.max_likelihood[k].chi2_weight == 7.0;
             assert_eq!(
                 tuned,
-                matches!(k, SamplerKind::Flow | SamplerKind::DiskFlow),
+                matches!(k, SamplerKind::SplineFlow | SamplerKind::DiskFlow),
                 "{k:?}"
             );
         }
