@@ -179,6 +179,24 @@ pub(crate) fn column<const N: usize, const B: usize>(soa: &Soa<N, B>, l: usize) 
     c
 }
 
+/// The first `lanes.len()` lanes of a chunk from its network outputs `o`: `f` of the lane's
+/// column where its condition is valid, refused (`None`) elsewhere.
+#[inline(always)]
+pub(crate) fn lanes_from_outputs<P, const N: usize, const B: usize>(
+    o: &Soa<N, B>,
+    valid: &[bool; B],
+    lanes: &mut [Option<P>],
+    f: impl Fn(&[f32; N]) -> P,
+) {
+    for (l, lane) in lanes.iter_mut().enumerate().take(B) {
+        *lane = if valid[l] {
+            Some(f(&column(o, l)))
+        } else {
+            None
+        };
+    }
+}
+
 /// `[0, 1, 2, …]`: every lane of a chunk, as an index list.
 #[inline(always)]
 pub(crate) fn identity_index<const B: usize>() -> [usize; B] {

@@ -15,14 +15,10 @@ impl<W: Weights> ChunkedSampler for AnalyticMixtureSampler<W> {
         let w = &self.params;
         let m = lanes.len();
         let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
-        let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
         let mut o: Soa<ANALYTIC_OUTPUTS, CHUNK> = [[0.0; CHUNK]; ANALYTIC_OUTPUTS];
-        dense::dense(w, ANALYTIC_L0 as u32, &c, Activation::Relu, &mut h, m);
-        dense::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity, &mut o, m);
-        for l in 0..m {
-            lanes[l] =
-                valid[l].then(|| AnalyticMixturePrepared::from_outputs(&wavefront::column(&o, l)));
-        }
+        let layers = [ANALYTIC_L0, ANALYTIC_L1];
+        dense::relu_mlp::<_, _, HIDDEN, _, CHUNK, 2>(w, &layers, &c, &mut o, m);
+        wavefront::lanes_from_outputs(&o, &valid, lanes, AnalyticMixturePrepared::from_outputs);
     }
 
     per_lane_chunks!(AnalyticMixturePrepared);

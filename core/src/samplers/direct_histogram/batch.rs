@@ -17,17 +17,10 @@ impl<W: Weights> ChunkedSampler for DirectHistogramSampler<W> {
         let w = &self.params;
         let m = lanes.len();
         let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
-        let mut h: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
-        let mut g: Soa<DIRECT_HIDDEN, CHUNK> = [[0.0; CHUNK]; DIRECT_HIDDEN];
         let mut o: Soa<DIRECT_CELLS, CHUNK> = [[0.0; CHUNK]; DIRECT_CELLS];
-        let relu = Activation::Relu;
-        dense::dense(w, DIRECT_L0 as u32, &c, relu, &mut h, m);
-        dense::dense(w, DIRECT_L1 as u32, &h, relu, &mut g, m);
-        dense::dense(w, DIRECT_L2 as u32, &g, Activation::Identity, &mut o, m);
-        for l in 0..m {
-            lanes[l] =
-                valid[l].then(|| DirectHistogramPrepared::from_logits(&wavefront::column(&o, l)));
-        }
+        let layers = [DIRECT_L0, DIRECT_L1, DIRECT_L2];
+        dense::relu_mlp::<_, _, DIRECT_HIDDEN, _, CHUNK, 3>(w, &layers, &c, &mut o, m);
+        wavefront::lanes_from_outputs(&o, &valid, lanes, DirectHistogramPrepared::from_logits);
     }
 
     per_lane_chunks!(DirectHistogramPrepared);

@@ -15,18 +15,10 @@ impl<W: Weights> ChunkedSampler for ImprovedBaselineSampler<W> {
         let w = &self.params;
         let m = lanes.len();
         let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
-        let mut h: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
-        let mut g: Soa<HIDDEN, CHUNK> = [[0.0; CHUNK]; HIDDEN];
         let mut o: Soa<BASELINE_OUTPUTS, CHUNK> = [[0.0; CHUNK]; BASELINE_OUTPUTS];
-        let relu = Activation::Relu;
-        dense::dense(w, BASELINE_L0 as u32, &c, relu, &mut h, m);
-        dense::dense(w, BASELINE_L1 as u32, &h, relu, &mut g, m);
-        dense::dense(w, BASELINE_L2 as u32, &g, relu, &mut h, m);
-        dense::dense(w, BASELINE_L3 as u32, &h, Activation::Identity, &mut o, m);
-        for l in 0..m {
-            lanes[l] =
-                valid[l].then(|| ImprovedBaselinePrepared::from_outputs(&wavefront::column(&o, l)));
-        }
+        let layers = [BASELINE_L0, BASELINE_L1, BASELINE_L2, BASELINE_L3];
+        dense::relu_mlp::<_, _, HIDDEN, _, CHUNK, 4>(w, &layers, &c, &mut o, m);
+        wavefront::lanes_from_outputs(&o, &valid, lanes, ImprovedBaselinePrepared::from_outputs);
     }
 
     per_lane_chunks!(ImprovedBaselinePrepared);
