@@ -108,11 +108,7 @@ pub fn regenerate_fixtures(
     methods: &[SamplerKind],
     quick: bool,
 ) -> Result<()> {
-    let methods: Vec<SamplerKind> = if methods.is_empty() {
-        METHODS.to_vec()
-    } else {
-        methods.to_vec()
-    };
+    let methods = methods_or_all(methods);
     io::atomic_write(
         &out.join("cosine.nsb"),
         &BlobWriter::new(SamplerKind::Cosine, DType::F32, "cosine").to_bytes(),
@@ -156,11 +152,7 @@ pub(crate) fn neural_fixtures(
     methods: &[SamplerKind],
     quick: bool,
 ) -> Result<()> {
-    let methods: Vec<SamplerKind> = if methods.is_empty() {
-        METHODS.to_vec()
-    } else {
-        methods.to_vec()
-    };
+    let methods = methods_or_all(methods);
     for name in names {
         let path = materials_out.join(format!("{name}{NEURAL_SUFFIX}.nsb"));
         let mut job = TrainMaterialJob::new(*name, path.clone());
@@ -191,6 +183,15 @@ fn write_conditions(out: &Path, m: &dyn Material) -> Result<()> {
         &out.join(io::slug(m.name())).join("conditions.txt"),
         text.as_bytes(),
     )
+}
+
+/// `methods`, or every trainable method when it is empty.
+fn methods_or_all(methods: &[SamplerKind]) -> Vec<SamplerKind> {
+    if methods.is_empty() {
+        METHODS.to_vec()
+    } else {
+        methods.to_vec()
+    }
 }
 
 /// The methods `methods` trained on `m` into `<out>/<m.name()>/`, plus the conditions file
