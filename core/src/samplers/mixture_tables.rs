@@ -283,7 +283,8 @@ pub fn validate_tables<W: Weights + ?Sized>(
 }
 
 /// Baked histogram-mixture tables (host side), laid out as `ARCHITECTURES.md` §6 and ready to
-/// pass to [`HistogramMixtureSampler::new`](crate::samplers::HistogramMixtureSampler::new) (as `&[f32]`) or to a blob writer.
+/// pass to [`HistogramMixtureSampler::new`](crate::samplers::HistogramMixtureSampler::new)
+/// (as `&[f32]`) or to a blob writer.
 #[cfg(feature = "alloc")]
 #[derive(Clone, Debug, PartialEq)]
 pub struct BakedTables {
@@ -454,8 +455,8 @@ pub fn try_bake_slices(
 
 /// Compact histogram-mixture tables (host side,
 /// [`TableLayout::Compact`](crate::distrib::table2d::TableLayout::Compact)), ready to pass to
-/// [`HistogramMixtureSampler::new_compact`](crate::samplers::HistogramMixtureSampler::new_compact) or to
-/// a blob writer.
+/// [`HistogramMixtureSampler::new_compact`](crate::samplers::HistogramMixtureSampler::new_compact)
+/// or to a blob writer.
 #[cfg(feature = "alloc")]
 #[derive(Clone, Debug, PartialEq)]
 pub struct CompactTables {
