@@ -9,8 +9,8 @@ use crate::math::clamp_logit;
 use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
 use crate::weights::Weights;
 
-use super::lobes::{self, mean, Lobe, HIDDEN};
-use super::{Prepared, Sample, Sampler};
+use super::lobes::{mean, LobeMixture, HIDDEN};
+use super::Sampler;
 
 /// Number of network outputs of the analytic mixture:
 /// `[μ1x, μ1y, μ2x, μ2y, log σ1x, log σ1y, log σ2x, log σ2y, a0, a1, a2]`.
@@ -46,16 +46,11 @@ impl<W: Weights> AnalyticMixtureSampler<W> {
     }
 }
 
-/// The analytic mixture's lobes at one shading point (Eq. 2).
-#[derive(Copy, Clone, Debug, PartialEq)]
-pub struct AnalyticMixturePrepared {
-    /// `(w0, w1, w2)` = (Lambert, Gaussian 1, Gaussian 2), summing to 1.
-    weights: [f32; 3],
-    mu: [Vec2; 2],
-    sigma: [Vec2; 2],
-}
+/// The analytic mixture's lobes at one shading point (Eq. 2): the weights `(w0, w1, w2)`
+/// (Lambert, Gaussian 1, Gaussian 2) and two axis-aligned anisotropic Gaussians.
+pub type AnalyticMixturePrepared = LobeMixture<3, 2>;
 
-impl AnalyticMixturePrepared {
+impl LobeMixture<3, 2> {
     /// The lobes from raw network outputs (see [`ANALYTIC_OUTPUTS`]): `w = softmax(a)`,
     /// `σ = exp(clamp(log σ, −7, 1))` per axis. Non-finite outputs are clamped
     /// ([`MEAN_BOUND`](super::lobes::MEAN_BOUND), ±10³⁰) so the lobes are always finite.
@@ -64,47 +59,29 @@ impl AnalyticMixturePrepared {
     pub fn from_outputs(o: &[f32; ANALYTIC_OUTPUTS]) -> Self {
         let mut weights = [clamp_logit(o[8]), clamp_logit(o[9]), clamp_logit(o[10])];
         gaussian::softmax(&mut weights);
-        AnalyticMixturePrepared {
-            weights,
-            mu: [
-                Vec2::new(mean(o[0]), mean(o[1])),
-                Vec2::new(mean(o[2]), mean(o[3])),
-            ],
-            sigma: [
-                Vec2::new(
-                    gaussian::sigma_from_log(o[4]),
-                    gaussian::sigma_from_log(o[5]),
-                ),
-                Vec2::new(
-                    gaussian::sigma_from_log(o[6]),
-                    gaussian::sigma_from_log(o[7]),
-                ),
-            ],
-        }
-    }
-
-    /// The two Gaussian lobes.
-    #[inline(always)]
-    fn lobes(&self) -> [Lobe; 2] {
-        [(self.mu[0], self.sigma[0]), (self.mu[1], self.sigma[1])]
-    }
-
-    /// Mixture weights `(w0, w1, w2)` (Lambert, Gaussian 1, Gaussian 2).
-    #[must_use]
-    pub fn weights(&self) -> [f32; 3] {
-        self.weights
+        let sigma = |i: usize| {
+            Vec2::new(
+                gaussian::sigma_from_log(o[i]),
+                gaussian::sigma_from_log(o[i + 1]),
+            )
+        };
+        let lobes = [
+            (Vec2::new(mean(o[0]), mean(o[1])), sigma(4)),
+            (Vec2::new(mean(o[2]), mean(o[3])), sigma(6)),
+        ];
+        LobeMixture::new(weights, lobes)
     }
 
     /// Means of the two Gaussian lobes.
     #[must_use]
     pub fn means(&self) -> [Vec2; 2] {
-        self.mu
+        [self.lobes()[0].0, self.lobes()[1].0]
     }
 
     /// Per-axis standard deviations of the two Gaussian lobes.
     #[must_use]
     pub fn sigmas(&self) -> [Vec2; 2] {
-        self.sigma
+        [self.lobes()[0].1, self.lobes()[1].1]
     }
 }
 
@@ -119,22 +96,6 @@ impl<W: Weights> Sampler for AnalyticMixtureSampler<W> {
         let wi = check_condition(phi, wi)?;
         let o = self.forward(&encode_condition(phi, wi));
         Some(AnalyticMixturePrepared::from_outputs(&o))
-    }
-}
-
-impl Prepared for AnalyticMixturePrepared {
-    /// Component 0 (Lambert) by the concentric map, components 1 and 2 (Gaussians) by
-    /// Box–Muller; the reported density is the full Eq. 2 mixture at the drawn point.
-    #[inline]
-    fn sample(&self, u: Vec2) -> Option<Sample> {
-        let p = lobes::draw(&self.weights, &self.lobes(), u)?;
-        Sample::from_disk(p, self.pdf_disk(p))
-    }
-
-    /// Eq. 2, with respect to area on the projected disk; 0 outside the open unit disk.
-    #[inline]
-    fn pdf_disk(&self, p: Vec2) -> f32 {
-        lobes::density(&self.weights, &self.lobes(), p)
     }
 }
 

@@ -9,8 +9,8 @@ use crate::math::clamp_logit;
 use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
 use crate::weights::Weights;
 
-use super::lobes::{self, mean, Lobe, HIDDEN};
-use super::{Prepared, Sample, Sampler};
+use super::lobes::{mean, LobeMixture, HIDDEN};
+use super::Sampler;
 
 /// Number of network outputs of the improved baseline: `[μx, μy, log σ, a_L, a_G]`.
 pub const BASELINE_OUTPUTS: usize = 5;
@@ -49,16 +49,11 @@ impl<W: Weights> ImprovedBaselineSampler<W> {
     }
 }
 
-/// The improved baseline's lobes at one shading point (Eq. 1).
-#[derive(Copy, Clone, Debug, PartialEq)]
-pub struct ImprovedBaselinePrepared {
-    /// `(w_L, w_G)`, summing to 1.
-    weights: [f32; 2],
-    mu: Vec2,
-    sigma: f32,
-}
+/// The improved baseline's lobes at one shading point (Eq. 1): the weights `(w_L, w_G)` and
+/// one isotropic Gaussian.
+pub type ImprovedBaselinePrepared = LobeMixture<2, 1>;
 
-impl ImprovedBaselinePrepared {
+impl LobeMixture<2, 1> {
     /// The lobes from raw network outputs `[μx, μy, log σ, a_L, a_G]`: `(w_L, w_G) =
     /// softmax(a_L, a_G)`, `σ = exp(clamp(log σ, −7, 1))`. Non-finite outputs are clamped
     /// ([`MEAN_BOUND`](super::lobes::MEAN_BOUND), ±10³⁰) so the lobes are always finite.
@@ -67,35 +62,21 @@ impl ImprovedBaselinePrepared {
     pub fn from_outputs(o: &[f32; BASELINE_OUTPUTS]) -> Self {
         let mut weights = [clamp_logit(o[3]), clamp_logit(o[4])];
         gaussian::softmax(&mut weights);
-        ImprovedBaselinePrepared {
-            weights,
-            mu: Vec2::new(mean(o[0]), mean(o[1])),
-            sigma: gaussian::sigma_from_log(o[2]),
-        }
-    }
-
-    /// The Gaussian lobe (isotropic: one σ on both axes).
-    #[inline(always)]
-    fn lobes(&self) -> [Lobe; 1] {
-        [(self.mu, Vec2::splat(self.sigma))]
-    }
-
-    /// Mixture weights `(w_L, w_G)`.
-    #[must_use]
-    pub fn weights(&self) -> [f32; 2] {
-        self.weights
+        let sigma = gaussian::sigma_from_log(o[2]);
+        let mu = Vec2::new(mean(o[0]), mean(o[1]));
+        LobeMixture::new(weights, [(mu, Vec2::splat(sigma))])
     }
 
     /// Mean of the Gaussian lobe (projected disk coordinates).
     #[must_use]
     pub fn mean(&self) -> Vec2 {
-        self.mu
+        self.lobes()[0].0
     }
 
     /// Standard deviation of the (isotropic) Gaussian lobe.
     #[must_use]
     pub fn sigma(&self) -> f32 {
-        self.sigma
+        self.lobes()[0].1.x
     }
 }
 
@@ -110,22 +91,6 @@ impl<W: Weights> Sampler for ImprovedBaselineSampler<W> {
         let wi = check_condition(phi, wi)?;
         let o = self.forward(&encode_condition(phi, wi));
         Some(ImprovedBaselinePrepared::from_outputs(&o))
-    }
-}
-
-impl Prepared for ImprovedBaselinePrepared {
-    /// Component 0 (Lambert) by the concentric map, component 1 (Gaussian) by Box–Muller;
-    /// the reported density is the full Eq. 1 mixture at the drawn point.
-    #[inline]
-    fn sample(&self, u: Vec2) -> Option<Sample> {
-        let p = lobes::draw(&self.weights, &self.lobes(), u)?;
-        Sample::from_disk(p, self.pdf_disk(p))
-    }
-
-    /// Eq. 1, with respect to area on the projected disk; 0 outside the open unit disk.
-    #[inline]
-    fn pdf_disk(&self, p: Vec2) -> f32 {
-        lobes::density(&self.weights, &self.lobes(), p)
     }
 }
 

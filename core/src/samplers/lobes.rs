@@ -32,6 +32,8 @@ use crate::distrib::gaussian;
 use crate::math::{self, finite_density};
 use crate::warp::{self, inside_disk};
 
+use super::{Prepared, Sample};
+
 /// Bound applied to every predicted Gaussian mean coordinate (NaN → −bound).
 ///
 /// A trained model predicts means within a few units of the disk; the clamp only keeps
@@ -97,4 +99,51 @@ pub(super) fn density<const K: usize, const G: usize>(
         g += 1;
     }
     finite_density(d)
+}
+
+/// A prepared lobe mixture at one shading point: the weights (Lambert's first, then one per
+/// Gaussian lobe, summing to 1; `K = G + 1`) and the `G` Gaussian lobes. The improved
+/// baseline's is [`ImprovedBaselinePrepared`](super::ImprovedBaselinePrepared) (`G = 1`,
+/// isotropic), the analytic mixture's [`AnalyticMixturePrepared`](super::AnalyticMixturePrepared)
+/// (`G = 2`); each is built by its sampler's `from_outputs`.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct LobeMixture<const K: usize, const G: usize> {
+    weights: [f32; K],
+    lobes: [Lobe; G],
+}
+
+impl<const K: usize, const G: usize> LobeMixture<K, G> {
+    /// The mixture of `weights` and `lobes`.
+    #[inline(always)]
+    pub(super) fn new(weights: [f32; K], lobes: [Lobe; G]) -> Self {
+        LobeMixture { weights, lobes }
+    }
+
+    /// The Gaussian lobes: each one's mean and per-axis standard deviations.
+    #[inline(always)]
+    pub(super) fn lobes(&self) -> &[Lobe; G] {
+        &self.lobes
+    }
+
+    /// Mixture weights: Lambert's, then one per Gaussian lobe.
+    #[must_use]
+    pub fn weights(&self) -> [f32; K] {
+        self.weights
+    }
+}
+
+impl<const K: usize, const G: usize> Prepared for LobeMixture<K, G> {
+    /// Component 0 (Lambert) by the concentric map, the Gaussians by Box–Muller; the
+    /// reported density is the full mixture (Eq. 1 or 2) at the drawn point.
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        let p = draw(&self.weights, &self.lobes, u)?;
+        Sample::from_disk(p, self.pdf_disk(p))
+    }
+
+    /// Eq. 1 or 2, with respect to area on the projected disk; 0 outside the open unit disk.
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        density(&self.weights, &self.lobes, p)
+    }
 }

@@ -317,7 +317,11 @@ macro_rules! per_lane_chunks {
             mut out: $crate::wavefront::SamplesMut<'_>,
         ) {
             for (i, l) in lanes.iter().enumerate() {
-                out.set(i, l.as_ref().and_then(|p| p.sample(u.at(i))));
+                out.set(
+                    i,
+                    l.as_ref()
+                        .and_then(|p| $crate::Prepared::sample(p, u.at(i))),
+                );
             }
         }
 
@@ -329,7 +333,9 @@ macro_rules! per_lane_chunks {
             pdf: &mut [f32],
         ) {
             for (i, l) in lanes.iter().enumerate() {
-                pdf[i] = l.as_ref().map_or(0.0, |p| p.pdf(wo.at(i)));
+                pdf[i] = l
+                    .as_ref()
+                    .map_or(0.0, |p| $crate::Prepared::pdf(p, wo.at(i)));
             }
         }
 
@@ -342,7 +348,10 @@ macro_rules! per_lane_chunks {
             ok: &mut [bool],
         ) {
             for (i, l) in lanes.iter().enumerate() {
-                match l.as_ref().and_then(|p| p.invert(wo.at(i))) {
+                match l
+                    .as_ref()
+                    .and_then(|p| $crate::Prepared::invert(p, wo.at(i)))
+                {
                     Some(v) => {
                         u.set(i, v);
                         ok[i] = true;
