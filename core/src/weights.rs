@@ -12,6 +12,8 @@
 //! validation guarantees in-range indices for every architecture, so the fallback is a
 //! guard, not a code path.
 
+use core::marker::PhantomData;
+
 use half::f16;
 
 use crate::dtype::DType;
@@ -135,10 +137,10 @@ fn accumulate_slice<const I: usize, const O: usize>(
         target_feature = "simd128"
     ))]
     match w.get(start..start + I * O + (4 - O % 4) % 4) {
-        Some(m) => accumulate_window::<I, O, true>(m, x, acc),
+        Some(m) => window::accumulate_window::<I, O, true>(m, x, acc),
         None => {
             if let Some(m) = w.get(start..start + I * O) {
-                accumulate_window::<I, O, false>(m, x, acc);
+                window::accumulate_window::<I, O, false>(m, x, acc);
             }
         }
     }
@@ -158,10 +160,6 @@ fn accumulate_slice<const I: usize, const O: usize>(
     }
 }
 
-/// [`accumulate_slice`] on its window `m` (`I` rows of `O`, plus the padding if `PADDED`):
-/// blocks of 8 vectors, then one block of the 1‥8 vectors left (the last one possibly running
-/// past the row; so that no pass over the rows has fewer independent sums than needed), then
-/// the unpadded leftover columns.
 #[cfg(all(
     not(target_arch = "spirv"),
     any(
@@ -170,150 +168,137 @@ fn accumulate_slice<const I: usize, const O: usize>(
         target_feature = "simd128"
     )
 ))]
-#[inline(always)]
-fn accumulate_window<const I: usize, const O: usize, const PADDED: bool>(
-    m: &[f32],
-    x: &[f32; I],
-    acc: &mut [f32; O],
-) {
-    let vecs = if PADDED { O.div_ceil(4) } else { O / 4 };
-    // Blocks of 8 whole vectors (inside the row); the 1‥8 vectors left go to `accumulate_last`.
-    let full = O / 4 / 8 * 8;
-    let mut v = 0;
-    while v < full {
-        accumulate_block::<I, O, 8>(m, 4 * v, x, acc);
-        v += 8;
-    }
-    let j0 = 4 * full;
-    match vecs - full {
-        1 => accumulate_last::<I, O, 1>(m, j0, x, acc),
-        2 => accumulate_last::<I, O, 2>(m, j0, x, acc),
-        3 => accumulate_last::<I, O, 3>(m, j0, x, acc),
-        4 => accumulate_last::<I, O, 4>(m, j0, x, acc),
-        5 => accumulate_last::<I, O, 5>(m, j0, x, acc),
-        6 => accumulate_last::<I, O, 6>(m, j0, x, acc),
-        7 => accumulate_last::<I, O, 7>(m, j0, x, acc),
-        8 => accumulate_last::<I, O, 8>(m, j0, x, acc),
-        _ => {}
-    }
-    let mut j = 4 * vecs;
-    while j < O {
-        accumulate_one::<I, O>(m, j, x, acc);
-        j += 1;
-    }
-}
+mod window {
+    //! The SIMD-register blocks of [`accumulate_slice`](super::accumulate_slice).
 
-/// Outputs `j0 .. j0 + 4V` of [`accumulate_slice`], all inside the row (`j0 + 4V ≤ O`).
-#[cfg(all(
-    not(target_arch = "spirv"),
-    any(
-        target_feature = "sse2",
-        target_feature = "neon",
-        target_feature = "simd128"
-    )
-))]
-#[inline(always)]
-fn accumulate_block<const I: usize, const O: usize, const V: usize>(
-    m: &[f32],
-    j0: usize,
-    x: &[f32; I],
-    acc: &mut [f32; O],
-) {
-    use glam::Vec4;
-    let Some(dst) = acc.get_mut(j0..j0 + 4 * V) else {
-        return;
-    };
-    let mut a = [Vec4::ZERO; V];
-    for (v, d) in a.iter_mut().zip(dst.chunks_exact(4)) {
-        *v = Vec4::new(d[0], d[1], d[2], d[3]);
+    /// [`accumulate_slice`](super::accumulate_slice) on its window `m` (`I` rows of `O`, plus the
+    /// padding if `PADDED`): blocks of 8 vectors, then one block of the 1‥8 vectors left (the last
+    /// one possibly running past the row; so that no pass over the rows has fewer independent sums
+    /// than needed), then the unpadded leftover columns.
+    #[inline(always)]
+    pub(super) fn accumulate_window<const I: usize, const O: usize, const PADDED: bool>(
+        m: &[f32],
+        x: &[f32; I],
+        acc: &mut [f32; O],
+    ) {
+        let vecs = if PADDED { O.div_ceil(4) } else { O / 4 };
+        // Blocks of 8 whole vectors (inside the row); the 1‥8 vectors left go to `accumulate_last`.
+        let full = O / 4 / 8 * 8;
+        let mut v = 0;
+        while v < full {
+            accumulate_block::<I, O, 8>(m, 4 * v, x, acc);
+            v += 8;
+        }
+        let j0 = 4 * full;
+        match vecs - full {
+            1 => accumulate_last::<I, O, 1>(m, j0, x, acc),
+            2 => accumulate_last::<I, O, 2>(m, j0, x, acc),
+            3 => accumulate_last::<I, O, 3>(m, j0, x, acc),
+            4 => accumulate_last::<I, O, 4>(m, j0, x, acc),
+            5 => accumulate_last::<I, O, 5>(m, j0, x, acc),
+            6 => accumulate_last::<I, O, 6>(m, j0, x, acc),
+            7 => accumulate_last::<I, O, 7>(m, j0, x, acc),
+            8 => accumulate_last::<I, O, 8>(m, j0, x, acc),
+            _ => {}
+        }
+        let mut j = 4 * vecs;
+        while j < O {
+            accumulate_one::<I, O>(m, j, x, acc);
+            j += 1;
+        }
     }
-    for (xi, row) in x.iter().zip(m.chunks_exact(O)) {
-        let Some(r) = row.get(j0..j0 + 4 * V) else {
+
+    /// Outputs `j0 .. j0 + 4V` of [`accumulate_slice`](super::accumulate_slice), all inside the row
+    /// (`j0 + 4V ≤ O`).
+    #[inline(always)]
+    fn accumulate_block<const I: usize, const O: usize, const V: usize>(
+        m: &[f32],
+        j0: usize,
+        x: &[f32; I],
+        acc: &mut [f32; O],
+    ) {
+        use glam::Vec4;
+        let Some(dst) = acc.get_mut(j0..j0 + 4 * V) else {
             return;
         };
-        let xv = Vec4::splat(*xi);
-        for (v, c) in a.iter_mut().zip(r.chunks_exact(4)) {
-            *v += xv * Vec4::new(c[0], c[1], c[2], c[3]);
+        let mut a = [Vec4::ZERO; V];
+        for (v, d) in a.iter_mut().zip(dst.chunks_exact(4)) {
+            *v = Vec4::new(d[0], d[1], d[2], d[3]);
+        }
+        for (xi, row) in x.iter().zip(m.chunks_exact(O)) {
+            let Some(r) = row.get(j0..j0 + 4 * V) else {
+                return;
+            };
+            let xv = Vec4::splat(*xi);
+            for (v, c) in a.iter_mut().zip(r.chunks_exact(4)) {
+                *v += xv * Vec4::new(c[0], c[1], c[2], c[3]);
+            }
+        }
+        for (v, d) in a.iter().zip(dst.chunks_exact_mut(4)) {
+            d.copy_from_slice(&v.to_array());
         }
     }
-    for (v, d) in a.iter().zip(dst.chunks_exact_mut(4)) {
-        d.copy_from_slice(&v.to_array());
-    }
-}
 
-/// The last block of [`accumulate_slice`]: outputs `j0 ..` up to `O`, in `V` vectors whose
-/// lanes past `O − 1` (padded windows only) read the elements after each row and are dropped.
-#[cfg(all(
-    not(target_arch = "spirv"),
-    any(
-        target_feature = "sse2",
-        target_feature = "neon",
-        target_feature = "simd128"
-    )
-))]
-#[inline(always)]
-fn accumulate_last<const I: usize, const O: usize, const V: usize>(
-    m: &[f32],
-    j0: usize,
-    x: &[f32; I],
-    acc: &mut [f32; O],
-) {
-    use glam::Vec4;
-    let mut a = [[0.0f32; 4]; V];
-    let mut l = 0;
-    while l < 4 * V {
-        if let Some(v) = acc.get(j0 + l) {
-            a[l / 4][l % 4] = *v;
+    /// The last block of [`accumulate_slice`](super::accumulate_slice): outputs `j0 ..` up to `O`,
+    /// in `V` vectors whose lanes past `O − 1` (padded windows only) read the elements after each
+    /// row and are dropped.
+    #[inline(always)]
+    fn accumulate_last<const I: usize, const O: usize, const V: usize>(
+        m: &[f32],
+        j0: usize,
+        x: &[f32; I],
+        acc: &mut [f32; O],
+    ) {
+        use glam::Vec4;
+        let mut a = [[0.0f32; 4]; V];
+        let mut l = 0;
+        while l < 4 * V {
+            if let Some(v) = acc.get(j0 + l) {
+                a[l / 4][l % 4] = *v;
+            }
+            l += 1;
         }
-        l += 1;
+        let mut a = a.map(Vec4::from_array);
+        let mut i = 0;
+        while i < I {
+            let Some(r) = m.get(i * O + j0..i * O + j0 + 4 * V) else {
+                return;
+            };
+            let xv = Vec4::splat(x[i]);
+            for (v, c) in a.iter_mut().zip(r.chunks_exact(4)) {
+                *v += xv * Vec4::new(c[0], c[1], c[2], c[3]);
+            }
+            i += 1;
+        }
+        l = 0;
+        while l < 4 * V {
+            if let Some(d) = acc.get_mut(j0 + l) {
+                *d = a[l / 4][l % 4];
+            }
+            l += 1;
+        }
     }
-    let mut a = a.map(Vec4::from_array);
-    let mut i = 0;
-    while i < I {
-        let Some(r) = m.get(i * O + j0..i * O + j0 + 4 * V) else {
+
+    /// Output `j` of [`accumulate_slice`](super::accumulate_slice) alone (the < 4 outputs left
+    /// after the blocks).
+    #[inline(always)]
+    fn accumulate_one<const I: usize, const O: usize>(
+        m: &[f32],
+        j: usize,
+        x: &[f32; I],
+        acc: &mut [f32; O],
+    ) {
+        let Some(a) = acc.get_mut(j) else {
             return;
         };
-        let xv = Vec4::splat(x[i]);
-        for (v, c) in a.iter_mut().zip(r.chunks_exact(4)) {
-            *v += xv * Vec4::new(c[0], c[1], c[2], c[3]);
+        let mut s = *a;
+        for (xi, row) in x.iter().zip(m.chunks_exact(O)) {
+            if let Some(r) = row.get(j) {
+                s += xi * r;
+            }
         }
-        i += 1;
+        *a = s;
     }
-    l = 0;
-    while l < 4 * V {
-        if let Some(d) = acc.get_mut(j0 + l) {
-            *d = a[l / 4][l % 4];
-        }
-        l += 1;
-    }
-}
-
-/// Output `j` of [`accumulate_slice`] alone (the < 4 outputs left after the blocks).
-#[cfg(all(
-    not(target_arch = "spirv"),
-    any(
-        target_feature = "sse2",
-        target_feature = "neon",
-        target_feature = "simd128"
-    )
-))]
-#[inline(always)]
-fn accumulate_one<const I: usize, const O: usize>(
-    m: &[f32],
-    j: usize,
-    x: &[f32; I],
-    acc: &mut [f32; O],
-) {
-    let Some(a) = acc.get_mut(j) else {
-        return;
-    };
-    let mut s = *a;
-    for (xi, row) in x.iter().zip(m.chunks_exact(O)) {
-        if let Some(r) = row.get(j) {
-            s += xi * r;
-        }
-    }
-    *a = s;
 }
 
 impl Weights for [f32] {
@@ -352,100 +337,52 @@ impl Weights for [f32] {
     }
 }
 
-impl<const N: usize> Weights for [f32; N] {
-    #[inline(always)]
-    fn len(&self) -> u32 {
-        N as u32
-    }
-    #[inline(always)]
-    fn as_f32_slice(&self) -> Option<&[f32]> {
-        Some(self)
-    }
-    #[inline(always)]
-    fn at(&self, i: u32) -> f32 {
-        let i = i as usize;
-        if i < N {
-            self[i]
-        } else {
-            0.0
+/// Implements every [`Weights`] method by forwarding it to `$inner`, an expression of `$s`
+/// (the storage these wrappers view).
+macro_rules! forward_weights {
+    ($s:ident => $inner:expr) => {
+        #[inline(always)]
+        fn len(&$s) -> u32 {
+            Weights::len($inner)
         }
-    }
-    #[cfg(not(target_arch = "spirv"))]
-    #[inline(always)]
-    fn accumulate<const I: usize, const O: usize>(
-        &self,
-        offset: u32,
-        row0: u32,
-        x: &[f32; I],
-        acc: &mut [f32; O],
-    ) {
-        accumulate_slice(self, offset, row0, x, acc);
-    }
-    #[cfg(not(target_arch = "spirv"))]
-    #[inline(always)]
-    fn read<const M: usize>(&self, offset: u32) -> [f32; M] {
-        read_slice(self, offset)
-    }
+        #[inline(always)]
+        fn at(&$s, i: u32) -> f32 {
+            Weights::at($inner, i)
+        }
+        #[inline(always)]
+        fn as_f32_slice(&$s) -> Option<&[f32]> {
+            Weights::as_f32_slice($inner)
+        }
+        #[inline(always)]
+        fn accumulate<const I: usize, const O: usize>(
+            &$s,
+            offset: u32,
+            row0: u32,
+            x: &[f32; I],
+            acc: &mut [f32; O],
+        ) {
+            Weights::accumulate($inner, offset, row0, x, acc);
+        }
+        #[inline(always)]
+        fn read<const M: usize>(&$s, offset: u32) -> [f32; M] {
+            Weights::read($inner, offset)
+        }
+    };
+}
+
+/// Fixed-size host arrays (test tables, constants).
+impl<const N: usize> Weights for [f32; N] {
+    forward_weights!(self => self.as_slice());
 }
 
 /// Host arrays the caller owns (measured materials read from files, test tables).
 #[cfg(feature = "alloc")]
 impl Weights for alloc::vec::Vec<f32> {
-    #[inline(always)]
-    fn len(&self) -> u32 {
-        self.as_slice().len() as u32
-    }
-    #[inline(always)]
-    fn as_f32_slice(&self) -> Option<&[f32]> {
-        Some(self)
-    }
-    #[inline(always)]
-    fn at(&self, i: u32) -> f32 {
-        Weights::at(self.as_slice(), i)
-    }
-    #[inline(always)]
-    fn accumulate<const I: usize, const O: usize>(
-        &self,
-        offset: u32,
-        row0: u32,
-        x: &[f32; I],
-        acc: &mut [f32; O],
-    ) {
-        self.as_slice().accumulate(offset, row0, x, acc);
-    }
-    #[inline(always)]
-    fn read<const M: usize>(&self, offset: u32) -> [f32; M] {
-        Weights::read(self.as_slice(), offset)
-    }
+    forward_weights!(self => self.as_slice());
 }
 
 impl<W: Weights + ?Sized> Weights for &W {
-    #[inline(always)]
-    fn len(&self) -> u32 {
-        (**self).len()
-    }
-    #[inline(always)]
-    fn at(&self, i: u32) -> f32 {
-        (**self).at(i)
-    }
-    #[inline(always)]
-    fn as_f32_slice(&self) -> Option<&[f32]> {
-        (**self).as_f32_slice()
-    }
-    #[inline(always)]
-    fn accumulate<const I: usize, const O: usize>(
-        &self,
-        offset: u32,
-        row0: u32,
-        x: &[f32; I],
-        acc: &mut [f32; O],
-    ) {
-        (**self).accumulate(offset, row0, x, acc);
-    }
-    #[inline(always)]
-    fn read<const N: usize>(&self, offset: u32) -> [f32; N] {
-        (**self).read(offset)
-    }
+    forward_weights!(self => &**self);
 }
 
 /// A borrowed tensor: a flat array of f32 or f16 values stored little-endian.
@@ -549,9 +486,9 @@ impl Weights for Tensor<'_> {
                 Some(v) => *v,
                 None => 0.0,
             },
-            Tensor::F32Bytes(b) => LeF32(b).at(i as u32),
-            Tensor::F16Bytes(b) => LeF16(b).at(i as u32),
-            Tensor::U16Bytes(b) => LeU16(b).at(i as u32),
+            Tensor::F32Bytes(b) => Le::<F32Le>::new(b).at(i as u32),
+            Tensor::F16Bytes(b) => Le::<F16Le>::new(b).at(i as u32),
+            Tensor::U16Bytes(b) => Le::<U16Le>::new(b).at(i as u32),
         }
     }
 
@@ -566,9 +503,9 @@ impl Weights for Tensor<'_> {
         // Dispatch on the storage once per block, not once per element.
         match self {
             Tensor::F32(f) => f.accumulate(offset, row0, x, acc),
-            Tensor::F32Bytes(b) => accumulate_generic(&LeF32(b), offset, row0, x, acc),
-            Tensor::F16Bytes(b) => accumulate_generic(&LeF16(b), offset, row0, x, acc),
-            Tensor::U16Bytes(b) => accumulate_generic(&LeU16(b), offset, row0, x, acc),
+            Tensor::F32Bytes(b) => accumulate_generic(&Le::<F32Le>::new(b), offset, row0, x, acc),
+            Tensor::F16Bytes(b) => accumulate_generic(&Le::<F16Le>::new(b), offset, row0, x, acc),
+            Tensor::U16Bytes(b) => accumulate_generic(&Le::<U16Le>::new(b), offset, row0, x, acc),
         }
     }
 
@@ -576,62 +513,72 @@ impl Weights for Tensor<'_> {
     fn read<const N: usize>(&self, offset: u32) -> [f32; N] {
         match self {
             Tensor::F32(f) => f.read(offset),
-            Tensor::F32Bytes(b) => read_generic(&LeF32(b), offset),
-            Tensor::F16Bytes(b) => read_generic(&LeF16(b), offset),
-            Tensor::U16Bytes(b) => read_generic(&LeU16(b), offset),
+            Tensor::F32Bytes(b) => read_generic(&Le::<F32Le>::new(b), offset),
+            Tensor::F16Bytes(b) => read_generic(&Le::<F16Le>::new(b), offset),
+            Tensor::U16Bytes(b) => read_generic(&Le::<U16Le>::new(b), offset),
         }
     }
 }
 
-/// Unaligned little-endian f32 bytes.
-struct LeF32<'a>(&'a [u8]);
+/// How one element of a byte tensor is stored.
+trait LeElement {
+    /// Bytes per element.
+    const SIZE: usize;
+    /// The element whose little-endian bytes are `s` (`SIZE` of them), as f32.
+    fn decode(s: &[u8]) -> f32;
+}
 
-impl Weights for LeF32<'_> {
+/// Unaligned little-endian f32.
+struct F32Le;
+/// Little-endian f16.
+struct F16Le;
+/// Little-endian u16, read as an exact f32 value.
+struct U16Le;
+
+impl LeElement for F32Le {
+    const SIZE: usize = 4;
     #[inline(always)]
-    fn len(&self) -> u32 {
-        (self.0.len() / 4) as u32
-    }
-    #[inline(always)]
-    fn at(&self, i: u32) -> f32 {
-        let i = i as usize;
-        match self.0.get(4 * i..4 * i + 4) {
-            Some(s) => f32::from_le_bytes([s[0], s[1], s[2], s[3]]),
-            None => 0.0,
-        }
+    fn decode(s: &[u8]) -> f32 {
+        f32::from_le_bytes([s[0], s[1], s[2], s[3]])
     }
 }
 
-/// Little-endian f16 bytes.
-struct LeF16<'a>(&'a [u8]);
-
-impl Weights for LeF16<'_> {
+impl LeElement for F16Le {
+    const SIZE: usize = 2;
     #[inline(always)]
-    fn len(&self) -> u32 {
-        (self.0.len() / 2) as u32
-    }
-    #[inline(always)]
-    fn at(&self, i: u32) -> f32 {
-        let i = i as usize;
-        match self.0.get(2 * i..2 * i + 2) {
-            Some(s) => f16::from_le_bytes([s[0], s[1]]).to_f32(),
-            None => 0.0,
-        }
+    fn decode(s: &[u8]) -> f32 {
+        f16::from_le_bytes([s[0], s[1]]).to_f32()
     }
 }
 
-/// Little-endian u16 bytes, read as exact f32 values.
-struct LeU16<'a>(&'a [u8]);
+impl LeElement for U16Le {
+    const SIZE: usize = 2;
+    #[inline(always)]
+    fn decode(s: &[u8]) -> f32 {
+        u16::from_le_bytes([s[0], s[1]]) as f32
+    }
+}
 
-impl Weights for LeU16<'_> {
+/// Little-endian bytes of elements `E`, read one element at a time.
+struct Le<'a, E>(&'a [u8], PhantomData<E>);
+
+impl<'a, E: LeElement> Le<'a, E> {
+    #[inline(always)]
+    fn new(bytes: &'a [u8]) -> Self {
+        Le(bytes, PhantomData)
+    }
+}
+
+impl<E: LeElement> Weights for Le<'_, E> {
     #[inline(always)]
     fn len(&self) -> u32 {
-        (self.0.len() / 2) as u32
+        (self.0.len() / E::SIZE) as u32
     }
     #[inline(always)]
     fn at(&self, i: u32) -> f32 {
         let i = i as usize;
-        match self.0.get(2 * i..2 * i + 2) {
-            Some(s) => u16::from_le_bytes([s[0], s[1]]) as f32,
+        match self.0.get(E::SIZE * i..E::SIZE * i + E::SIZE) {
+            Some(s) => E::decode(s),
             None => 0.0,
         }
     }
