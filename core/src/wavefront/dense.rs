@@ -380,6 +380,40 @@ trait Fma: Copy {
     fn act(self, act: Activation, v: Self::V) -> Self::V;
 }
 
+/// The items of an [`Fma`] impl that differ only by vector type, width and `pulp` method
+/// names: `V`, `LANES`, `splat`, `load`, `store` and `fma`.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+macro_rules! fma_items {
+    ($v:ident, $lanes:literal, $splat:ident, $mul_add:ident) => {
+        type V = $v;
+        const LANES: usize = $lanes;
+        #[inline(always)]
+        fn splat(self, x: f32) -> $v {
+            self.$splat(x)
+        }
+        #[inline(always)]
+        fn load(self, s: &[f32], at: usize) -> $v {
+            match s
+                .get(at..at + $lanes)
+                .and_then(|h| <[f32; $lanes]>::try_from(h).ok())
+            {
+                Some(a) => pulp::cast(a),
+                None => self.$splat(0.0),
+            }
+        }
+        #[inline(always)]
+        fn store(self, v: $v, s: &mut [f32], at: usize) {
+            if let Some(h) = s.get_mut(at..at + $lanes) {
+                h.copy_from_slice(&pulp::cast::<$v, [f32; $lanes]>(v));
+            }
+        }
+        #[inline(always)]
+        fn fma(self, a: $v, b: $v, c: $v) -> $v {
+            self.$mul_add(a, b, c)
+        }
+    };
+}
+
 #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
 mod x86 {
     use super::Fma;
@@ -387,81 +421,44 @@ mod x86 {
     use pulp::x86::{V3, V4};
     use pulp::{f32x16, f32x8};
 
-    impl Fma for V3 {
-        type V = f32x8;
-        const LANES: usize = 8;
-        #[inline(always)]
-        fn splat(self, x: f32) -> f32x8 {
-            self.splat_f32x8(x)
-        }
-        #[inline(always)]
-        fn load(self, s: &[f32], at: usize) -> f32x8 {
-            match s.get(at..at + 8).and_then(|h| <[f32; 8]>::try_from(h).ok()) {
-                Some(a) => pulp::cast(a),
-                None => self.splat_f32x8(0.0),
-            }
-        }
-        #[inline(always)]
-        fn store(self, v: f32x8, s: &mut [f32], at: usize) {
-            if let Some(h) = s.get_mut(at..at + 8) {
-                h.copy_from_slice(&pulp::cast::<f32x8, [f32; 8]>(v));
-            }
-        }
-        #[inline(always)]
-        fn fma(self, a: f32x8, b: f32x8, c: f32x8) -> f32x8 {
-            self.mul_add_f32x8(a, b, c)
-        }
-        #[inline(always)]
-        fn act(self, act: Activation, v: f32x8) -> f32x8 {
-            match act {
-                // maxps returns its second operand when either is NaN.
-                Activation::Relu => self.max_f32x8(v, self.splat_f32x8(0.0)),
-                Activation::LeakyRelu => {
-                    self.max_f32x8(v, self.mul_f32x8(v, self.splat_f32x8(LEAKY_RELU_SLOPE)))
+    /// [`fma_items`] and `act` with `maxps`, which returns its second operand when either
+    /// is NaN (so ReLU maps NaN to 0 and leaky ReLU keeps it).
+    macro_rules! x86_fma {
+        ($token:ident, $v:ident, $lanes:literal, $splat:ident, $mul_add:ident, $max:ident, $mul:ident) => {
+            impl Fma for $token {
+                fma_items!($v, $lanes, $splat, $mul_add);
+                #[inline(always)]
+                fn act(self, act: Activation, v: $v) -> $v {
+                    match act {
+                        Activation::Relu => self.$max(v, self.$splat(0.0)),
+                        Activation::LeakyRelu => {
+                            self.$max(v, self.$mul(v, self.$splat(LEAKY_RELU_SLOPE)))
+                        }
+                        _ => v,
+                    }
                 }
-                _ => v,
             }
-        }
+        };
     }
 
-    impl Fma for V4 {
-        type V = f32x16;
-        const LANES: usize = 16;
-        #[inline(always)]
-        fn splat(self, x: f32) -> f32x16 {
-            self.splat_f32x16(x)
-        }
-        #[inline(always)]
-        fn load(self, s: &[f32], at: usize) -> f32x16 {
-            match s
-                .get(at..at + 16)
-                .and_then(|h| <[f32; 16]>::try_from(h).ok())
-            {
-                Some(a) => pulp::cast(a),
-                None => self.splat_f32x16(0.0),
-            }
-        }
-        #[inline(always)]
-        fn store(self, v: f32x16, s: &mut [f32], at: usize) {
-            if let Some(h) = s.get_mut(at..at + 16) {
-                h.copy_from_slice(&pulp::cast::<f32x16, [f32; 16]>(v));
-            }
-        }
-        #[inline(always)]
-        fn fma(self, a: f32x16, b: f32x16, c: f32x16) -> f32x16 {
-            self.mul_add_f32x16(a, b, c)
-        }
-        #[inline(always)]
-        fn act(self, act: Activation, v: f32x16) -> f32x16 {
-            match act {
-                Activation::Relu => self.max_f32x16(v, self.splat_f32x16(0.0)),
-                Activation::LeakyRelu => {
-                    self.max_f32x16(v, self.mul_f32x16(v, self.splat_f32x16(LEAKY_RELU_SLOPE)))
-                }
-                _ => v,
-            }
-        }
-    }
+    x86_fma!(
+        V3,
+        f32x8,
+        8,
+        splat_f32x8,
+        mul_add_f32x8,
+        max_f32x8,
+        mul_f32x8
+    );
+    x86_fma!(
+        V4,
+        f32x16,
+        16,
+        splat_f32x16,
+        mul_add_f32x16,
+        max_f32x16,
+        mul_f32x16
+    );
 }
 
 #[cfg(target_arch = "aarch64")]
@@ -472,29 +469,7 @@ mod neon {
     use pulp::f32x4;
 
     impl Fma for Neon {
-        type V = f32x4;
-        const LANES: usize = 4;
-        #[inline(always)]
-        fn splat(self, x: f32) -> f32x4 {
-            self.splat_f32x4(x)
-        }
-        #[inline(always)]
-        fn load(self, s: &[f32], at: usize) -> f32x4 {
-            match s.get(at..at + 4).and_then(|h| <[f32; 4]>::try_from(h).ok()) {
-                Some(a) => pulp::cast(a),
-                None => self.splat_f32x4(0.0),
-            }
-        }
-        #[inline(always)]
-        fn store(self, v: f32x4, s: &mut [f32], at: usize) {
-            if let Some(h) = s.get_mut(at..at + 4) {
-                h.copy_from_slice(&pulp::cast::<f32x4, [f32; 4]>(v));
-            }
-        }
-        #[inline(always)]
-        fn fma(self, a: f32x4, b: f32x4, c: f32x4) -> f32x4 {
-            self.mul_add_f32x4(a, b, c)
-        }
+        fma_items!(f32x4, 4, splat_f32x4, mul_add_f32x4);
         /// Per lane with [`Activation::apply`]'s comparisons (NEON's `fmax` would keep a
         /// NaN that ReLU maps to 0); the compiler keeps it in vector registers.
         #[inline(always)]
