@@ -17,11 +17,11 @@ use crate::weights::{Tensor, Weights};
 use super::traits::Held;
 use super::{Prepared, Sample, Sampler};
 
+use super::mixture_tables::table_shapes;
 #[cfg(feature = "alloc")]
 pub use super::mixture_tables::{
     bake_slices, try_bake_compact, try_bake_slices, BakedTables, CompactTables,
 };
-use super::mixture_tables::{compact_table_shapes, table_shapes};
 pub use super::mixture_tables::{
     validate_compact_tables, validate_tables, BASES, CDF_TOLERANCE, INTEGRAL_TOLERANCE, MAX_T,
 };
@@ -116,30 +116,44 @@ impl<W: Weights> HistogramMixtureSampler<W> {
         resolution: u32,
         interpolation: Interpolation,
     ) -> Option<Self> {
-        if params.len() as usize != Self::PARAM_COUNT {
-            return None;
-        }
-        table_shapes(
+        let fits = Self::fits(
+            &params,
             &mass,
-            &table,
+            Some(&table),
             &marginal,
             &conditional,
-            BASES as u32,
             t_levels,
             resolution,
-        )
-        .ok()?;
+        );
         // The checked dimensions are within the clamps of `new_unchecked`.
-        Some(Self::new_unchecked(
-            params,
-            mass,
-            table,
-            marginal,
-            conditional,
-            t_levels,
-            resolution,
-            interpolation,
-        ))
+        fits.then(|| {
+            Self::new_unchecked(
+                params,
+                mass,
+                table,
+                marginal,
+                conditional,
+                t_levels,
+                resolution,
+                interpolation,
+            )
+        })
+    }
+
+    /// Whether `params` and the tables have the sizes [`Self::new`] and [`Self::new_compact`]
+    /// require (`table` is `None` for compact tables).
+    fn fits(
+        params: &W,
+        mass: &W,
+        table: Option<&W>,
+        marginal: &W,
+        conditional: &W,
+        t_levels: u32,
+        resolution: u32,
+    ) -> bool {
+        let k = BASES as u32;
+        params.len() as usize == Self::PARAM_COUNT
+            && table_shapes(mass, table, marginal, conditional, k, t_levels, resolution).is_ok()
     }
 
     /// A sampler without the size checks of [`Self::new`], for GPU shaders (`Option<Self>`
@@ -188,27 +202,26 @@ impl<W: Weights> HistogramMixtureSampler<W> {
     where
         W: Copy,
     {
-        if params.len() as usize != Self::PARAM_COUNT {
-            return None;
-        }
-        compact_table_shapes(
+        let fits = Self::fits(
+            &params,
             &mass,
+            None,
             &marginal,
             &conditional,
-            BASES as u32,
             t_levels,
             resolution,
-        )
-        .ok()?;
-        Some(Self::new_compact_unchecked(
-            params,
-            mass,
-            marginal,
-            conditional,
-            t_levels,
-            resolution,
-            interpolation,
-        ))
+        );
+        fits.then(|| {
+            Self::new_compact_unchecked(
+                params,
+                mass,
+                marginal,
+                conditional,
+                t_levels,
+                resolution,
+                interpolation,
+            )
+        })
     }
 
     /// [`Self::new_compact`] without the size checks, as [`Self::new_unchecked`].

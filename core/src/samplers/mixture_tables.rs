@@ -49,10 +49,12 @@ fn dim(what: &'static str, found: u32, lo: u32, hi: u32) -> Result<(), Error> {
     }
 }
 
-/// Dimension limits and tensor lengths of a set of baked tables.
+/// Dimension limits and tensor lengths of a set of baked tables; `table` is `None` for
+/// compact tables ([`TableLayout::Compact`](crate::distrib::table2d::TableLayout::Compact)),
+/// which store no values.
 pub(crate) fn table_shapes<W: Weights + ?Sized>(
     mass: &W,
-    table: &W,
+    table: Option<&W>,
     marginal: &W,
     conditional: &W,
     bases: u32,
@@ -65,28 +67,9 @@ pub(crate) fn table_shapes<W: Weights + ?Sized>(
     let slices = u64::from(bases) * u64::from(t_levels);
     let n = u64::from(resolution);
     shape("mass", mass.len(), slices)?;
-    shape("table", table.len(), slices * n * n)?;
-    shape("marginal", marginal.len(), slices * n)?;
-    shape("conditional", conditional.len(), slices * n * n)?;
-    Ok(())
-}
-
-/// Dimension limits and tensor lengths of a set of compact tables
-/// ([`TableLayout::Compact`](crate::distrib::table2d::TableLayout::Compact)).
-pub(crate) fn compact_table_shapes<W: Weights + ?Sized>(
-    mass: &W,
-    marginal: &W,
-    conditional: &W,
-    bases: u32,
-    t_levels: u32,
-    resolution: u32,
-) -> Result<(), Error> {
-    dim("basis", bases, 1, BASES as u32)?;
-    dim("t_levels", t_levels, 1, MAX_T as u32)?;
-    dim("resolution", resolution, 1, MAX_N as u32)?;
-    let slices = u64::from(bases) * u64::from(t_levels);
-    let n = u64::from(resolution);
-    shape("mass", mass.len(), slices)?;
+    if let Some(table) = table {
+        shape("table", table.len(), slices * n * n)?;
+    }
     shape("marginal", marginal.len(), slices * n)?;
     shape("conditional", conditional.len(), slices * n * n)?;
     Ok(())
@@ -111,7 +94,15 @@ pub fn validate_compact_tables<W: Weights + ?Sized>(
     t_levels: u32,
     resolution: u32,
 ) -> Result<(), Error> {
-    compact_table_shapes(mass, marginal, conditional, bases, t_levels, resolution)?;
+    table_shapes(
+        mass,
+        None,
+        marginal,
+        conditional,
+        bases,
+        t_levels,
+        resolution,
+    )?;
     all_finite("mass", mass)?;
     all_finite("marginal", marginal)?;
     all_finite("conditional", conditional)?;
@@ -200,15 +191,8 @@ pub fn validate_tables<W: Weights + ?Sized>(
     t_levels: u32,
     resolution: u32,
 ) -> Result<(), Error> {
-    table_shapes(
-        mass,
-        table,
-        marginal,
-        conditional,
-        bases,
-        t_levels,
-        resolution,
-    )?;
+    let (k, t, n) = (bases, t_levels, resolution);
+    table_shapes(mass, Some(table), marginal, conditional, k, t, n)?;
     all_finite("mass", mass)?;
     all_finite("table", table)?;
     all_finite("marginal", marginal)?;
