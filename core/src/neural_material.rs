@@ -312,7 +312,7 @@ mod batch {
     use super::*;
     use crate::error::Result;
     use crate::wavefront::simd::{dispatch, Kernel};
-    use crate::wavefront::{check_len, dense, Features, FeaturesMut, RgbMut, Soa, Vec2s, Vec3s};
+    use crate::wavefront::{dense, Features, FeaturesMut, RgbMut, Soa, Vec2s, Vec3s};
 
     /// Lanes per chunk (two 64-wide activations of 64 lanes: 32 KiB). Each register tile
     /// of the dense kernel widens its weights once per chunk, so 64 lanes amortise that
@@ -344,9 +344,7 @@ mod batch {
             phi.check(n)?;
             wi.check(n)?;
             wo.check(n)?;
-            check_len("r", out.r.len(), n)?;
-            check_len("g", out.g.len(), n)?;
-            check_len("b", out.b.len(), n)?;
+            out.check(n)?;
             dispatch(EvalJob {
                 m: self,
                 phi,

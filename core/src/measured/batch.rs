@@ -43,7 +43,7 @@ impl<W: Weights> MeasuredMaterial<W> {
         let n = wi.len();
         wi.check(n)?;
         wo.check(n)?;
-        check_rgb(&out, n)?;
+        out.check(n)?;
         self.run(Op::Eval { wi, wo, out });
         Ok(())
     }
@@ -108,7 +108,7 @@ impl<W: Weights> MeasuredMaterial<W> {
         u.check(n)?;
         out.check(n)?;
         if let Some(w) = &weight {
-            check_rgb(w, n)?;
+            w.check(n)?;
         }
         self.run(Op::Sample { wi, u, out, weight });
         Ok(())
@@ -183,7 +183,7 @@ impl<W: Weights> MeasuredMaterial<W> {
                     let v = self
                         .prepare(wi.at(i))
                         .map_or([0.0; 3], |p| p.eval(wo.at(i)));
-                    set_rgb(&mut out, i, v);
+                    out.set(i, v);
                 }
             }
             Op::Pdf { wi, wo, pdf } => {
@@ -202,26 +202,13 @@ impl<W: Weights> MeasuredMaterial<W> {
                 for i in 0..wi.len() {
                     let s = self.prepare(wi.at(i)).and_then(|p| p.sample(u.at(i)));
                     if let Some(weight) = &mut weight {
-                        set_rgb(weight, i, s.map_or([0.0; 3], |s| s.weight));
+                        weight.set(i, s.map_or([0.0; 3], |s| s.weight));
                     }
                     out.set(i, s.map(super::runtime_sample));
                 }
             }
         }
     }
-}
-
-fn check_rgb(out: &RgbMut<'_>, n: usize) -> Result<()> {
-    check_len("r", out.r.len(), n)?;
-    check_len("g", out.g.len(), n)?;
-    check_len("b", out.b.len(), n)
-}
-
-#[inline(always)]
-fn set_rgb(out: &mut RgbMut<'_>, i: usize, v: [f32; 3]) {
-    out.r[i] = v[0];
-    out.g[i] = v[1];
-    out.b[i] = v[2];
 }
 
 /// A batched call, its lengths checked.
@@ -582,7 +569,7 @@ impl Ctx<'_> {
                     0.0
                 };
             }
-            set_rgb(out, a + l, v);
+            out.set(a + l, v);
         }
     }
 
@@ -965,7 +952,7 @@ impl Ctx<'_> {
                     } else {
                         [0.0; 3]
                     };
-                    set_rgb(weight, a + l, f);
+                    weight.set(a + l, f);
                 }
             }
         }

@@ -85,174 +85,135 @@ pub struct RgbMut<'a> {
     pub b: &'a mut [f32],
 }
 
-impl<'a> RgbMut<'a> {
-    /// The `(3, n)` row-major array `rows` (r, g, b) as three slices; `None` unless
-    /// `rows.len() == 3n`.
-    #[must_use]
-    pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
-        if rows.len() != 3 * n {
-            return None;
-        }
-        let (r, gb) = rows.split_at_mut(n);
-        let (g, b) = gb.split_at_mut(n);
-        Some(RgbMut { r, g, b })
-    }
-}
-
-impl<'a> Vec2s<'a> {
-    /// The `(2, n)` row-major array `rows` (x then y) as two slices; `None` unless
-    /// `rows.len() == 2n`.
-    #[must_use]
-    pub fn from_rows(rows: &'a [f32], n: usize) -> Option<Self> {
-        if rows.len() != 2 * n {
-            return None;
-        }
-        let (x, y) = rows.split_at(n);
-        Some(Vec2s { x, y })
-    }
-
-    /// Number of values (the length of `x`).
-    #[must_use]
-    pub fn len(&self) -> usize {
-        self.x.len()
-    }
-
-    /// `true` when there are no values.
-    #[must_use]
-    pub fn is_empty(&self) -> bool {
-        self.x.is_empty()
-    }
-
+impl Vec2s<'_> {
     /// Point `i` (panics when `i` is out of range, as slice indexing does).
     #[inline(always)]
     #[must_use]
     pub fn at(&self, i: usize) -> Vec2 {
         Vec2::new(self.x[i], self.y[i])
     }
-
-    pub(crate) fn check(&self, n: usize) -> Result<()> {
-        check_len("x", self.x.len(), n)?;
-        check_len("y", self.y.len(), n)
-    }
-
-    pub(crate) fn range(&self, a: usize, b: usize) -> Vec2s<'a> {
-        Vec2s {
-            x: &self.x[a..b],
-            y: &self.y[a..b],
-        }
-    }
 }
 
-impl<'a> Vec3s<'a> {
-    /// The `(3, n)` row-major array `rows` (x, y, z) as three slices; `None` unless
-    /// `rows.len() == 3n`.
-    #[must_use]
-    pub fn from_rows(rows: &'a [f32], n: usize) -> Option<Self> {
-        if rows.len() != 3 * n {
-            return None;
-        }
-        let (x, yz) = rows.split_at(n);
-        let (y, z) = yz.split_at(n);
-        Some(Vec3s { x, y, z })
-    }
-
-    /// Number of directions (the length of `x`).
-    #[must_use]
-    pub fn len(&self) -> usize {
-        self.x.len()
-    }
-
-    /// `true` when there are no directions.
-    #[must_use]
-    pub fn is_empty(&self) -> bool {
-        self.x.is_empty()
-    }
-
+impl Vec3s<'_> {
     /// Direction `i` (panics when `i` is out of range, as slice indexing does).
     #[inline(always)]
     #[must_use]
     pub fn at(&self, i: usize) -> Vec3 {
         Vec3::new(self.x[i], self.y[i], self.z[i])
     }
-
-    pub(crate) fn check(&self, n: usize) -> Result<()> {
-        check_len("x", self.x.len(), n)?;
-        check_len("y", self.y.len(), n)?;
-        check_len("z", self.z.len(), n)
-    }
-
-    pub(crate) fn range(&self, a: usize, b: usize) -> Vec3s<'a> {
-        Vec3s {
-            x: &self.x[a..b],
-            y: &self.y[a..b],
-            z: &self.z[a..b],
-        }
-    }
 }
 
-impl<'a> Vec2sMut<'a> {
-    /// The `(2, n)` row-major array `rows` as two slices; `None` unless `rows.len() == 2n`.
-    #[must_use]
-    pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
-        if rows.len() != 2 * n {
-            return None;
-        }
-        let (x, y) = rows.split_at_mut(n);
-        Some(Vec2sMut { x, y })
-    }
-
-    pub(crate) fn check(&self, n: usize) -> Result<()> {
-        check_len("x", self.x.len(), n)?;
-        check_len("y", self.y.len(), n)
-    }
-
+impl Vec2sMut<'_> {
     #[inline(always)]
     pub(crate) fn set(&mut self, i: usize, v: Vec2) {
         self.x[i] = v.x;
         self.y[i] = v.y;
     }
-
-    pub(crate) fn range(&mut self, a: usize, b: usize) -> Vec2sMut<'_> {
-        Vec2sMut {
-            x: &mut self.x[a..b],
-            y: &mut self.y[a..b],
-        }
-    }
 }
 
-impl<'a> Vec3sMut<'a> {
-    /// The `(3, n)` row-major array `rows` as three slices; `None` unless `rows.len() == 3n`.
-    #[must_use]
-    pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
-        if rows.len() != 3 * n {
-            return None;
-        }
-        let (x, yz) = rows.split_at_mut(n);
-        let (y, z) = yz.split_at_mut(n);
-        Some(Vec3sMut { x, y, z })
-    }
-
-    pub(crate) fn check(&self, n: usize) -> Result<()> {
-        check_len("x", self.x.len(), n)?;
-        check_len("y", self.y.len(), n)?;
-        check_len("z", self.z.len(), n)
-    }
-
+impl Vec3sMut<'_> {
     #[inline(always)]
     pub(crate) fn set(&mut self, i: usize, v: Vec3) {
         self.x[i] = v.x;
         self.y[i] = v.y;
         self.z[i] = v.z;
     }
+}
 
-    pub(crate) fn range(&mut self, a: usize, b: usize) -> Vec3sMut<'_> {
-        Vec3sMut {
-            x: &mut self.x[a..b],
-            y: &mut self.y[a..b],
-            z: &mut self.z[a..b],
-        }
+impl RgbMut<'_> {
+    #[inline(always)]
+    pub(crate) fn set(&mut self, i: usize, v: [f32; 3]) {
+        self.r[i] = v[0];
+        self.g[i] = v[1];
+        self.b[i] = v[2];
     }
 }
+
+/// The methods of a view whose components are named slices: `from_rows` (one row per
+/// component, in field order), `check` (every component `n` long), `range` (lanes `a .. b`)
+/// and, for read-only views, `len` and `is_empty`.
+macro_rules! component_views {
+    (@one $c:ident) => {
+        1
+    };
+    ($view:ident: [$c0:ident $(, $c:ident)*]) => {
+        impl<'a> $view<'a> {
+            /// The row-major array `rows`, one row of `n` values per component in field
+            /// order, as one slice per component; `None` unless `rows.len()` is the number of
+            /// components times `n`.
+            #[must_use]
+            pub fn from_rows(rows: &'a [f32], n: usize) -> Option<Self> {
+                if rows.len() != (1 $(+ component_views!(@one $c))*) * n {
+                    return None;
+                }
+                let ($c0, rest) = rows.split_at(n);
+                $(let ($c, rest) = rest.split_at(n);)*
+                let _ = rest;
+                Some($view { $c0 $(, $c)* })
+            }
+
+            /// Number of values (the length of the first component).
+            #[must_use]
+            pub fn len(&self) -> usize {
+                self.$c0.len()
+            }
+
+            /// `true` when there are no values.
+            #[must_use]
+            pub fn is_empty(&self) -> bool {
+                self.len() == 0
+            }
+
+            pub(crate) fn check(&self, n: usize) -> Result<()> {
+                check_len(stringify!($c0), self.$c0.len(), n)?;
+                $(check_len(stringify!($c), self.$c.len(), n)?;)*
+                Ok(())
+            }
+
+            pub(crate) fn range(&self, a: usize, b: usize) -> $view<'a> {
+                $view { $c0: &self.$c0[a..b] $(, $c: &self.$c[a..b])* }
+            }
+        }
+    };
+    (mut $view:ident: [$c0:ident $(, $c:ident)*]) => {
+        impl<'a> $view<'a> {
+            /// The row-major array `rows`, one row of `n` values per component in field
+            /// order, as one slice per component; `None` unless `rows.len()` is the number of
+            /// components times `n`.
+            #[must_use]
+            pub fn from_rows(rows: &'a mut [f32], n: usize) -> Option<Self> {
+                if rows.len() != (1 $(+ component_views!(@one $c))*) * n {
+                    return None;
+                }
+                let ($c0, rest) = rows.split_at_mut(n);
+                $(let ($c, rest) = rest.split_at_mut(n);)*
+                let _ = rest;
+                Some($view { $c0 $(, $c)* })
+            }
+
+            pub(crate) fn check(&self, n: usize) -> Result<()> {
+                check_len(stringify!($c0), self.$c0.len(), n)?;
+                $(check_len(stringify!($c), self.$c.len(), n)?;)*
+                Ok(())
+            }
+        }
+    };
+    (mut $view:ident: [$c0:ident $(, $c:ident)*], range) => {
+        component_views!(mut $view: [$c0 $(, $c)*]);
+
+        impl $view<'_> {
+            pub(crate) fn range(&mut self, a: usize, b: usize) -> $view<'_> {
+                $view { $c0: &mut self.$c0[a..b] $(, $c: &mut self.$c[a..b])* }
+            }
+        }
+    };
+}
+
+component_views!(Vec2s: [x, y]);
+component_views!(Vec3s: [x, y, z]);
+component_views!(mut Vec2sMut: [x, y], range);
+component_views!(mut Vec3sMut: [x, y, z], range);
+component_views!(mut RgbMut: [r, g, b]);
 
 impl<'a> Features<'a> {
     /// The `(FEATURE_DIM, n)` row-major array `rows` (channel-major) as one slice per
