@@ -169,22 +169,16 @@ pub fn cell_luminance_sum(
     s: usize,
     keep: impl Fn(f32) -> bool,
 ) -> f32 {
-    let h = 2.0 / res as f32;
-    let hs = h / s as f32;
     let mut acc = 0.0f32;
-    for i in 0..s {
-        let y = -1.0 + row as f32 * h + (i as f32 + 0.5) * hs;
-        for j in 0..s {
-            let x = -1.0 + col as f32 * h + (j as f32 + 0.5) * hs;
-            let r2 = x * x + y * y;
-            if !keep(r2) {
-                continue;
-            }
-            let wo = Vec3::new(x, y, (1.0 - r2).max(0.0).sqrt());
-            let l = luminance(m.eval(phi, wi, wo));
-            if l > 0.0 && l.is_finite() {
-                acc += l;
-            }
+    for (x, y) in cell_points(res, (row, col), s) {
+        let r2 = x * x + y * y;
+        if !keep(r2) {
+            continue;
+        }
+        let wo = Vec3::new(x, y, (1.0 - r2).max(0.0).sqrt());
+        let l = luminance(m.eval(phi, wi, wo));
+        if l > 0.0 && l.is_finite() {
+            acc += l;
         }
     }
     acc
@@ -193,20 +187,25 @@ pub fn cell_luminance_sum(
 /// How many of the `s × s` stratified points of cell `(row, col)` (as in
 /// [`cell_luminance_sum`]) lie strictly inside the unit disk.
 #[must_use]
-pub fn cell_points_inside(res: usize, (row, col): (usize, usize), s: usize) -> usize {
+pub fn cell_points_inside(res: usize, cell: (usize, usize), s: usize) -> usize {
+    cell_points(res, cell, s)
+        .filter(|(x, y)| x * x + y * y < 1.0)
+        .count()
+}
+
+/// The `s × s` stratified points `(x, y)` of cell `(row, col)` of an `res × res` grid over
+/// `[−1, 1]²` (module docs), row by row.
+fn cell_points(
+    res: usize,
+    (row, col): (usize, usize),
+    s: usize,
+) -> impl Iterator<Item = (f32, f32)> {
     let h = 2.0 / res as f32;
     let hs = h / s as f32;
-    let mut n = 0;
-    for i in 0..s {
+    (0..s).flat_map(move |i| {
         let y = -1.0 + row as f32 * h + (i as f32 + 0.5) * hs;
-        for j in 0..s {
-            let x = -1.0 + col as f32 * h + (j as f32 + 0.5) * hs;
-            if x * x + y * y < 1.0 {
-                n += 1;
-            }
-        }
-    }
-    n
+        (0..s).map(move |j| (-1.0 + col as f32 * h + (j as f32 + 0.5) * hs, y))
+    })
 }
 
 /// Whether cell `(r, c)` of an `res × res` grid lies entirely inside the closed unit disk.
