@@ -8,6 +8,8 @@ use std::ops::{Index, IndexMut};
 
 use neusample::SamplerKind;
 
+use crate::nn::OptimSettings;
+
 /// Settings every method shares.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Common {
@@ -58,6 +60,21 @@ impl Common {
             pool_conditions: 32,
             pool_refresh_every: 0,
             ..Common::default()
+        }
+    }
+
+    /// The optimiser's settings of the phase `name` run on `schedule` (the progress bar shows
+    /// the loss every 10 steps).
+    #[must_use]
+    pub(crate) fn optim_settings(&self, name: &str, schedule: &Schedule) -> OptimSettings {
+        OptimSettings {
+            name: name.to_string(),
+            steps: schedule.steps,
+            lr: schedule.lr,
+            weight_decay: self.weight_decay,
+            grad_clip: self.grad_clip,
+            progress: self.progress,
+            report_every: 10,
         }
     }
 }

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use super::config::{Common, Schedule};
 use super::source::{GtCondition, TargetSource};
 use crate::groundtruth::{TargetOptions, TargetPdf};
-use crate::nn::{optimise, tensor2, train_device, OptimSettings};
+use crate::nn::{optimise, tensor2, train_device};
 use crate::util::rng::{mix_seed, rng_for};
 
 /// The conditions training draws its batches from. A quarter of the pool is replaced by
@@ -322,16 +322,7 @@ pub fn fit<M: Module>(
     loss: impl Fn(&M, &Batch) -> Tensor<1>,
 ) -> anyhow::Result<(M, Vec<f32>)> {
     let device = train_device();
-    let settings = OptimSettings {
-        name: name.to_string(),
-        steps: schedule.steps,
-        lr: schedule.lr,
-        weight_decay: common.weight_decay,
-        grad_clip: common.grad_clip,
-        progress: common.progress,
-        report_every: 10,
-    };
-    optimise(model, &settings, |m, step| {
+    optimise(model, &common.optim_settings(name, schedule), |m, step| {
         pool.maybe_refresh(step)?;
         let host = make_batch(pool, batch.0, batch.1, kind, common.seed, step);
         Ok(loss(m, &Batch::upload(host, &device)))
