@@ -365,7 +365,7 @@ fn default_training_kl() {
             }
             let steps = cfg.schedule(m).unwrap().steps;
             let t = train_with(source.as_ref(), m, &cfg).unwrap();
-            let kl = train::mean_kl(&t, source.as_ref(), 64, 64, 12345).unwrap();
+            let kl = train::mean_kl(&t, &source.draw(64, 64, 12345).unwrap());
             let ms = 1000.0 * t.seconds / steps as f64;
             let m = m.name();
             eprintln!(
@@ -454,8 +454,9 @@ fn histogram_mixture_diagnostics() {
         .unwrap();
         let t_bake = tb.elapsed().as_secs_f64();
         let n = 24;
-        let kl = train::mean_kl(&t, &source, n, 64, 12345).unwrap();
-        let kl_net = network_mean_kl(&t, &source, n, 64, 12345).unwrap();
+        let gts = source.draw(n, 64, 12345).unwrap();
+        let kl = train::mean_kl(&t, &gts);
+        let kl_net = network_mean_kl(&t, &gts).unwrap();
         let h = &t.loss_history;
         eprintln!(
             "{name}: train {:.1} s (pool ≈ {t_pool:.1} s, bake ≈ {t_bake:.1} s), loss {:.4} → {:.4}; KL baked {kl:.4}, network {kl_net:.4}",
@@ -471,7 +472,7 @@ fn histogram_mixture_diagnostics() {
         ] {
             let mut t2 = t.clone();
             t2.tables = Some(bake(&tables.basis_params, tl, res, ss, interp).unwrap());
-            let kl2 = train::mean_kl(&t2, &source, n, 64, 12345).unwrap();
+            let kl2 = train::mean_kl(&t2, &gts);
             eprintln!("  rebake T={tl} N={res} ss={ss} {interp:?}: KL {kl2:.4}");
         }
     }

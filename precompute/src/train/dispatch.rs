@@ -111,51 +111,35 @@ pub fn graph_log_pdf(
     trainer(method)?.graph_log_pdf(params, phi, wi, points)
 }
 
-/// Mean KL(p* ‖ p) in nats of a trained model over `conditions` fresh conditions of
-/// `source` (targets at resolution `res`, seed `seed`).
-pub fn mean_kl(
-    trained: &Trained,
-    source: &dyn TargetSource,
-    conditions: usize,
-    res: usize,
-    seed: u64,
-) -> anyhow::Result<f64> {
-    mean_over_conditions(source, conditions, res, seed, |g| {
+/// Mean KL(p* ‖ p) in nats of a trained model over the conditions `gts` (fresh ones, from
+/// [`TargetSource::draw`]).
+#[must_use]
+pub fn mean_kl(trained: &Trained, gts: &[GtCondition]) -> f64 {
+    mean_over_conditions(gts, |g| {
         g.target
             .kl_from(|p| model_pdf_disk(trained, &g.phi, g.wi, p))
     })
 }
 
-/// The mean of `f` over `conditions` fresh conditions of `source` (targets at `res`), in
-/// parallel and summed in condition order.
-fn mean_over_conditions(
-    source: &dyn TargetSource,
-    conditions: usize,
-    res: usize,
-    seed: u64,
-    f: impl Fn(&GtCondition) -> f64 + Sync,
-) -> anyhow::Result<f64> {
-    let gts = source.draw(conditions, res, seed)?;
+/// The mean of `f` over the conditions `gts`, in parallel and summed in condition order.
+fn mean_over_conditions(gts: &[GtCondition], f: impl Fn(&GtCondition) -> f64 + Sync) -> f64 {
     let values: Vec<f64> = gts.par_iter().map(&f).collect();
-    Ok(values.iter().sum::<f64>() / values.len().max(1) as f64)
+    values.iter().sum::<f64>() / values.len().max(1) as f64
 }
 
 /// Mean KL(p* ‖ p_net) in nats of the *un-baked* training model of `trained` (condition
 /// network + basis network, normalised numerically over the disk on the target grid) over
-/// `conditions` fresh conditions of `source` at resolution `res`: the part of the baked
-/// model's KL that is not due to baking (tables, T, N). Diagnostics; slow-ish (one basis
-/// network evaluation per grid point and basis).
-pub fn network_mean_kl(
-    trained: &Trained,
-    source: &dyn TargetSource,
-    conditions: usize,
-    res: usize,
-    seed: u64,
-) -> anyhow::Result<f64> {
+/// the conditions `gts` (their targets share one resolution): the part of the baked model's
+/// KL that is not due to baking (tables, T, N). Diagnostics; slow-ish (one basis network
+/// evaluation per grid point and basis).
+pub fn network_mean_kl(trained: &Trained, gts: &[GtCondition]) -> anyhow::Result<f64> {
     let tables = trained
         .tables
         .as_ref()
         .ok_or_else(|| anyhow::anyhow!("not a histogram mixture"))?;
+    let Some(res) = gts.first().map(|g| g.target.res()) else {
+        return Ok(0.0);
+    };
     let h = 2.0 / res as f32;
     let points: Vec<Vec2> = (0..res * res)
         .map(|i| {
@@ -165,7 +149,7 @@ pub fn network_mean_kl(
             )
         })
         .collect();
-    mean_over_conditions(source, conditions, res, seed, |g| {
+    Ok(mean_over_conditions(gts, |g| {
         let mut d = histogram_mixture::network_density(
             &trained.params,
             &tables.basis_params,
@@ -186,5 +170,5 @@ pub fn network_mean_kl(
             let r = (((p.y + 1.0) / h).floor().max(0.0) as usize).min(res - 1);
             (f64::from(d[r * res + c]) / z) as f32
         })
-    })
+    }))
 }
