@@ -13,19 +13,57 @@ use rayon::prelude::*;
 use crate::materials::luminance;
 use crate::nn::{log_sum_exp_last, tensor2, to_host};
 
+/// The conditions of a batch's rows: row `i` belongs to condition `conds[i / repeat]`.
+#[derive(Clone, Copy, Debug)]
+pub struct ConditionRows<'a> {
+    /// `(φ, wi)` per condition.
+    pub conds: &'a [([f32; FEATURE_DIM], Vec3)],
+    /// ConditionRows per condition.
+    pub repeat: usize,
+}
+
+impl ConditionRows<'_> {
+    /// Number of rows, `conds.len() · repeat`.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.conds.len() * self.repeat
+    }
+
+    /// `true` without rows.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// A `[n, width]` tensor whose rows hold their condition's `width` values, which `write`
+    /// appends once per condition.
+    pub fn per_condition(
+        &self,
+        width: usize,
+        device: &Device,
+        mut write: impl FnMut(&[f32; FEATURE_DIM], Vec3, &mut Vec<f32>),
+    ) -> Tensor<2> {
+        let mut host = Vec::with_capacity(self.len() * width);
+        let mut row = Vec::with_capacity(width);
+        for (phi, wi) in self.conds {
+            row.clear();
+            write(phi, *wi, &mut row);
+            debug_assert_eq!(row.len(), width);
+            for _ in 0..self.repeat {
+                host.extend_from_slice(&row);
+            }
+        }
+        tensor2(host, self.len(), width, device)
+    }
+}
+
 /// The unnormalised target of the reparameterization sampler on the projected disk,
 /// `f⊥(ω⊥ | φ, wi)` (for a material, the luminance of its BRDF: p* up to its normaliser),
 /// with a differentiable training graph.
 pub trait Integrand: Sync {
-    /// `ln f⊥` at the directions `wo` (`[n, 3]`, unit, on the training graph) of the rows:
-    /// row `i` belongs to condition `conds[i / repeat]`. Returns `[n, 1]`.
-    fn log_f(
-        &self,
-        conds: &[([f32; FEATURE_DIM], Vec3)],
-        repeat: usize,
-        wo: Tensor<2>,
-        device: &Device,
-    ) -> Tensor<2>;
+    /// `ln f⊥` at the directions `wo` (`[n, 3]`, unit, on the training graph) of the `rows`.
+    /// Returns `[n, 1]`.
+    fn log_f(&self, rows: ConditionRows<'_>, wo: Tensor<2>, device: &Device) -> Tensor<2>;
 
     /// `f⊥` at one direction on the host (no gradient), ≥ 0.
     fn f(&self, phi: &[f32; FEATURE_DIM], wi: Vec3, wo: Vec3) -> f32;
@@ -58,25 +96,12 @@ impl<'a> NeuralIntegrand<'a> {
 }
 
 impl Integrand for NeuralIntegrand<'_> {
-    fn log_f(
-        &self,
-        conds: &[([f32; FEATURE_DIM], Vec3)],
-        repeat: usize,
-        wo: Tensor<2>,
-        device: &Device,
-    ) -> Tensor<2> {
-        let n = conds.len() * repeat;
-        let mut base = Vec::with_capacity(n * (FEATURE_DIM + 2));
-        let mut wi = Vec::with_capacity(n * 3);
-        for (phi, w) in conds {
-            for _ in 0..repeat {
-                base.extend_from_slice(phi);
-                base.extend([w.x, w.y]);
-                wi.extend([w.x, w.y, w.z]);
-            }
-        }
-        let base = tensor2(base, n, FEATURE_DIM + 2, device);
-        let wi = tensor2(wi, n, 3, device);
+    fn log_f(&self, rows: ConditionRows<'_>, wo: Tensor<2>, device: &Device) -> Tensor<2> {
+        let base = rows.per_condition(FEATURE_DIM + 2, device, |phi, wi, row| {
+            row.extend_from_slice(phi);
+            row.extend([wi.x, wi.y]);
+        });
+        let wi = rows.per_condition(3, device, |_, wi, row| row.extend(wi.to_array()));
         // A row whose wo is not finite reads LOG_F_MIN: its components are replaced by 0
         // first, so that neither its value nor its gradient is NaN.
         let bad = wo.clone().is_finite().bool_not();
@@ -170,16 +195,11 @@ impl<'a> MeasuredIntegrand<'a> {
 }
 
 impl Integrand for MeasuredIntegrand<'_> {
-    fn log_f(
-        &self,
-        conds: &[([f32; FEATURE_DIM], Vec3)],
-        repeat: usize,
-        wo: Tensor<2>,
-        device: &Device,
-    ) -> Tensor<2> {
-        let n = conds.len() * repeat;
+    fn log_f(&self, rows: ConditionRows<'_>, wo: Tensor<2>, device: &Device) -> Tensor<2> {
+        let (n, repeat) = (rows.len(), rows.repeat);
         let host = to_host(wo.clone());
-        let rows: Vec<(f32, [f32; 3])> = conds
+        let rows: Vec<(f32, [f32; 3])> = rows
+            .conds
             .par_iter()
             .enumerate()
             .flat_map_iter(|(i, (_, wi))| {
@@ -226,7 +246,7 @@ mod tests {
         OwnedMeasured::open(std::path::Path::new(path)).expect("the mint fixture opens")
     }
 
-    /// Rows whose `wo` is NaN or infinite read `LOG_F_MIN` with a zero gradient, on both
+    /// ConditionRows whose `wo` is NaN or infinite read `LOG_F_MIN` with a zero gradient, on both
     /// integrands, and leave the other rows' values as they are without them.
     #[test]
     fn rows_with_a_non_finite_wo_read_the_floor() {
@@ -257,7 +277,11 @@ mod tests {
                 let host: Vec<f32> = rows.iter().flatten().copied().collect();
                 let wo = tensor2(host, rows.len(), 3, &device).require_grad();
                 let conds: Vec<_> = rows.iter().map(|_| (phi, wi)).collect();
-                let log_f = integrand.log_f(&conds, 1, wo.clone(), &device);
+                let rows = ConditionRows {
+                    conds: &conds,
+                    repeat: 1,
+                };
+                let log_f = integrand.log_f(rows, wo.clone(), &device);
                 let values = to_host(log_f.clone());
                 let grads = log_f.sum().backward();
                 (values, to_host(wo.grad(&grads).expect("wo has a gradient")))
@@ -297,7 +321,11 @@ mod tests {
         let host: Vec<f32> = wos.iter().flat_map(|w| [w.x, w.y, w.z]).collect();
         let wo = tensor2(host, wos.len(), 3, &device).require_grad();
         let conds: Vec<_> = wos.iter().map(|_| ([0.0; FEATURE_DIM], wi)).collect();
-        let log_f = integrand.log_f(&conds, 1, wo.clone(), &device);
+        let rows = ConditionRows {
+            conds: &conds,
+            repeat: 1,
+        };
+        let log_f = integrand.log_f(rows, wo.clone(), &device);
         let values = to_host(log_f.clone());
         let grads = log_f.sum().backward();
         let g = to_host(wo.grad(&grads).expect("wo has a gradient"));

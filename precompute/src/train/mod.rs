@@ -60,7 +60,7 @@ pub use dispatch::{
     graph_log_pdf, mean_kl, model_pdf_disk, network_mean_kl, train, train_with, Trained,
 };
 pub use histogram_mixture::BakedTables;
-pub use integrand::{Integrand, MeasuredIntegrand, NeuralIntegrand};
+pub use integrand::{ConditionRows, Integrand, MeasuredIntegrand, NeuralIntegrand};
 pub use method::{needs_integrand, parse_method, pole_tolerance, METHODS};
 pub use source::{
     has_integrand, material_integrand, GtCondition, MaterialSource, SyntheticIntegrand,

@@ -31,11 +31,10 @@ use rand::RngExt;
 
 use super::config::{Common, DensityLoss, MaxLikelihood, Reparam, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, Pool};
-use super::integrand::Integrand;
+use super::integrand::{ConditionRows, Integrand};
 use super::trainer::{Fitted, Run, Trained, Trainer};
 use crate::nn::{
     log_sum_exp_last, mlp_f64, optimise, tensor2, to_host, train_device, Activation, Mlp,
-    OptimSettings,
 };
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -233,7 +232,11 @@ fn warp_loss(
     let cond = tensor2(batch.cond.clone(), n, CONDITION_DIM, device);
     let z = tensor2(batch.z.clone(), n, 2, device);
     let w = warp_graph(&m.net, cond, z);
-    let log_f = integrand.log_f(&batch.conds, batch.s, w.wo, device).clamp(
+    let rows = ConditionRows {
+        conds: &batch.conds,
+        repeat: batch.s,
+    };
+    let log_f = integrand.log_f(rows, w.wo, device).clamp(
         neusample::neural_material::LOG_F_MIN,
         neusample::neural_material::LOG_F_MAX,
     );
@@ -498,22 +501,16 @@ pub fn train(
     let warp = WarpModel {
         net: init_warp(pool, common.seed, &device),
     };
-    let settings = |name: &str, schedule: &super::config::Schedule| OptimSettings {
-        name: name.to_string(),
-        steps: schedule.steps,
-        lr: schedule.lr,
-        weight_decay: common.weight_decay,
-        grad_clip: common.grad_clip,
-        progress: common.progress,
-        report_every: 10,
-    };
     let (b, s) = (cfg.batch_conditions, cfg.samples_per_condition);
-    let (warp, mut history) =
-        optimise(warp, &settings("reparam warp", &cfg.schedule), |m, step| {
+    let (warp, mut history) = optimise(
+        warp,
+        &common.optim_settings("reparam warp", &cfg.schedule),
+        |m, step| {
             pool.maybe_refresh(step)?;
             let batch = warp_batch(pool, integrand, b, s, common.seed, step);
             Ok(warp_loss(m, &batch, integrand, cfg, &device))
-        })?;
+        },
+    )?;
     let mut warp_params = Vec::new();
     warp.net.export(&mut warp_params);
     let frozen = with_zero_density(&warp_params);
@@ -526,7 +523,7 @@ pub fn train(
     let offset = cfg.schedule.steps;
     let (density, h2) = optimise(
         density,
-        &settings("reparam pdf", &cfg.density_schedule),
+        &common.optim_settings("reparam pdf", &cfg.density_schedule),
         |m, step| {
             pool.maybe_refresh(offset + step)?;
             let batch = density_batch(pool, &sampler, b, s, common.seed, offset + step);

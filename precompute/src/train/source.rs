@@ -9,10 +9,9 @@ use rand::RngExt;
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use super::integrand::{Integrand, MeasuredIntegrand, NeuralIntegrand};
+use super::integrand::{ConditionRows, Integrand, MeasuredIntegrand, NeuralIntegrand};
 use crate::groundtruth::{self, TargetOptions, TargetPdf};
 use crate::materials::Material;
-use crate::nn::tensor2;
 use crate::util::rng::rng_for;
 
 /// One training condition (φ, wi) with its target density.
@@ -229,22 +228,10 @@ impl TargetSource for SyntheticSource {
 pub struct SyntheticIntegrand;
 
 impl Integrand for SyntheticIntegrand {
-    fn log_f(
-        &self,
-        conds: &[([f32; FEATURE_DIM], Vec3)],
-        repeat: usize,
-        wo: Tensor<2>,
-        device: &Device,
-    ) -> Tensor<2> {
-        let n = conds.len() * repeat;
-        let mut lobes = Vec::with_capacity(n * 9);
-        for (phi, wi) in conds {
-            let l = SyntheticSource::lobes(phi, *wi);
-            for _ in 0..repeat {
-                lobes.extend_from_slice(&l);
-            }
-        }
-        let l = tensor2(lobes, n, 9, device);
+    fn log_f(&self, rows: ConditionRows<'_>, wo: Tensor<2>, device: &Device) -> Tensor<2> {
+        let l = rows.per_condition(9, device, |phi, wi, row| {
+            row.extend(SyntheticSource::lobes(phi, wi));
+        });
         let c = |j: usize| l.clone().narrow(1, j, 1);
         let (px, py) = (wo.clone().narrow(1, 0, 1), wo.narrow(1, 1, 1));
         let tau = std::f32::consts::TAU;
