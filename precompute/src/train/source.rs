@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use super::integrand::{ConditionRows, Integrand, MeasuredIntegrand, NeuralIntegrand};
 use crate::groundtruth::{self, TargetOptions, TargetPdf};
 use crate::materials::Material;
-use crate::util::rng::rng_for;
+use crate::util::rng::{indexed_rng, rng_for};
 
 /// One training condition (φ, wi) with its target density.
 pub struct GtCondition {
@@ -26,15 +26,25 @@ pub struct GtCondition {
 
 /// A source of training conditions, deterministic in its seed.
 pub trait TargetSource: Sync {
+    /// Random condition `i` of the draw with `seed`, with its target tabulated at `res × res`
+    /// with `opts`: a pure function of `(i, res, seed, opts)`.
+    fn draw_one(&self, i: usize, res: usize, seed: u64, opts: &TargetOptions) -> GtCondition;
+
     /// `n` random conditions with their targets tabulated at `res × res` with `opts`, a pure
-    /// function of `(n, res, seed, opts)`.
+    /// function of `(n, res, seed, opts)`: conditions `0 .. n` of [`TargetSource::draw_one`],
+    /// drawn in parallel (so a draw of `n` is a prefix of a draw of `m > n`).
     fn draw_with(
         &self,
         n: usize,
         res: usize,
         seed: u64,
         opts: &TargetOptions,
-    ) -> anyhow::Result<Vec<GtCondition>>;
+    ) -> anyhow::Result<Vec<GtCondition>> {
+        Ok((0..n)
+            .into_par_iter()
+            .map(|i| self.draw_one(i, res, seed, opts))
+            .collect())
+    }
 
     /// [`TargetSource::draw_with`] with the default options (the fit metrics' targets).
     fn draw(&self, n: usize, res: usize, seed: u64) -> anyhow::Result<Vec<GtCondition>> {
@@ -49,7 +59,7 @@ pub trait TargetSource: Sync {
     }
 }
 
-/// Draws training conditions of a material with [`groundtruth::batch`].
+/// Draws training conditions of a material as [`groundtruth::batch_with`] does.
 pub struct MaterialSource<'a> {
     material: &'a dyn Material,
     integrand: Option<Box<dyn Integrand + 'a>>,
@@ -86,21 +96,13 @@ pub fn has_integrand(material: &dyn Material) -> bool {
 }
 
 impl TargetSource for MaterialSource<'_> {
-    fn draw_with(
-        &self,
-        n: usize,
-        res: usize,
-        seed: u64,
-        opts: &TargetOptions,
-    ) -> anyhow::Result<Vec<GtCondition>> {
-        Ok(groundtruth::batch_with(self.material, n, res, seed, opts)
-            .into_iter()
-            .map(|(c, target)| GtCondition {
-                phi: c.phi,
-                wi: c.wi,
-                target,
-            })
-            .collect())
+    fn draw_one(&self, i: usize, res: usize, seed: u64, opts: &TargetOptions) -> GtCondition {
+        let c = groundtruth::random_condition(self.material, &mut indexed_rng(seed, i));
+        GtCondition {
+            phi: c.phi,
+            wi: c.wi,
+            target: TargetPdf::with_options(self.material, &c, res, opts),
+        }
     }
 
     fn integrand(&self) -> Option<&dyn Integrand> {
@@ -169,6 +171,45 @@ impl SyntheticSource {
         };
         (phi, wi)
     }
+
+    /// The target of condition `(φ, wi)` tabulated at `res × res`: the mean of the density
+    /// over each cell's 2 × 2 stratified points, with `opts.to_horizon` over those inside the
+    /// disk of the cells straddling the circle.
+    #[must_use]
+    pub fn target(
+        phi: &[f32; FEATURE_DIM],
+        wi: Vec3,
+        res: usize,
+        opts: &TargetOptions,
+    ) -> TargetPdf {
+        let h = 2.0 / res as f32;
+        let mut values = vec![0.0f32; res * res];
+        let mut inside = vec![0.0f32; res * res];
+        for r in 0..res {
+            for c in 0..res {
+                let (mut acc, mut n_in) = (0.0, 0);
+                for i in 0..2 {
+                    for j in 0..2 {
+                        let p = Vec2::new(
+                            -1.0 + h * (c as f32 + 0.25 + 0.5 * j as f32),
+                            -1.0 + h * (r as f32 + 0.25 + 0.5 * i as f32),
+                        );
+                        if p.length_squared() < 1.0 || !opts.to_horizon {
+                            acc += Self::density(phi, wi, p);
+                            n_in += 1;
+                        }
+                    }
+                }
+                let i = r * res + c;
+                if groundtruth::cell_inside_disk(res, r, c) {
+                    (values[i], inside[i]) = (acc / 4.0, 1.0);
+                } else if opts.to_horizon && n_in > 0 {
+                    (values[i], inside[i]) = (acc / n_in as f32, n_in as f32 / 4.0);
+                }
+            }
+        }
+        TargetPdf::from_cells(res, values, &inside)
+    }
 }
 
 impl TargetSource for SyntheticSource {
@@ -176,51 +217,13 @@ impl TargetSource for SyntheticSource {
         Some(&SyntheticIntegrand)
     }
 
-    fn draw_with(
-        &self,
-        n: usize,
-        res: usize,
-        seed: u64,
-        opts: &TargetOptions,
-    ) -> anyhow::Result<Vec<GtCondition>> {
-        Ok((0..n)
-            .into_par_iter()
-            .map(|i| {
-                let mut rng = rng_for(seed, 0x5e17, i as u64);
-                let (phi, wi) = Self::condition(&mut rng);
-                let h = 2.0 / res as f32;
-                let mut values = vec![0.0f32; res * res];
-                let mut inside = vec![0.0f32; res * res];
-                for r in 0..res {
-                    for c in 0..res {
-                        let (mut acc, mut n_in) = (0.0, 0);
-                        for i in 0..2 {
-                            for j in 0..2 {
-                                let p = Vec2::new(
-                                    -1.0 + h * (c as f32 + 0.25 + 0.5 * j as f32),
-                                    -1.0 + h * (r as f32 + 0.25 + 0.5 * i as f32),
-                                );
-                                if p.length_squared() < 1.0 || !opts.to_horizon {
-                                    acc += Self::density(&phi, wi, p);
-                                    n_in += 1;
-                                }
-                            }
-                        }
-                        let i = r * res + c;
-                        if groundtruth::cell_inside_disk(res, r, c) {
-                            (values[i], inside[i]) = (acc / 4.0, 1.0);
-                        } else if opts.to_horizon && n_in > 0 {
-                            (values[i], inside[i]) = (acc / n_in as f32, n_in as f32 / 4.0);
-                        }
-                    }
-                }
-                GtCondition {
-                    phi,
-                    wi,
-                    target: TargetPdf::from_cells(res, values, &inside),
-                }
-            })
-            .collect())
+    fn draw_one(&self, i: usize, res: usize, seed: u64, opts: &TargetOptions) -> GtCondition {
+        let (phi, wi) = Self::condition(&mut rng_for(seed, 0x5e17, i as u64));
+        GtCondition {
+            phi,
+            wi,
+            target: Self::target(&phi, wi, res, opts),
+        }
     }
 }
 
