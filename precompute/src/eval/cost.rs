@@ -159,13 +159,19 @@ impl Inputs {
     }
 }
 
-/// Structure-of-arrays rows of [`Inputs`], for the batched calls.
+/// Structure-of-arrays rows of [`Inputs`], for the batched calls: `rows.wi.at(a, b)` is
+/// the view of lanes `a .. b` that a batched call takes.
 pub struct Rows {
-    phi: [Vec<f32>; FEATURE_DIM],
-    wi: [Vec<f32>; 3],
-    u: [Vec<f32>; 2],
-    wo: [Vec<f32>; 3],
-    uv: [Vec<f32>; 2],
+    /// φ per lane.
+    pub phi: Columns<FEATURE_DIM>,
+    /// `wi` per lane.
+    pub wi: Columns<3>,
+    /// `u` per lane.
+    pub u: Columns<2>,
+    /// The second direction per lane.
+    pub wo: Columns<3>,
+    /// The texture coordinate per lane.
+    pub uv: Columns<2>,
 }
 
 impl Rows {
@@ -173,71 +179,78 @@ impl Rows {
     #[must_use]
     pub fn new(inp: &Inputs) -> Rows {
         Rows {
-            phi: std::array::from_fn(|c| inp.conds.iter().map(|x| x.0[c]).collect()),
-            wi: [0, 1, 2].map(|k| inp.conds.iter().map(|x| x.1[k]).collect()),
-            u: [0, 1].map(|k| inp.us.iter().map(|x| x[k]).collect()),
-            wo: [0, 1, 2].map(|k| inp.wos.iter().map(|x| x[k]).collect()),
-            uv: [0, 1].map(|k| inp.uvs.iter().map(|x| x[k]).collect()),
+            phi: Columns::gather(&inp.conds, |x, c| x.0[c]),
+            wi: Columns::gather(&inp.conds, |x, k| x.1[k]),
+            u: Columns::gather(&inp.us, |x, k| x[k]),
+            wo: Columns::gather(&inp.wos, |x, k| x[k]),
+            uv: Columns::gather(&inp.uvs, |x, k| x[k]),
         }
     }
 
     /// Number of lanes.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.wi[0].len()
+        self.wi.0[0].len()
     }
 
     /// `true` without lanes.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.wi[0].is_empty()
+        self.len() == 0
     }
 
+    /// The lanes `(a, b)` of each call over all of the rows at `n` lanes per call (at least
+    /// 1).
+    pub fn calls(&self, n: usize) -> impl Iterator<Item = (usize, usize)> + Clone {
+        let (total, n) = (self.len(), n.max(1));
+        (0..total).step_by(n).map(move |a| (a, (a + n).min(total)))
+    }
+}
+
+/// `K` columns of values, one per component, for [`Rows`].
+pub struct Columns<const K: usize>([Vec<f32>; K]);
+
+impl<const K: usize> Columns<K> {
+    /// Component `k` of every lane is `get(&lane, k)`.
+    fn gather<T>(lanes: &[T], get: impl Fn(&T, usize) -> f32) -> Self {
+        Columns(std::array::from_fn(|k| {
+            lanes.iter().map(|x| get(x, k)).collect()
+        }))
+    }
+}
+
+impl Columns<FEATURE_DIM> {
     /// φ of lanes `a .. b`.
     #[must_use]
-    pub fn phi(&self, a: usize, b: usize) -> Features<'_> {
+    pub fn at(&self, a: usize, b: usize) -> Features<'_> {
         Features {
-            channels: std::array::from_fn(|c| &self.phi[c][a..b]),
+            channels: std::array::from_fn(|c| &self.0[c][a..b]),
         }
     }
+}
 
-    /// wi of lanes `a .. b`.
+impl Columns<3> {
+    /// The directions of lanes `a .. b`.
     #[must_use]
-    pub fn wi(&self, a: usize, b: usize) -> Vec3s<'_> {
-        three(&self.wi, a, b)
-    }
-
-    /// The second directions of lanes `a .. b`.
-    #[must_use]
-    pub fn wo(&self, a: usize, b: usize) -> Vec3s<'_> {
-        three(&self.wo, a, b)
-    }
-
-    /// u of lanes `a .. b`.
-    #[must_use]
-    pub fn u(&self, a: usize, b: usize) -> Vec2s<'_> {
-        two(&self.u, a, b)
-    }
-
-    /// uv of lanes `a .. b`.
-    #[must_use]
-    pub fn uv(&self, a: usize, b: usize) -> Vec2s<'_> {
-        two(&self.uv, a, b)
+    pub fn at(&self, a: usize, b: usize) -> Vec3s<'_> {
+        let [x, y, z] = &self.0;
+        Vec3s {
+            x: &x[a..b],
+            y: &y[a..b],
+            z: &z[a..b],
+        }
     }
 }
 
-fn two(v: &[Vec<f32>; 2], a: usize, b: usize) -> Vec2s<'_> {
-    Vec2s {
-        x: &v[0][a..b],
-        y: &v[1][a..b],
-    }
-}
-
-fn three(v: &[Vec<f32>; 3], a: usize, b: usize) -> Vec3s<'_> {
-    Vec3s {
-        x: &v[0][a..b],
-        y: &v[1][a..b],
-        z: &v[2][a..b],
+impl Columns<2> {
+    /// The 2-D values of lanes `a .. b`.
+    #[must_use]
+    pub fn at(&self, a: usize, b: usize) -> Vec2s<'_> {
+        let [x, y] = &self.0;
+        Vec2s {
+            x: &x[a..b],
+            y: &y[a..b],
+        }
     }
 }
 
@@ -275,24 +288,20 @@ pub fn scalar_split<S: Sampler>(s: &S, inp: &Inputs, passes: usize) -> Split {
 /// The batched API's split at `n` lanes per call over all of `rows`.
 pub fn batched_split<S: BatchSampler>(s: &S, rows: &Rows, n: usize, passes: usize) -> Split {
     let total = rows.len();
-    let n = n.max(1);
     let mut lanes = vec![S::Lane::default(); total];
     let mut wo = [0, 1, 2].map(|_| vec![0.0f32; total]);
     let mut pdf = vec![0.0f32; total];
     let mut mis = vec![0.0f32; total];
     let mut pdf2 = vec![0.0f32; total];
-    let starts: Vec<usize> = (0..total).step_by(n).collect();
     let prepare_ns = time_per(passes, total, || {
-        for &a in &starts {
-            let b = (a + n).min(total);
-            s.prepare_batch(rows.phi(a, b), rows.wi(a, b), &mut lanes[a..b])
+        for (a, b) in rows.calls(n) {
+            s.prepare_batch(rows.phi.at(a, b), rows.wi.at(a, b), &mut lanes[a..b])
                 .expect("lengths agree");
         }
     });
     let sample_ns = time_per(passes, total, || {
         let [x, y, z] = &mut wo;
-        for &a in &starts {
-            let b = (a + n).min(total);
+        for (a, b) in rows.calls(n) {
             let out = SamplesMut {
                 wo: Vec3sMut {
                     x: &mut x[a..b],
@@ -302,14 +311,13 @@ pub fn batched_split<S: BatchSampler>(s: &S, rows: &Rows, n: usize, passes: usiz
                 pdf: &mut pdf[a..b],
                 mis_pdf: &mut mis[a..b],
             };
-            s.sample_batch(&lanes[a..b], rows.u(a, b), out)
+            s.sample_batch(&lanes[a..b], rows.u.at(a, b), out)
                 .expect("lengths agree");
         }
     });
     let pdf_ns = time_per(passes, total, || {
-        for &a in &starts {
-            let b = (a + n).min(total);
-            s.pdf_batch(&lanes[a..b], rows.wo(a, b), &mut pdf2[a..b])
+        for (a, b) in rows.calls(n) {
+            s.pdf_batch(&lanes[a..b], rows.wo.at(a, b), &mut pdf2[a..b])
                 .expect("lengths agree");
         }
     });
@@ -331,20 +339,17 @@ pub fn eval_batch_ns(
     passes: usize,
 ) -> f64 {
     let total = rows.len();
-    let n = n.max(1);
     let mut rgb = vec![0.0f32; 3 * total];
-    let starts: Vec<usize> = (0..total).step_by(n).collect();
     time_per(passes, total, || {
         let (r, gb) = rgb.split_at_mut(total);
         let (g, bl) = gb.split_at_mut(total);
-        for &a in &starts {
-            let b = (a + n).min(total);
+        for (a, b) in rows.calls(n) {
             let out = RgbMut {
                 r: &mut r[a..b],
                 g: &mut g[a..b],
                 b: &mut bl[a..b],
             };
-            eval(rows.phi(a, b), rows.wi(a, b), rows.wo(a, b), out);
+            eval(rows.phi.at(a, b), rows.wi.at(a, b), rows.wo.at(a, b), out);
         }
     })
 }
@@ -359,13 +364,11 @@ pub fn features_batch_ns(
     let total = rows.len();
     let n = n.max(1);
     let mut phi = vec![0.0f32; FEATURE_DIM * n];
-    let starts: Vec<usize> = (0..total).step_by(n).collect();
     time_per(passes, total, || {
-        for &a in &starts {
-            let b = (a + n).min(total);
+        for (a, b) in rows.calls(n) {
             let out =
                 FeaturesMut::from_rows(&mut phi[..FEATURE_DIM * (b - a)], b - a).expect("sized");
-            features(rows.uv(a, b), out);
+            features(rows.uv.at(a, b), out);
         }
     })
 }

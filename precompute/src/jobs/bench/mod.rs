@@ -732,7 +732,6 @@ fn measured_batched(
     passes: usize,
 ) -> MeasuredBatched {
     let total = rows.len();
-    let starts: Vec<usize> = (0..total).step_by(n).collect();
     let eval_ns = cost::eval_batch_ns(
         |_, wi, wo, out| m.eval_batch(wi, wo, out).expect("lengths agree"),
         rows,
@@ -741,9 +740,8 @@ fn measured_batched(
     );
     let mut pdf = vec![0.0f32; total];
     let pdf_ns = time_per(passes, total, || {
-        for &a in &starts {
-            let b = (a + n).min(total);
-            m.pdf_batch(rows.wi(a, b), rows.wo(a, b), &mut pdf[a..b])
+        for (a, b) in rows.calls(n) {
+            m.pdf_batch(rows.wi.at(a, b), rows.wo.at(a, b), &mut pdf[a..b])
                 .expect("lengths agree");
         }
     });
@@ -753,8 +751,7 @@ fn measured_batched(
         let mut col = || cols.next().expect("eight columns");
         let (x, y, z, p, q) = (col(), col(), col(), col(), col());
         let (r, g, bl) = (col(), col(), col());
-        for &a in &starts {
-            let b = (a + n).min(total);
+        for (a, b) in rows.calls(n) {
             let samples = neusample::wavefront::SamplesMut {
                 wo: neusample::wavefront::Vec3sMut {
                     x: &mut x[a..b],
@@ -769,7 +766,7 @@ fn measured_batched(
                 g: &mut g[a..b],
                 b: &mut bl[a..b],
             };
-            m.sample_batch(rows.wi(a, b), rows.u(a, b), samples, weight)
+            m.sample_batch(rows.wi.at(a, b), rows.u.at(a, b), samples, weight)
                 .expect("lengths agree");
         }
     });
