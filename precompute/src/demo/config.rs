@@ -69,13 +69,8 @@ pub struct DemoConfig {
     /// Equal-spp sample count N (convergence up to it; the baseline's equal-time budget);
     /// default 32, 8 with `quick`.
     pub spp: Option<u32>,
-    /// Radiance of the sun disc (0: sky only).
-    pub sun_radiance: f32,
-    /// Angular radius of the sun, degrees.
-    pub sun_size: f32,
-    /// An equirectangular OpenEXR environment map (z-up, see `render::EnvMap`) instead of the
-    /// procedural sky; the sun is added unless --sun-radiance is 0.
-    pub envmap: Option<PathBuf>,
+    /// The sun and the environment map, with `uniform_light` off.
+    pub sky: Sky,
     /// Uniform white lighting (the default) instead of the sky with its sun: the render
     /// variance then measures the BSDF sampler alone (the paper's uniformly lit scenes).
     /// Ignored with `envmap`.
@@ -110,9 +105,7 @@ impl DemoConfig {
             steps_scale: 0.5,
             width: None,
             spp: None,
-            sun_radiance: 60.0,
-            sun_size: 4.0,
-            envmap: None,
+            sky: Sky::default(),
             uniform_light: true,
             mis: false,
             no_render: false,
@@ -120,6 +113,59 @@ impl DemoConfig {
             eval_conditions: None,
             timing_passes: None,
         }
+    }
+}
+
+/// The sun and the environment map of `neusample demo` and `neusample scene`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sky {
+    /// Radiance of the sun disc (0: sky only).
+    pub sun_radiance: f32,
+    /// Angular radius of the sun, degrees.
+    pub sun_size: f32,
+    /// An equirectangular OpenEXR environment map (z-up, see `render::EnvMap`) instead of the
+    /// procedural sky; the sun is added unless `sun_radiance` is 0.
+    pub envmap: Option<PathBuf>,
+}
+
+impl Default for Sky {
+    /// The command line's defaults: a sun of radiance 60 and radius 4°, the procedural sky.
+    fn default() -> Self {
+        Sky {
+            sun_radiance: 60.0,
+            sun_size: 4.0,
+            envmap: None,
+        }
+    }
+}
+
+impl Sky {
+    /// Refuses a sun radiance that is not finite and ≥ 0 and a radius outside (0, 90)
+    /// degrees (in the words of the command line's options).
+    pub fn validate(&self) -> Result<()> {
+        anyhow::ensure!(
+            self.sun_radiance.is_finite() && self.sun_radiance >= 0.0,
+            "--sun-radiance must be finite and ≥ 0"
+        );
+        anyhow::ensure!(
+            self.sun_size.is_finite() && self.sun_size > 0.0 && self.sun_size < 90.0,
+            "--sun-size must be in (0, 90) degrees"
+        );
+        Ok(())
+    }
+
+    /// The environment map, read from its file; `None` without one.
+    pub fn load_env_map(&self) -> Result<Option<EnvMap>> {
+        Ok(match &self.envmap {
+            Some(p) => Some(EnvMap::load_exr(p)?),
+            None => None,
+        })
+    }
+
+    /// The environment map's file name for reports.
+    #[must_use]
+    pub fn env_map_name(&self) -> Option<String> {
+        self.envmap.as_ref().map(|e| e.display().to_string())
     }
 }
 
@@ -286,18 +332,8 @@ pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
     );
     let spp = a.spp.unwrap_or(if a.quick { 8 } else { 32 });
     anyhow::ensure!((1..=65536).contains(&spp), "--spp must be in 1..=65536");
-    anyhow::ensure!(
-        a.sun_radiance.is_finite() && a.sun_radiance >= 0.0,
-        "--sun-radiance must be finite and ≥ 0"
-    );
-    anyhow::ensure!(
-        a.sun_size.is_finite() && a.sun_size > 0.0 && a.sun_size < 90.0,
-        "--sun-size must be in (0, 90) degrees"
-    );
-    let env_map = match &a.envmap {
-        Some(p) => Some(EnvMap::load_exr(p)?),
-        None => None,
-    };
+    a.sky.validate()?;
+    let env_map = a.sky.load_env_map()?;
     let q = a.quick;
     Ok(Preset {
         eval_conditions: a.eval_conditions.unwrap_or(if q { 24 } else { 64 }),
@@ -308,10 +344,10 @@ pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
         scene: SceneParams {
             width,
             height: (width * 3 / 4).max(1),
-            sun_radiance: a.sun_radiance,
-            sun_radius_deg: a.sun_size,
+            sun_radiance: a.sky.sun_radiance,
+            sun_radius_deg: a.sky.sun_size,
             env_map,
-            uniform_light: a.uniform_light && a.envmap.is_none(),
+            uniform_light: a.uniform_light && a.sky.envmap.is_none(),
             ..SceneParams::default()
         },
         settings: RenderSettings {

@@ -34,7 +34,7 @@ pub mod showcase;
 pub mod table;
 
 pub use config::{
-    neural_fixture, resolve_demo_material, resolve_source, DemoConfig, DemoMaterial, BASELINE,
+    neural_fixture, resolve_demo_material, resolve_source, DemoConfig, DemoMaterial, Sky, BASELINE,
     COSINE, DEFAULT_MATERIALS, NEURAL_SUFFIX, ORACLE,
 };
 pub use fixtures::{fixtures_dir, regenerate_fixtures, FixtureSet};

@@ -234,7 +234,7 @@ fn new_report(a: &DemoConfig, p: &Preset) -> Report {
             height: p.scene.height,
             sun_radiance: p.scene.sun_radiance,
             sun_radius_deg: p.scene.sun_radius_deg,
-            env_map: a.envmap.as_ref().map(|e| e.display().to_string()),
+            env_map: a.sky.env_map_name(),
             uniform_light: p.scene.uniform_light,
             settings: p.settings.clone(),
         }),

@@ -47,7 +47,7 @@ use neusample_render::{
 use serde::{Deserialize, Serialize};
 
 use super::config::{
-    neural_fixture, resolve_demo_material, BASELINE, COSINE, MEASURED_DATA, NEURAL_SUFFIX,
+    neural_fixture, resolve_demo_material, Sky, BASELINE, COSINE, MEASURED_DATA, NEURAL_SUFFIX,
 };
 use super::figures;
 use super::fixtures::{fixture_path, fixtures_dir};
@@ -106,13 +106,8 @@ pub struct ShowcaseConfig {
     pub bounces: u32,
     /// Interleaved single-thread timing passes per configuration.
     pub timing_passes: usize,
-    /// Radiance of the sun disc (0: sky only).
-    pub sun_radiance: f32,
-    /// Angular radius of the sun, degrees.
-    pub sun_size: f32,
-    /// An equirectangular OpenEXR environment map instead of the procedural sky (the sun is
-    /// added unless `sun_radiance` is 0).
-    pub envmap: Option<PathBuf>,
+    /// The sun and the environment map.
+    pub sky: Sky,
     /// A folder of samplers, `<blobs>/<material>/<method>.nsb`, searched before the
     /// committed fixtures.
     pub blobs: Option<PathBuf>,
@@ -133,9 +128,7 @@ impl ShowcaseConfig {
             ref_factor: 16,
             bounces: 3,
             timing_passes: 5,
-            sun_radiance: 60.0,
-            sun_size: 4.0,
-            envmap: None,
+            sky: Sky::default(),
             blobs: None,
         }
     }
@@ -437,14 +430,7 @@ fn validate(c: &ShowcaseConfig) -> Result<()> {
         "--timing-passes must be in 1..=100, got {}",
         c.timing_passes
     );
-    anyhow::ensure!(
-        c.sun_radiance.is_finite() && c.sun_radiance >= 0.0,
-        "--sun-radiance must be finite and ≥ 0"
-    );
-    anyhow::ensure!(
-        c.sun_size.is_finite() && c.sun_size > 0.0 && c.sun_size < 90.0,
-        "--sun-size must be in (0, 90) degrees"
-    );
+    c.sky.validate()?;
     anyhow::ensure!(
         c.materials.len() <= SHOWCASE_OBJECTS,
         "at most {SHOWCASE_OBJECTS} materials (a floor and four spheres), got {}",
@@ -664,10 +650,7 @@ pub fn run(c: &ShowcaseConfig) -> Result<()> {
         c.materials.clone()
     };
     anyhow::ensure!(!names.is_empty(), "no materials");
-    let env_map = match &c.envmap {
-        Some(p) => Some(EnvMap::load_exr(p)?),
-        None => None,
-    };
+    let env_map = c.sky.load_env_map()?;
     let loaded = load(c, &names)?;
     std::fs::create_dir_all(&c.out)
         .with_context(|| format!("cannot create output folder {}", c.out.display()))?;
@@ -736,9 +719,9 @@ pub fn run(c: &ShowcaseConfig) -> Result<()> {
         estimator: Estimator::Mis,
         jitter: true,
         seed: c.seed,
-        sun_radiance: c.sun_radiance,
-        sun_radius_deg: c.sun_size,
-        env_map: c.envmap.as_ref().map(|p| p.display().to_string()),
+        sun_radiance: c.sky.sun_radiance,
+        sun_radius_deg: c.sky.sun_size,
+        env_map: c.sky.env_map_name(),
         table: c
             .table
             .as_ref()
@@ -857,8 +840,8 @@ fn scene_of(
         scene: SceneParams {
             width,
             height,
-            sun_radiance: c.sun_radiance,
-            sun_radius_deg: c.sun_size,
+            sun_radiance: c.sky.sun_radiance,
+            sun_radius_deg: c.sky.sun_size,
             env_map,
             ..ShowcaseParams::default().scene
         },

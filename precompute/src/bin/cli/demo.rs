@@ -11,6 +11,8 @@ use neusample_precompute::demo::{
 };
 use neusample_precompute::train::{parse_method, METHODS};
 
+use crate::sky::SkyArgs;
+
 /// Options of `neusample demo`.
 #[derive(Args, Clone, Debug)]
 pub struct DemoArgs {
@@ -53,16 +55,8 @@ pub struct DemoArgs {
     /// default 32, 8 with --smoke.
     #[arg(long)]
     pub spp: Option<u32>,
-    /// Radiance of the sun disc (0: sky only); with --sky or --envmap.
-    #[arg(long, default_value_t = 60.0)]
-    pub sun_radiance: f32,
-    /// Angular radius of the sun, degrees.
-    #[arg(long, default_value_t = 4.0)]
-    pub sun_size: f32,
-    /// An equirectangular OpenEXR environment map (z-up, see `neusample_render::EnvMap`)
-    /// instead of the procedural sky; the sun is added unless --sun-radiance is 0.
-    #[arg(long)]
-    pub envmap: Option<PathBuf>,
+    #[command(flatten)]
+    pub sky_light: SkyArgs,
     /// Light the scene with the procedural sky and its small bright sun instead of uniform
     /// white light (the default, under which the render variance measures the BSDF sampler
     /// alone, as in the paper's uniformly lit scenes). Under the sun, BSDF sampling must also
@@ -102,9 +96,7 @@ impl From<DemoArgs> for DemoConfig {
             steps_scale: a.steps_scale,
             width: a.width,
             spp: a.spp,
-            sun_radiance: a.sun_radiance,
-            sun_size: a.sun_size,
-            envmap: a.envmap,
+            sky: a.sky_light.into(),
             uniform_light: !a.sky,
             mis: a.mis,
             no_render: a.no_render,

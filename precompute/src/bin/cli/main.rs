@@ -10,6 +10,7 @@ mod material;
 mod measured;
 mod output;
 mod scene;
+mod sky;
 mod train;
 
 use std::path::PathBuf;

@@ -5,6 +5,8 @@ use std::path::PathBuf;
 use clap::Args;
 use neusample_precompute::demo::showcase::{parse_method_choice, ShowcaseConfig};
 
+use crate::sky::SkyArgs;
+
 /// Options of `neusample scene`.
 #[derive(Args, Clone, Debug)]
 pub struct SceneArgs {
@@ -43,16 +45,8 @@ pub struct SceneArgs {
     /// Interleaved single-thread timing passes per configuration.
     #[arg(long, default_value_t = 5)]
     pub timing_passes: usize,
-    /// Radiance of the sun disc (0: sky only).
-    #[arg(long, default_value_t = 60.0)]
-    pub sun_radiance: f32,
-    /// Angular radius of the sun, degrees.
-    #[arg(long, default_value_t = 4.0)]
-    pub sun_size: f32,
-    /// An equirectangular OpenEXR environment map (z-up) instead of the procedural sky; the
-    /// sun is added unless --sun-radiance is 0.
-    #[arg(long)]
-    pub envmap: Option<PathBuf>,
+    #[command(flatten)]
+    pub sky: SkyArgs,
     /// A folder of samplers, <DIR>/<material>/<method>.nsb (what `neusample demo --train
     /// --out X` writes under X/blobs), searched before fixtures/blobs and
     /// fixtures/measured/blobs.
@@ -77,9 +71,7 @@ impl From<SceneArgs> for ShowcaseConfig {
             ref_factor: a.ref_factor,
             bounces: a.bounces,
             timing_passes: a.timing_passes,
-            sun_radiance: a.sun_radiance,
-            sun_size: a.sun_size,
-            envmap: a.envmap,
+            sky: a.sky.into(),
             blobs: a.blobs,
         }
     }
