@@ -18,7 +18,7 @@ use crate::nn::{log_sum_exp_last, tensor2, to_host};
 pub struct ConditionRows<'a> {
     /// `(φ, wi)` per condition.
     pub conds: &'a [([f32; FEATURE_DIM], Vec3)],
-    /// ConditionRows per condition.
+    /// Rows per condition.
     pub repeat: usize,
 }
 
@@ -246,7 +246,29 @@ mod tests {
         OwnedMeasured::open(std::path::Path::new(path)).expect("the mint fixture opens")
     }
 
-    /// ConditionRows whose `wo` is NaN or infinite read `LOG_F_MIN` with a zero gradient, on both
+    /// `ln f⊥` on the graph at the directions `wos` of one condition, and its gradient with
+    /// respect to them (`3 · wos.len()` values).
+    fn log_f_and_gradient(
+        integrand: &dyn Integrand,
+        phi: &[f32; FEATURE_DIM],
+        wi: Vec3,
+        wos: &[[f32; 3]],
+    ) -> (Vec<f32>, Vec<f32>) {
+        let device = train_device();
+        let host: Vec<f32> = wos.iter().flatten().copied().collect();
+        let wo = tensor2(host, wos.len(), 3, &device).require_grad();
+        let conds = vec![(*phi, wi); wos.len()];
+        let rows = ConditionRows {
+            conds: &conds,
+            repeat: 1,
+        };
+        let log_f = integrand.log_f(rows, wo.clone(), &device);
+        let values = to_host(log_f.clone());
+        let grads = log_f.sum().backward();
+        (values, to_host(wo.grad(&grads).expect("wo has a gradient")))
+    }
+
+    /// Rows whose `wo` is NaN or infinite read `LOG_F_MIN` with a zero gradient, on both
     /// integrands, and leave the other rows' values as they are without them.
     #[test]
     fn rows_with_a_non_finite_wo_read_the_floor() {
@@ -259,7 +281,6 @@ mod tests {
         let measured = MeasuredIntegrand::new(data.material());
         let neural = crate::train::source::material_integrand(neural.as_ref())
             .expect("a neural material has an integrand");
-        let device = train_device();
         let wi = Vec3::new(0.3, -0.2, 0.93).normalize();
         let good = Vec3::new(-0.25, 0.2, 0.95).normalize();
         let rows = [
@@ -273,21 +294,8 @@ mod tests {
             ("neural", &*neural),
         ] {
             let phi = [0.1; FEATURE_DIM];
-            let run = |rows: &[[f32; 3]]| {
-                let host: Vec<f32> = rows.iter().flatten().copied().collect();
-                let wo = tensor2(host, rows.len(), 3, &device).require_grad();
-                let conds: Vec<_> = rows.iter().map(|_| (phi, wi)).collect();
-                let rows = ConditionRows {
-                    conds: &conds,
-                    repeat: 1,
-                };
-                let log_f = integrand.log_f(rows, wo.clone(), &device);
-                let values = to_host(log_f.clone());
-                let grads = log_f.sum().backward();
-                (values, to_host(wo.grad(&grads).expect("wo has a gradient")))
-            };
-            let (values, grads) = run(&rows);
-            let (alone, alone_grad) = run(&rows[..1]);
+            let (values, grads) = log_f_and_gradient(integrand, &phi, wi, &rows);
+            let (alone, alone_grad) = log_f_and_gradient(integrand, &phi, wi, &rows[..1]);
             assert_eq!(values[0], alone[0], "{name}: the finite row's value");
             assert_eq!(
                 grads[..3],
@@ -317,18 +325,8 @@ mod tests {
                 (mirror + 0.06 * Vec3::new(a.cos(), a.sin(), 0.0)).normalize()
             })
             .collect();
-        let device = train_device();
-        let host: Vec<f32> = wos.iter().flat_map(|w| [w.x, w.y, w.z]).collect();
-        let wo = tensor2(host, wos.len(), 3, &device).require_grad();
-        let conds: Vec<_> = wos.iter().map(|_| ([0.0; FEATURE_DIM], wi)).collect();
-        let rows = ConditionRows {
-            conds: &conds,
-            repeat: 1,
-        };
-        let log_f = integrand.log_f(rows, wo.clone(), &device);
-        let values = to_host(log_f.clone());
-        let grads = log_f.sum().backward();
-        let g = to_host(wo.grad(&grads).expect("wo has a gradient"));
+        let rows: Vec<[f32; 3]> = wos.iter().map(|w| w.to_array()).collect();
+        let (values, g) = log_f_and_gradient(&integrand, &[0.0; FEATURE_DIM], wi, &rows);
         let mut rising = 0;
         for (i, &w) in wos.iter().enumerate() {
             let f = integrand.f(&[0.0; FEATURE_DIM], wi, w);
