@@ -4,8 +4,6 @@
 //! flow's do ([`super::spline_flow`]); the pdf a sample reports is bit for bit
 //! [`Prepared::pdf_disk`] at its point.
 
-use core::marker::PhantomData;
-
 use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
@@ -16,8 +14,8 @@ use crate::weights::Weights;
 
 use super::coupling::{all_finite, condition_share, density_from_log, first_layer};
 pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
-use super::traits::Held;
-use super::{Prepared, Sample, Sampler};
+
+use super::{LanePrepared, Prepared, Sample, Sampler};
 
 #[cfg(not(target_arch = "spirv"))]
 mod batch;
@@ -100,24 +98,7 @@ impl AffineFlowLane {
 
 /// [`AffineFlowSampler`] prepared for one condition: its [`AffineFlowLane`] and a copy of the
 /// weights handle.
-#[derive(Debug)]
-pub struct AffineFlowPrepared<'s, W> {
-    /// A copy of the sampler's weights handle (see `Held`).
-    params: Held<W>,
-    _sampler: PhantomData<&'s W>,
-    lane: AffineFlowLane,
-}
-
-impl<W: Copy> Clone for AffineFlowPrepared<'_, W> {
-    #[inline]
-    fn clone(&self) -> Self {
-        AffineFlowPrepared {
-            params: self.params.clone(),
-            _sampler: PhantomData,
-            lane: self.lane,
-        }
-    }
-}
+pub type AffineFlowPrepared<'s, W> = LanePrepared<'s, W, AffineFlowLane>;
 
 impl<W: Weights + Copy> Sampler for AffineFlowSampler<W> {
     type Prepared<'s>
@@ -139,11 +120,7 @@ impl<W: Weights + Copy> Sampler for AffineFlowSampler<W> {
             share[l] = condition_share(w, (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32, &c);
             l += 1;
         }
-        Some(AffineFlowPrepared {
-            params: Held::new(self.params),
-            _sampler: PhantomData,
-            lane: AffineFlowLane::new(share)?,
-        })
+        Some(LanePrepared::new(self.params, AffineFlowLane::new(share)?))
     }
 }
 
@@ -157,7 +134,7 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
         if !inside_disk(p) {
             return None;
         }
-        let st0 = affine_params(&self.params.get(), 0, &self.lane.share[0], p.y);
+        let st0 = affine_params(&self.params(), 0, &self.lane_ref().share[0], p.y);
         let unused = [[0.0f32; 3]; AFFINE_LAYERS];
         Some(self.latent_with_layer0(p, st0, &unused, false))
     }
@@ -184,7 +161,7 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
             let (s, t) = if reuse && v.to_bits() == seen[l][0].to_bits() {
                 (seen[l][1], seen[l][2])
             } else {
-                affine_params(&self.params.get(), l, &self.lane.share[l], v)
+                affine_params(&self.params(), l, &self.lane_ref().share[l], v)
             };
             if l % 2 == 0 {
                 x = x * math::exp(s) + t;
@@ -216,7 +193,7 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
         let mut l = AFFINE_LAYERS - 1;
         while l > 0 {
             let v = if l.is_multiple_of(2) { y } else { x };
-            let (s, t) = affine_params(&self.params.get(), l, &self.lane.share[l], v);
+            let (s, t) = affine_params(&self.params(), l, &self.lane_ref().share[l], v);
             seen[l] = [v, s, t];
             if l.is_multiple_of(2) {
                 x = (x - t) * math::exp(-s);
@@ -226,7 +203,7 @@ impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
             ld -= s;
             l -= 1;
         }
-        let (s0, t0) = affine_params(&self.params.get(), 0, &self.lane.share[0], y);
+        let (s0, t0) = affine_params(&self.params(), 0, &self.lane_ref().share[0], y);
         x = (x - t0) * math::exp(-s0);
         ld -= s0;
         (Vec2::new(x, y), ld, (s0, t0), seen)

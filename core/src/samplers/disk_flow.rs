@@ -28,8 +28,6 @@
 //! bit [`Prepared::pdf_disk`] at its point (as the paper's flow does). `invert` is exact: the
 //! density direction, then the inverse concentric map. No Box–Muller, no base network.
 
-use core::marker::PhantomData;
-
 use glam::{Vec2, Vec3};
 
 use crate::distrib::spline::Knots;
@@ -42,8 +40,8 @@ use crate::weights::Weights;
 use super::coupling::HIDDEN;
 use super::coupling::{all_finite, condition_share, coupling_raw, density_from_log};
 use super::coupling::{COUPLING_L0, COUPLING_L1, COUPLING_L2};
-use super::traits::Held;
-use super::{Prepared, Sample, Sampler};
+
+use super::{LanePrepared, Prepared, Sample, Sampler};
 
 #[cfg(not(target_arch = "spirv"))]
 mod batch;
@@ -173,24 +171,7 @@ impl DiskFlowLane {
 
 /// [`DiskFlowSampler`] prepared for one condition: its [`DiskFlowLane`] and a copy of the
 /// weights handle.
-#[derive(Debug)]
-pub struct DiskFlowPrepared<'s, W> {
-    /// A copy of the sampler's weights handle (see `Held`).
-    params: Held<W>,
-    _sampler: PhantomData<&'s W>,
-    lane: DiskFlowLane,
-}
-
-impl<W: Copy> Clone for DiskFlowPrepared<'_, W> {
-    #[inline]
-    fn clone(&self) -> Self {
-        DiskFlowPrepared {
-            params: self.params.clone(),
-            _sampler: PhantomData,
-            lane: self.lane,
-        }
-    }
-}
+pub type DiskFlowPrepared<'s, W> = LanePrepared<'s, W, DiskFlowLane>;
 
 impl<W: Weights + Copy> Sampler for DiskFlowSampler<W> {
     type Prepared<'s>
@@ -210,21 +191,11 @@ impl<W: Weights + Copy> Sampler for DiskFlowSampler<W> {
             condition_share(w, DISK_FLOW_COUPLING0 as u32, &c),
             condition_share(w, DISK_FLOW_COUPLING1 as u32, &c),
         ];
-        Some(DiskFlowPrepared {
-            params: Held::new(self.params),
-            _sampler: PhantomData,
-            lane: DiskFlowLane::new(share)?,
-        })
+        Some(LanePrepared::new(self.params, DiskFlowLane::new(share)?))
     }
 }
 
 impl<W: Weights + Copy> DiskFlowPrepared<'_, W> {
-    /// The prepared state without the weights handle.
-    #[must_use]
-    pub fn lane(&self) -> DiskFlowLane {
-        self.lane
-    }
-
     /// The spline of coupling network `net` (0 or 1) at other coordinate `v`.
     #[inline(always)]
     fn knots(&self, net: usize, v: f32) -> Knots<DISK_FLOW_BINS> {
@@ -233,7 +204,12 @@ impl<W: Weights + Copy> DiskFlowPrepared<'_, W> {
         } else {
             DISK_FLOW_COUPLING1
         };
-        spline_knots(&self.params.get(), offset as u32, &self.lane.share[net], v)
+        spline_knots(
+            &self.params(),
+            offset as u32,
+            &self.lane_ref().share[net],
+            v,
+        )
     }
 
     /// Density direction: the base point `b` of disk point `p` and `ln |det ∂b/∂p|`, or

@@ -58,4 +58,4 @@ pub use improved_baseline::{ImprovedBaselinePrepared, ImprovedBaselineSampler};
 pub use reparam::{ReparamLane, ReparamPrepared, ReparamSampler};
 pub use spline_flow::{SplineFlowLane, SplineFlowPrepared, SplineFlowSampler};
 pub(crate) use traits::Held;
-pub use traits::{BlobSource, FromBlob, Prepared, Sample, Sampler};
+pub use traits::{BlobSource, FromBlob, LanePrepared, Prepared, Sample, Sampler};

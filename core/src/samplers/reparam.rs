@@ -23,8 +23,6 @@
 //!   MIS stays unbiased with an approximate `p̂` because the strategies' weights still sum
 //!   to one; a poor `p̂` costs variance only.
 
-use core::marker::PhantomData;
-
 use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
@@ -35,8 +33,8 @@ use crate::warp::inside_disk;
 use crate::weights::Weights;
 
 use super::coupling::all_finite;
-use super::traits::Held;
-use super::{Prepared, Sample, Sampler};
+
+use super::{LanePrepared, Prepared, Sample, Sampler};
 
 #[cfg(not(target_arch = "spirv"))]
 mod batch;
@@ -268,24 +266,7 @@ fn density_lane<W: Weights>(w: &W, lane: &ReparamLane, p: Vec2) -> f32 {
 
 /// [`ReparamSampler`] prepared for one condition: its [`ReparamLane`] and a copy of the
 /// weights handle.
-#[derive(Debug)]
-pub struct ReparamPrepared<'s, W> {
-    /// A copy of the sampler's weights handle (see `Held`).
-    params: Held<W>,
-    _sampler: PhantomData<&'s W>,
-    lane: ReparamLane,
-}
-
-impl<W: Copy> Clone for ReparamPrepared<'_, W> {
-    #[inline]
-    fn clone(&self) -> Self {
-        ReparamPrepared {
-            params: self.params.clone(),
-            _sampler: PhantomData,
-            lane: self.lane,
-        }
-    }
-}
+pub type ReparamPrepared<'s, W> = LanePrepared<'s, W, ReparamLane>;
 
 impl<W: Weights + Copy> Sampler for ReparamSampler<W> {
     type Prepared<'s>
@@ -301,11 +282,7 @@ impl<W: Weights + Copy> Sampler for ReparamSampler<W> {
             share(w, WARP_L0 as u32, &c),
             share(w, DENSITY_L0 as u32, &c),
         )?;
-        Some(ReparamPrepared {
-            params: Held::new(self.params),
-            _sampler: PhantomData,
-            lane,
-        })
+        Some(LanePrepared::new(self.params, lane))
     }
 }
 
@@ -316,7 +293,7 @@ impl<W: Weights + Copy> ReparamPrepared<'_, W> {
     #[inline]
     #[must_use]
     pub fn warp(&self, z: Vec2) -> Warped {
-        warp_lane(&self.params.get(), &self.lane, z)
+        warp_lane(&self.params(), self.lane_ref(), z)
     }
 }
 
@@ -339,6 +316,6 @@ impl<W: Weights + Copy> Prepared for ReparamPrepared<'_, W> {
         if !inside_disk(p) {
             return 0.0;
         }
-        density_lane(&self.params.get(), &self.lane, p)
+        density_lane(&self.params(), self.lane_ref(), p)
     }
 }

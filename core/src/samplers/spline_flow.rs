@@ -20,8 +20,6 @@
 //! network, and precomputes the condition's share of every coupling network's first layer;
 //! per sample only the 9 encoded inputs of the other coordinate and the remaining layers run.
 
-use core::marker::PhantomData;
-
 use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
@@ -34,8 +32,8 @@ use crate::weights::Weights;
 use super::coupling::{all_finite, condition_share, coupling_raw, density_from_log};
 pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
 use super::coupling::{COUPLING_L0, COUPLING_L1, COUPLING_L2};
-use super::traits::Held;
-use super::{Prepared, Sample, Sampler};
+
+use super::{LanePrepared, Prepared, Sample, Sampler};
 
 #[cfg(not(target_arch = "spirv"))]
 mod batch;
@@ -178,24 +176,7 @@ impl SplineFlowLane {
 
 /// [`SplineFlowSampler`] prepared for one condition: its [`SplineFlowLane`] and a copy of the weights
 /// handle.
-#[derive(Debug)]
-pub struct SplineFlowPrepared<'s, W> {
-    /// A copy of the sampler's weights handle (see `Held`).
-    params: Held<W>,
-    _sampler: PhantomData<&'s W>,
-    lane: SplineFlowLane,
-}
-
-impl<W: Copy> Clone for SplineFlowPrepared<'_, W> {
-    #[inline]
-    fn clone(&self) -> Self {
-        SplineFlowPrepared {
-            params: self.params.clone(),
-            _sampler: PhantomData,
-            lane: self.lane,
-        }
-    }
-}
+pub type SplineFlowPrepared<'s, W> = LanePrepared<'s, W, SplineFlowLane>;
 
 impl<W: Weights + Copy> Sampler for SplineFlowSampler<W> {
     type Prepared<'s>
@@ -217,11 +198,10 @@ impl<W: Weights + Copy> Sampler for SplineFlowSampler<W> {
             condition_share(w, FLOW_COUPLING0 as u32, &c),
             condition_share(w, FLOW_COUPLING1 as u32, &c),
         ];
-        Some(SplineFlowPrepared {
-            params: Held::new(self.params),
-            _sampler: PhantomData,
-            lane: SplineFlowLane::new(&o, share)?,
-        })
+        Some(LanePrepared::new(
+            self.params,
+            SplineFlowLane::new(&o, share)?,
+        ))
     }
 }
 
@@ -229,19 +209,13 @@ impl<W: Weights + Copy> SplineFlowPrepared<'_, W> {
     /// Mean of the base Gaussian.
     #[must_use]
     pub fn mean(&self) -> Vec2 {
-        self.lane.mu
+        self.lane_ref().mu
     }
 
     /// Standard deviations of the base Gaussian.
     #[must_use]
     pub fn sigma(&self) -> Vec2 {
-        self.lane.sigma
-    }
-
-    /// The prepared state without the weights handle.
-    #[must_use]
-    pub fn lane(&self) -> SplineFlowLane {
-        self.lane
+        self.lane_ref().sigma
     }
 
     /// Density direction: the latent point `z = (x', y')` of disk point `p` and
@@ -257,9 +231,9 @@ impl<W: Weights + Copy> SplineFlowPrepared<'_, W> {
             return None;
         }
         let k1 = spline_knots(
-            &self.params.get(),
+            &self.params(),
             FLOW_COUPLING1 as u32,
-            &self.lane.share[1],
+            &self.lane_ref().share[1],
             p.x,
         );
         Some(self.latent_with_k1(p, &k1))
@@ -270,9 +244,9 @@ impl<W: Weights + Copy> SplineFlowPrepared<'_, W> {
     fn latent_with_k1(&self, p: Vec2, k1: &Knots<SPLINE_BINS>) -> (Vec2, f32) {
         let (yl, ld1) = k1.forward(p.y);
         let k0 = spline_knots(
-            &self.params.get(),
+            &self.params(),
             FLOW_COUPLING0 as u32,
-            &self.lane.share[0],
+            &self.lane_ref().share[0],
             yl,
         );
         let (xl, ld0) = k0.forward(p.x);
@@ -298,16 +272,16 @@ impl<W: Weights + Copy> SplineFlowPrepared<'_, W> {
     #[inline(always)]
     fn point_and_knots(&self, z: Vec2) -> (Vec2, Knots<SPLINE_BINS>, Knots<SPLINE_BINS>) {
         let k0 = spline_knots(
-            &self.params.get(),
+            &self.params(),
             FLOW_COUPLING0 as u32,
-            &self.lane.share[0],
+            &self.lane_ref().share[0],
             z.y,
         );
         let x = k0.inverse_point(z.x);
         let k1 = spline_knots(
-            &self.params.get(),
+            &self.params(),
             FLOW_COUPLING1 as u32,
-            &self.lane.share[1],
+            &self.lane_ref().share[1],
             x,
         );
         let y = k1.inverse_point(z.y);
@@ -320,7 +294,7 @@ impl<W: Weights + Copy> SplineFlowPrepared<'_, W> {
     #[must_use]
     pub fn log_pdf_disk(&self, p: Vec2) -> f32 {
         match self.to_latent(p) {
-            Some((z, ld)) => self.lane.log_density(z, ld),
+            Some((z, ld)) => self.lane_ref().log_density(z, ld),
             None => f32::NEG_INFINITY,
         }
     }
@@ -340,7 +314,7 @@ impl<W: Weights + Copy> Prepared for SplineFlowPrepared<'_, W> {
     #[inline]
     fn sample(&self, u: Vec2) -> Option<Sample> {
         let u = math::sanitize_u2(u)?;
-        let z = self.lane.base_point(u);
+        let z = self.lane_ref().base_point(u);
         let (p, k0, k1) = self.point_and_knots(z);
         if !inside_disk(p) {
             return None;
@@ -351,14 +325,14 @@ impl<W: Weights + Copy> Prepared for SplineFlowPrepared<'_, W> {
             k0
         } else {
             spline_knots(
-                &self.params.get(),
+                &self.params(),
                 FLOW_COUPLING0 as u32,
-                &self.lane.share[0],
+                &self.lane_ref().share[0],
                 yl,
             )
         };
         let (xl, ld0) = k0.forward(p.x);
-        let log_p = self.lane.log_density(Vec2::new(xl, yl), ld0 + ld1);
+        let log_p = self.lane_ref().log_density(Vec2::new(xl, yl), ld0 + ld1);
         Sample::from_disk(p, density_from_log(log_p))
     }
 
@@ -373,6 +347,6 @@ impl<W: Weights + Copy> Prepared for SplineFlowPrepared<'_, W> {
     fn invert(&self, wo: Vec3) -> Option<Vec2> {
         let w = warp::upper_hemisphere(wo)?;
         let (z, _) = self.to_latent(warp::to_disk(w))?;
-        self.lane.invert_base(z)
+        self.lane_ref().invert_base(z)
     }
 }

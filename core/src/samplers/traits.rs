@@ -12,6 +12,7 @@
 
 use core::cell::Cell;
 use core::fmt;
+use core::marker::PhantomData;
 
 use glam::{Vec2, Vec3};
 
@@ -169,6 +170,59 @@ impl<W: Copy> Clone for Held<W> {
 impl<W> fmt::Debug for Held<W> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str("Held(..)")
+    }
+}
+
+/// A sampler prepared for one condition whose state is a plain value: the lane `L` (the
+/// state the batched API keeps per point) and a copy of the sampler's weights handle `W`.
+/// The flows and the reparameterization sampler name it by their own aliases
+/// ([`SplineFlowPrepared`](super::SplineFlowPrepared), …).
+#[derive(Debug)]
+pub struct LanePrepared<'s, W, L> {
+    /// A copy of the sampler's weights handle (see `Held`).
+    params: Held<W>,
+    _sampler: PhantomData<&'s W>,
+    lane: L,
+}
+
+impl<W: Copy, L: Copy> Clone for LanePrepared<'_, W, L> {
+    #[inline]
+    fn clone(&self) -> Self {
+        LanePrepared::new(self.params.get(), self.lane)
+    }
+}
+
+impl<W: Copy, L> LanePrepared<'_, W, L> {
+    /// The state `lane` with a copy of the weights handle `params`.
+    #[inline(always)]
+    pub(crate) fn new(params: W, lane: L) -> Self {
+        LanePrepared {
+            params: Held::new(params),
+            _sampler: PhantomData,
+            lane,
+        }
+    }
+
+    /// The weights handle.
+    #[inline(always)]
+    pub(crate) fn params(&self) -> W {
+        self.params.get()
+    }
+
+    /// The prepared state without the weights handle.
+    #[inline]
+    #[must_use]
+    pub fn lane(&self) -> L
+    where
+        L: Copy,
+    {
+        self.lane
+    }
+
+    /// The prepared state, borrowed.
+    #[inline(always)]
+    pub(crate) fn lane_ref(&self) -> &L {
+        &self.lane
     }
 }
 
