@@ -30,12 +30,10 @@ use neusample::{Sampler, SamplerKind, FEATURE_DIM};
 use rand::RngExt;
 
 use super::config::{Common, DensityLoss, MaxLikelihood, Reparam, Schedule, TrainConfig};
-use super::data::{encoded_condition_f64, Pool};
+use super::data::{encoded_condition_f64, Batch, Pool};
 use super::integrand::{ConditionRows, Integrand};
 use super::trainer::{Fitted, Run, Trained, Trainer};
-use crate::nn::{
-    log_sum_exp_last, mlp_f64, optimise, tensor2, to_host, train_device, Activation, Mlp,
-};
+use crate::nn::{log_sum_exp_last, mlp_f64, optimise, tensor2, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
 /// Layer sizes of the warp.
@@ -465,14 +463,8 @@ impl Trainer for ReparamTrainer {
     fn pdf_f64(&self, t: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
         pdf_f64(&t.params, phi, wi, p)
     }
-    fn graph_log_pdf(
-        &self,
-        params: &[f32],
-        phi: &[f32; FEATURE_DIM],
-        wi: Vec3,
-        points: &[Vec2],
-    ) -> Option<Vec<f32>> {
-        Some(graph_log_pdf(params, phi, wi, points))
+    fn graph(&self, params: &[f32], batch: &Batch) -> Option<Tensor<2>> {
+        Some(graph_log_pdf(params, batch))
     }
     fn pool_res(&self, _: &Common) -> usize {
         POOL_RES
@@ -620,24 +612,27 @@ pub fn warp_jacobian_f64(params: &[f32], cond: &[f64], z: [f64; 2]) -> ([f64; 2]
     ([v[0], v[1]], [[x0, x1], [y0, y1]])
 }
 
-/// The pdf network's log-density on the training graph for exported parameters at `points`
-/// of one condition (for checks against the runtime).
-pub fn graph_log_pdf(
-    params: &[f32],
-    phi: &[f32; FEATURE_DIM],
-    wi: Vec3,
-    points: &[Vec2],
-) -> Vec<f32> {
-    let device = crate::nn::infer_device();
+/// The pdf network's log-density on the training graph for exported parameters at the
+/// points of `batch` (`[b, s]`; for checks against the runtime).
+pub fn graph_log_pdf(params: &[f32], batch: &Batch) -> Tensor<2> {
+    let device = batch.x.device();
     let net = Mlp::from_flat(&DENSITY_SIZES, &params[DENSITY_L0..], &device);
-    let n = points.len();
-    let enc = encode_condition(phi, wi);
-    let cond: Vec<f32> = (0..n).flat_map(|_| enc).collect();
-    let p: Vec<f32> = points.iter().flat_map(|p| [p.x, p.y]).collect();
-    let o = density_graph(
-        &net,
-        tensor2(cond, n, CONDITION_DIM, &device),
-        tensor2(p, n, 2, &device),
+    let (b, s) = (batch.b, batch.s);
+    // One row per point: its condition's encoding, then the point.
+    let cond = batch
+        .cond
+        .clone()
+        .unsqueeze_dim::<3>(1)
+        .repeat_dim(1, s)
+        .reshape([b * s, CONDITION_DIM]);
+    let p = Tensor::cat(
+        vec![
+            batch.x.clone().reshape([b * s, 1]),
+            batch.y.clone().reshape([b * s, 1]),
+        ],
+        1,
     );
-    to_host(o.clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX))
+    density_graph(&net, cond, p)
+        .clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX)
+        .reshape([b, s])
 }
