@@ -100,4 +100,10 @@ impl<W: Weights> Sampler for AnalyticMixtureSampler<W> {
 }
 
 #[cfg(not(target_arch = "spirv"))]
-mod batch;
+crate::wavefront::mlp_lane_sampler!(
+    AnalyticMixtureSampler => AnalyticMixturePrepared::from_outputs,
+    chunk: crate::samplers::lobes::CHUNK,
+    hidden: HIDDEN,
+    outputs: ANALYTIC_OUTPUTS,
+    layers: [ANALYTIC_L0, ANALYTIC_L1],
+);

@@ -174,5 +174,12 @@ impl Prepared for DirectHistogramPrepared {
     }
 }
 
+// Chunks of 16 lanes: the 256 logits of 16 lanes take 16 KiB.
 #[cfg(not(target_arch = "spirv"))]
-mod batch;
+crate::wavefront::mlp_lane_sampler!(
+    DirectHistogramSampler => DirectHistogramPrepared::from_logits,
+    chunk: 16,
+    hidden: DIRECT_HIDDEN,
+    outputs: DIRECT_CELLS,
+    layers: [DIRECT_L0, DIRECT_L1, DIRECT_L2],
+);

@@ -95,4 +95,10 @@ impl<W: Weights> Sampler for ImprovedBaselineSampler<W> {
 }
 
 #[cfg(not(target_arch = "spirv"))]
-mod batch;
+crate::wavefront::mlp_lane_sampler!(
+    ImprovedBaselineSampler => ImprovedBaselinePrepared::from_outputs,
+    chunk: crate::samplers::lobes::CHUNK,
+    hidden: HIDDEN,
+    outputs: BASELINE_OUTPUTS,
+    layers: [BASELINE_L0, BASELINE_L1, BASELINE_L2, BASELINE_L3],
+);

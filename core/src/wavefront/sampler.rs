@@ -363,3 +363,50 @@ macro_rules! per_lane_chunks {
     };
 }
 pub(crate) use per_lane_chunks;
+
+/// The [`ChunkedSampler`](chunked::ChunkedSampler) of a sampler whose prepare is one ReLU
+/// MLP of the encoded condition (`relu_mlp` over `layers`, `hidden` wide, `outputs` out)
+/// followed by a per-lane constructor `from` of its scalar [`Prepared`] state, in chunks of
+/// `chunk` lanes; sample, pdf and invert run [`per_lane_chunks`].
+macro_rules! mlp_lane_sampler {
+    (
+        $sampler:ident => $prepared:ident :: $from:ident,
+        chunk: $chunk:expr,
+        hidden: $hidden:expr,
+        outputs: $outputs:expr,
+        layers: [$($layer:expr),+ $(,)?] $(,)?
+    ) => {
+        impl<W: $crate::weights::Weights> $crate::wavefront::chunked::ChunkedSampler
+            for $sampler<W>
+        {
+            type Lane = Option<$prepared>;
+            const CHUNK: usize = $chunk;
+
+            #[inline(always)]
+            fn prepare_chunk(
+                &self,
+                phi: $crate::wavefront::Features<'_>,
+                wi: $crate::wavefront::Vec3s<'_>,
+                lanes: &mut [Self::Lane],
+            ) {
+                use $crate::wavefront::{dense, encoded_conditions, lanes_from_outputs, Soa};
+                const CHUNK: usize = $chunk;
+                let m = lanes.len();
+                let (c, valid) = encoded_conditions::<CHUNK>(&phi, &wi);
+                let mut o: Soa<{ $outputs }, CHUNK> = [[0.0; CHUNK]; $outputs];
+                let layers = [$($layer),+];
+                dense::relu_mlp::<_, _, { $hidden }, _, CHUNK, { [$(stringify!($layer)),+].len() }>(
+                    &self.params,
+                    &layers,
+                    &c,
+                    &mut o,
+                    m,
+                );
+                lanes_from_outputs(&o, &valid, lanes, $prepared::$from);
+            }
+
+            $crate::wavefront::per_lane_chunks!($prepared);
+        }
+    };
+}
+pub(crate) use mlp_lane_sampler;
