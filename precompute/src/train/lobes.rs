@@ -84,23 +84,19 @@ fn baseline_log_pdf(o: Tensor<2>, batch: &Batch) -> Tensor<2> {
 fn analytic_log_pdf(o: Tensor<2>, batch: &Batch) -> Tensor<2> {
     let logw = activation::log_softmax(o.clone().narrow(1, 8, 3), 1);
     let ll = (col(&logw, 0) - LN_PI).expand([batch.b, batch.s]);
-    let g1 = log_normal(
-        batch.x.clone(),
-        batch.y.clone(),
-        col(&o, 0),
-        col(&o, 1),
-        clamp_ls(col(&o, 4)),
-        clamp_ls(col(&o, 5)),
-    ) + col(&logw, 1);
-    let g2 = log_normal(
-        batch.x.clone(),
-        batch.y.clone(),
-        col(&o, 2),
-        col(&o, 3),
-        clamp_ls(col(&o, 6)),
-        clamp_ls(col(&o, 7)),
-    ) + col(&logw, 2);
-    let stacked: Tensor<3> = Tensor::stack(vec![ll, g1, g2], 2);
+    // Gaussian `k`: mean `(o[2k], o[2k + 1])`, log-scales `o[4 + 2k]`, `o[5 + 2k]`, log
+    // weight `logw[1 + k]`.
+    let gaussian = |k: usize| {
+        log_normal(
+            batch.x.clone(),
+            batch.y.clone(),
+            col(&o, 2 * k),
+            col(&o, 2 * k + 1),
+            clamp_ls(col(&o, 4 + 2 * k)),
+            clamp_ls(col(&o, 5 + 2 * k)),
+        ) + col(&logw, 1 + k)
+    };
+    let stacked: Tensor<3> = Tensor::stack(vec![ll, gaussian(0), gaussian(1)], 2);
     log_sum_exp_last(stacked).squeeze_dim(2)
 }
 
