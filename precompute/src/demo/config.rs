@@ -1,6 +1,7 @@
 //! The demo's settings: the default materials and report names, the typed configuration,
 //! the sizes of a run (`Preset`), and the materials it evaluates.
 
+use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
@@ -169,6 +170,21 @@ impl Sky {
     }
 }
 
+/// Refuses a command-line `option` whose value `v` lies outside `range`
+/// (`--width must be in 8..=4096, got 4`).
+pub(crate) fn ensure_in<T>(option: &str, v: T, range: RangeInclusive<T>) -> Result<()>
+where
+    T: PartialOrd + std::fmt::Display,
+{
+    anyhow::ensure!(
+        range.contains(&v),
+        "{option} must be in {}..={}, got {v}",
+        range.start(),
+        range.end()
+    );
+    Ok(())
+}
+
 /// The folder of the committed fixture blobs.
 #[must_use]
 pub fn fixtures_dir() -> PathBuf {
@@ -321,10 +337,7 @@ pub(crate) struct Preset {
 
 pub(crate) fn preset(a: &DemoConfig) -> Result<Preset> {
     let width = a.width.unwrap_or(if a.quick { 64 } else { 112 });
-    anyhow::ensure!(
-        (8..=4096).contains(&width),
-        "--width must be in 8..=4096, got {width}"
-    );
+    ensure_in("--width", width, 8..=4096)?;
     anyhow::ensure!(
         a.steps_scale > 0.0 && a.steps_scale.is_finite(),
         "--steps-scale must be positive, got {}",

@@ -47,7 +47,8 @@ use neusample_render::{
 use serde::{Deserialize, Serialize};
 
 use super::config::{
-    neural_fixture, resolve_demo_material, Sky, BASELINE, COSINE, MEASURED_DATA, NEURAL_SUFFIX,
+    ensure_in, neural_fixture, resolve_demo_material, Sky, BASELINE, COSINE, MEASURED_DATA,
+    NEURAL_SUFFIX,
 };
 use super::figures;
 use super::fixtures::{fixture_path, fixtures_dir};
@@ -405,31 +406,11 @@ fn table_method(m: &MaterialReport) -> Option<String> {
 }
 
 fn validate(c: &ShowcaseConfig) -> Result<()> {
-    anyhow::ensure!(
-        (8..=4096).contains(&c.width),
-        "--width must be in 8..=4096, got {}",
-        c.width
-    );
-    anyhow::ensure!(
-        (1..=65536).contains(&c.spp),
-        "--spp must be in 1..=65536, got {}",
-        c.spp
-    );
-    anyhow::ensure!(
-        (1..=1024).contains(&c.ref_factor),
-        "--ref-factor must be in 1..=1024, got {}",
-        c.ref_factor
-    );
-    anyhow::ensure!(
-        (1..=16).contains(&c.bounces),
-        "--bounces must be in 1..=16, got {}",
-        c.bounces
-    );
-    anyhow::ensure!(
-        (1..=100).contains(&c.timing_passes),
-        "--timing-passes must be in 1..=100, got {}",
-        c.timing_passes
-    );
+    ensure_in("--width", c.width, 8..=4096)?;
+    ensure_in("--spp", c.spp, 1..=65536)?;
+    ensure_in("--ref-factor", c.ref_factor, 1..=1024)?;
+    ensure_in("--bounces", c.bounces, 1..=16)?;
+    ensure_in("--timing-passes", c.timing_passes, 1..=100)?;
     c.sky.validate()?;
     anyhow::ensure!(
         c.materials.len() <= SHOWCASE_OBJECTS,
