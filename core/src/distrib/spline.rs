@@ -104,12 +104,14 @@ fn sanitize_raw<L: Lane>(v: L) -> L {
 /// `raw[K .. 2K]`: `size = min + (1 − K·min)·softmax(raw)`, cumulative sum scaled to
 /// `[−B, B]`, left end exactly `−B` (the right end `+B` is implicit in [`Knots`]). Widths and
 /// heights are independent; their softmaxes and running sums are interleaved so that the two
-/// sequential chains overlap (each computed exactly as on its own).
+/// sequential chains overlap (each computed exactly as on its own). Written into `x` and `y`.
 #[inline(always)]
 fn cumulative_knots<L: Lane, const K: usize, const N: usize>(
     raw: &[L; N],
     bound: f32,
-) -> ([L; K], [L; K]) {
+    x: &mut [L; K],
+    y: &mut [L; K],
+) {
     let mut w = [L::splat(0.0); K];
     let mut h = [L::splat(0.0); K];
     let mut k = 0;
@@ -123,8 +125,6 @@ fn cumulative_knots<L: Lane, const K: usize, const N: usize>(
     let scale_h = L::splat(1.0 - MIN_BIN_HEIGHT * K as f32);
     let (min_w, min_h) = (L::splat(MIN_BIN_WIDTH), L::splat(MIN_BIN_HEIGHT));
     let (b2, b) = (L::splat(2.0 * bound), L::splat(bound));
-    let mut x = [L::splat(0.0); K];
-    let mut y = [L::splat(0.0); K];
     x[0] = -b;
     y[0] = -b;
     let mut cum_w = L::splat(0.0);
@@ -137,7 +137,6 @@ fn cumulative_knots<L: Lane, const K: usize, const N: usize>(
         y[k] = b2 * cum_h - b;
         k += 1;
     }
-    (x, y)
 }
 
 impl<const K: usize> Knots<K> {
@@ -217,7 +216,6 @@ impl<const K: usize> Knots<K> {
 #[allow(private_bounds)]
 impl<const K: usize, L: Lane> Knots<K, L> {
     /// Placeholder knots (all zero) for buffers that are filled before use.
-    #[cfg(not(target_arch = "spirv"))]
     #[inline(always)]
     pub(crate) fn zeroed() -> Self {
         let z = [L::splat(0.0); K];
@@ -234,6 +232,14 @@ impl<const K: usize, L: Lane> Knots<K, L> {
     /// [`Knots::from_raw`] for every lane.
     #[inline(always)]
     pub(crate) fn from_raw_lanes<const N: usize>(raw: &[L; N], bound: f32) -> Self {
+        let mut k = Self::zeroed();
+        k.set_raw_lanes(raw, bound);
+        k
+    }
+
+    /// [`Knots::from_raw_lanes`] written in place (no copy of the knots).
+    #[inline(always)]
+    pub(crate) fn set_raw_lanes<const N: usize>(&mut self, raw: &[L; N], bound: f32) {
         const {
             assert!(
                 K >= 1 && N == 3 * K - 1,
@@ -241,47 +247,44 @@ impl<const K: usize, L: Lane> Knots<K, L> {
             );
         }
         let bound = math::clamp(bound, MIN_TAIL_BOUND, MAX_TAIL_BOUND);
-        let (x, y) = cumulative_knots::<L, K, N>(raw, bound);
-        let mut raw_d = [L::splat(0.0); K];
+        cumulative_knots::<L, K, N>(raw, bound, &mut self.x, &mut self.y);
+        self.raw_d[0] = L::splat(0.0);
         let mut k = 1;
         while k < K {
-            raw_d[k] = sanitize_raw(raw[2 * K + k - 1]);
+            self.raw_d[k] = sanitize_raw(raw[2 * K + k - 1]);
             k += 1;
         }
-        Knots {
-            x,
-            y,
-            raw_d,
-            raw_d_last: L::splat(0.0),
-            free_ends: false,
-            bound,
-        }
+        self.raw_d_last = L::splat(0.0);
+        self.free_ends = false;
+        self.bound = bound;
     }
 
     /// [`Knots::from_raw_free`] for every lane.
     #[inline(always)]
     pub(crate) fn from_raw_free_lanes<const N: usize>(raw: &[L; N]) -> Self {
+        let mut k = Self::zeroed();
+        k.set_raw_free_lanes(raw);
+        k
+    }
+
+    /// [`Knots::from_raw_free_lanes`] written in place (no copy of the knots).
+    #[inline(always)]
+    pub(crate) fn set_raw_free_lanes<const N: usize>(&mut self, raw: &[L; N]) {
         const {
             assert!(
                 K >= 1 && N == 3 * K + 1,
                 "raw spline parameters with free ends must be 3K + 1 values"
             );
         }
-        let (x, y) = cumulative_knots::<L, K, N>(raw, 1.0);
-        let mut raw_d = [L::splat(0.0); K];
+        cumulative_knots::<L, K, N>(raw, 1.0, &mut self.x, &mut self.y);
         let mut k = 0;
         while k < K {
-            raw_d[k] = sanitize_raw(raw[2 * K + k]);
+            self.raw_d[k] = sanitize_raw(raw[2 * K + k]);
             k += 1;
         }
-        Knots {
-            x,
-            y,
-            raw_d,
-            raw_d_last: sanitize_raw(raw[3 * K]),
-            free_ends: true,
-            bound: 1.0,
-        }
+        self.raw_d_last = sanitize_raw(raw[3 * K]);
+        self.free_ends = true;
+        self.bound = 1.0;
     }
 
     /// The derivative at knot `k + plus` of every lane (its bin `k`): 1 at the boundary

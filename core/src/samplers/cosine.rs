@@ -59,6 +59,7 @@ impl Prepared for CosinePrepared {
 #[cfg(not(target_arch = "spirv"))]
 impl crate::wavefront::chunked::ChunkedSampler for CosineSampler {
     type Lane = Option<CosinePrepared>;
+    type Scratch = ();
     const CHUNK: usize = 64;
 
     #[inline(always)]

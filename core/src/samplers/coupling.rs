@@ -10,6 +10,7 @@ use {
     crate::distrib::spline::Knots,
     crate::wavefront::lanes::V8,
     crate::wavefront::simd::{dispatch, Isa, Kernel},
+    crate::wavefront::Soa,
     core::marker::PhantomData,
 };
 
@@ -112,80 +113,126 @@ pub(crate) fn density_from_log(log_pdf: f32) -> f32 {
     }
 }
 
+/// A lane state holding the condition's share of each coupling network's first layer.
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) trait CouplingShares {
+    /// The share of coupling network `net` (0 or 1).
+    fn share(&self, net: usize) -> &[f32; HIDDEN];
+}
+
+/// The buffers of [`coupling_splines_chunk`], part of a flow's
+/// [`ChunkScratch`](crate::wavefront::chunked::ChunkScratch): made once per batched call, so
+/// that no coupling zeroes or copies its activations.
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) struct CouplingBuffers<const RAW: usize, const CHUNK: usize> {
+    /// The first hidden layer (starting as the lanes' shares).
+    h: Soa<HIDDEN, CHUNK>,
+    /// The second hidden layer.
+    h2: Soa<HIDDEN, CHUNK>,
+    /// The encoded other coordinates.
+    e: Soa<OTHER_DIM, CHUNK>,
+    /// The other coordinates.
+    v: [f32; CHUNK],
+    /// The raw spline parameters.
+    raw: Soa<RAW, CHUNK>,
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl<const RAW: usize, const CHUNK: usize> CouplingBuffers<RAW, CHUNK> {
+    /// Zeroed buffers.
+    #[inline(always)]
+    pub(crate) fn new() -> Self {
+        CouplingBuffers {
+            h: [[0.0; CHUNK]; HIDDEN],
+            h2: [[0.0; CHUNK]; HIDDEN],
+            e: [[0.0; CHUNK]; OTHER_DIM],
+            v: [0.0; CHUNK],
+            raw: [[0.0; CHUNK]; RAW],
+        }
+    }
+}
+
 /// A coupling network (`dense(39, 32)` LeakyReLU, `dense(32, 32)` LeakyReLU,
-/// `dense(32, RAW)` at `offset`) over the first `m` lanes of a chunk, given each lane's
-/// condition share and other coordinate `v`: the raw spline parameters `raw[·][lane]`. Both
-/// flows' batched kernels run their couplings through it. The encoding of `v` runs over the
-/// lanes with the batched path's fast `sin`/`cos`.
+/// `dense(32, RAW)` at `offset`) over the first `m` lanes of `b`, whose first hidden layer
+/// holds each lane's condition share and `b.v` its other coordinate: the raw spline
+/// parameters `b.raw[·][lane]`. The encoding of `v` runs over the lanes with the batched
+/// path's fast `sin`/`cos`.
 #[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
-pub(crate) fn coupling_raw_chunk<W: Weights, const RAW: usize, const CHUNK: usize>(
+fn coupling_raw_chunk<W: Weights, const RAW: usize, const CHUNK: usize>(
     w: &W,
     offset: u32,
-    share: &[[f32; HIDDEN]; CHUNK],
-    v: &[f32; CHUNK],
     m: usize,
-    raw: &mut crate::wavefront::Soa<RAW, CHUNK>,
+    b: &mut CouplingBuffers<RAW, CHUNK>,
 ) {
     use crate::nn::Activation;
     use crate::wavefront::{dense, lanes};
-    let mut h = [[0.0f32; CHUNK]; HIDDEN];
-    for (l, s) in share.iter().enumerate().take(m) {
-        for (j, x) in s.iter().enumerate() {
-            h[j][l] = *x;
-        }
-    }
-    let mut e = [[0.0f32; CHUNK]; OTHER_DIM];
-    lanes::encode_rows::<OTHER_BANDS, OTHER_DIM, CHUNK>(v, &mut e, 0);
+    lanes::encode_rows::<OTHER_BANDS, OTHER_DIM, CHUNK>(&b.v, &mut b.e, 0);
     let l0 = offset + COUPLING_L0 as u32;
     let leaky = Activation::LeakyRelu;
     dense::accumulate_act::<W, OTHER_DIM, HIDDEN, CHUNK>(
         w,
         l0,
         CONDITION_DIM as u32,
-        &e,
-        &mut h,
+        &b.e,
+        &mut b.h,
         m,
         leaky,
     );
-    let mut h2 = [[0.0f32; CHUNK]; HIDDEN];
     let l1 = offset + COUPLING_L1 as u32;
-    dense::dense::<W, HIDDEN, HIDDEN, CHUNK>(w, l1, &h, leaky, &mut h2, m);
+    dense::dense::<W, HIDDEN, HIDDEN, CHUNK>(w, l1, &b.h, leaky, &mut b.h2, m);
     let l2 = offset + COUPLING_L2 as u32;
-    dense::dense::<W, HIDDEN, RAW, CHUNK>(w, l2, &h2, Activation::Identity, raw, m);
+    dense::dense::<W, HIDDEN, RAW, CHUNK>(w, l2, &b.h2, Activation::Identity, &mut b.raw, m);
 }
 
-/// The splines of a chunk's lanes from coupling network `offset`: [`coupling_raw_chunk`],
-/// then group `g` of `knots` from the raw parameters of lanes `8g .. 8g + 8`, with the ends
-/// `E` ([`BoundedEnds`] on `[−tail_bound, tail_bound]`, or [`FreeEnds`]). Its own kernel,
-/// compiled once per instruction set (up to AVX2: the splines run in eight-lane groups) and
-/// called from the flows' sample, pdf and invert rather than inlined at each of their uses.
+/// Which lanes of a chunk a coupling runs for: lane `k < m` of the coupling is
+/// `lanes[idx[k]]` at other coordinate `v[idx[k]]` (a refused lane runs on zeros).
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) struct CouplingLanes<'a, S, const CHUNK: usize> {
+    /// The chunk's lane states.
+    pub lanes: &'a [Option<S>],
+    /// The chunk lane of each coupling lane.
+    pub idx: &'a [usize; CHUNK],
+    /// How many coupling lanes.
+    pub m: usize,
+    /// The other coordinate of each chunk lane.
+    pub v: &'a [f32; CHUNK],
+}
+
+/// The splines of coupling network `net` (0 or 1, at `offset`) for the lanes `at`: the
+/// lanes' shares and coordinates gathered into `b` (no copy of a lane state), then
+/// [`coupling_raw_chunk`], then group `g` of `knots` from the raw parameters of coupling
+/// lanes `8g .. 8g + 8`, with the ends `E` ([`BoundedEnds`] on `[−tail_bound, tail_bound]`,
+/// or [`FreeEnds`]). Its own kernel, compiled once per instruction set (up to AVX2: the
+/// splines run in eight-lane groups) and called from the flows' sample, pdf and invert
+/// rather than inlined at each of their uses.
 #[cfg(not(target_arch = "spirv"))]
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
 pub(crate) fn coupling_splines_chunk<
     E: SplineEnds<K, RAW>,
     W: Weights,
+    S: CouplingShares,
     const K: usize,
     const RAW: usize,
     const CHUNK: usize,
 >(
     w: &W,
     offset: u32,
-    share: &[[f32; HIDDEN]; CHUNK],
-    v: &[f32; CHUNK],
-    m: usize,
+    net: usize,
+    at: CouplingLanes<'_, S, CHUNK>,
     tail_bound: f32,
+    b: &mut CouplingBuffers<RAW, CHUNK>,
     knots: &mut [Knots<K, V8>],
 ) {
-    dispatch(SplinesJob::<E, W, K, RAW, CHUNK> {
+    dispatch(SplinesJob::<E, W, S, K, RAW, CHUNK> {
         ends: PhantomData,
         w,
         offset,
-        share,
-        v,
-        m,
+        net,
+        at,
         tail_bound,
+        b,
         knots,
     });
 }
@@ -193,8 +240,9 @@ pub(crate) fn coupling_splines_chunk<
 /// How [`coupling_splines_chunk`] turns a group's raw parameters into splines.
 #[cfg(not(target_arch = "spirv"))]
 pub(crate) trait SplineEnds<const K: usize, const RAW: usize> {
-    /// The splines of eight lanes (`bound`: the half-width of their interval, if bounded).
-    fn knots(raw: &[V8; RAW], bound: f32) -> Knots<K, V8>;
+    /// Sets `knots` to the splines of eight lanes (`bound`: the half-width of their
+    /// interval, if bounded).
+    fn set_knots(knots: &mut Knots<K, V8>, raw: &[V8; RAW], bound: f32);
 }
 
 /// Splines on `[−bound, bound]` with identity tails (`RAW = 3K − 1`).
@@ -208,49 +256,81 @@ pub(crate) struct FreeEnds;
 #[cfg(not(target_arch = "spirv"))]
 impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for BoundedEnds {
     #[inline(always)]
-    fn knots(raw: &[V8; RAW], bound: f32) -> Knots<K, V8> {
-        Knots::from_raw_lanes(raw, bound)
+    fn set_knots(knots: &mut Knots<K, V8>, raw: &[V8; RAW], bound: f32) {
+        knots.set_raw_lanes(raw, bound);
     }
 }
 
 #[cfg(not(target_arch = "spirv"))]
 impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for FreeEnds {
     #[inline(always)]
-    fn knots(raw: &[V8; RAW], _bound: f32) -> Knots<K, V8> {
-        Knots::from_raw_free_lanes(raw)
+    fn set_knots(knots: &mut Knots<K, V8>, raw: &[V8; RAW], _bound: f32) {
+        knots.set_raw_free_lanes(raw);
     }
 }
 
 /// The arguments of [`coupling_splines_chunk`].
 #[cfg(not(target_arch = "spirv"))]
-struct SplinesJob<'a, E, W, const K: usize, const RAW: usize, const CHUNK: usize> {
+struct SplinesJob<'a, E, W, S, const K: usize, const RAW: usize, const CHUNK: usize> {
     ends: PhantomData<E>,
     w: &'a W,
     offset: u32,
-    share: &'a [[f32; HIDDEN]; CHUNK],
-    v: &'a [f32; CHUNK],
-    m: usize,
+    net: usize,
+    at: CouplingLanes<'a, S, CHUNK>,
     tail_bound: f32,
+    b: &'a mut CouplingBuffers<RAW, CHUNK>,
     knots: &'a mut [Knots<K, V8>],
 }
 
 #[cfg(not(target_arch = "spirv"))]
-impl<E: SplineEnds<K, RAW>, W: Weights, const K: usize, const RAW: usize, const CHUNK: usize> Kernel
-    for SplinesJob<'_, E, W, K, RAW, CHUNK>
+impl<
+        E: SplineEnds<K, RAW>,
+        W: Weights,
+        S: CouplingShares,
+        const K: usize,
+        const RAW: usize,
+        const CHUNK: usize,
+    > Kernel for SplinesJob<'_, E, W, S, K, RAW, CHUNK>
 {
     const WIDEST: Isa = Isa::X86V3;
     type Output = ();
 
     #[inline(always)]
     fn run(self) {
-        let mut raw: crate::wavefront::Soa<RAW, CHUNK> = [[0.0; CHUNK]; RAW];
-        coupling_raw_chunk(self.w, self.offset, self.share, self.v, self.m, &mut raw);
-        for (g, kn) in self.knots.iter_mut().enumerate().take(self.m.div_ceil(8)) {
+        let SplinesJob {
+            w,
+            offset,
+            net,
+            at,
+            tail_bound,
+            b,
+            knots,
+            ..
+        } = self;
+        let m = at.m.min(CHUNK);
+        for k in 0..CHUNK {
+            let lane = at.idx.get(k).and_then(|&i| at.lanes.get(i)?.as_ref());
+            let share = match (k < m, lane) {
+                (true, Some(s)) => Some(s.share(net)),
+                _ => None,
+            };
+            for j in 0..HIDDEN {
+                b.h[j][k] = share.map_or(0.0, |s| s[j]);
+            }
+            let v = at.idx.get(k).and_then(|&i| at.v.get(i));
+            b.v[k] = if k < m {
+                v.copied().unwrap_or(0.0)
+            } else {
+                0.0
+            };
+        }
+        coupling_raw_chunk(w, offset, m, b);
+        for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
             let mut r = [V8::splat(0.0); RAW];
-            for (rj, row) in r.iter_mut().zip(raw.iter()) {
+            for (rj, row) in r.iter_mut().zip(b.raw.iter()) {
                 *rj = V8::load(&row[8 * g..]);
             }
-            *kn = E::knots(&r, self.tail_bound);
+            E::set_knots(kn, &r, tail_bound);
         }
     }
 }

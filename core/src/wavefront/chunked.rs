@@ -8,6 +8,19 @@ use super::{
 };
 use crate::error::Result;
 
+/// Working memory that a sampler's chunks reuse within one batched call: made once per call
+/// (so that large buffers are not zeroed again at every chunk), its contents meaningless
+/// between chunks.
+pub trait ChunkScratch {
+    /// Fresh working memory.
+    fn new() -> Self;
+}
+
+impl ChunkScratch for () {
+    #[inline(always)]
+    fn new() {}
+}
+
 /// How a sampler computes one chunk of at most `CHUNK` lanes (arguments already checked).
 /// Every method must be `#[inline(always)]`, so that [`dispatch`] compiles it for the
 /// chosen instruction set. Public only to name it in [`BatchSampler`]'s blanket impl; the
@@ -15,6 +28,8 @@ use crate::error::Result;
 pub trait ChunkedSampler {
     /// See [`BatchSampler::Lane`].
     type Lane: super::LaneState;
+    /// Working memory of sample, pdf and invert (`()` for none).
+    type Scratch: ChunkScratch;
     /// Lanes per chunk.
     const CHUNK: usize;
     /// The widest instruction set its chunks are compiled for ([`Kernel::WIDEST`]).
@@ -22,11 +37,30 @@ pub trait ChunkedSampler {
     /// [`BatchSampler::prepare_batch`] of one chunk.
     fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [Self::Lane]);
     /// [`BatchSampler::sample_batch`] of one chunk.
-    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>);
+    fn sample_chunk(
+        &self,
+        lanes: &[Self::Lane],
+        u: Vec2s<'_>,
+        out: SamplesMut<'_>,
+        scratch: &mut Self::Scratch,
+    );
     /// [`BatchSampler::pdf_batch`] of one chunk.
-    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]);
+    fn pdf_chunk(
+        &self,
+        lanes: &[Self::Lane],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        scratch: &mut Self::Scratch,
+    );
     /// [`BatchSampler::invert_batch`] of one chunk.
-    fn invert_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, u: Vec2sMut<'_>, ok: &mut [bool]);
+    fn invert_chunk(
+        &self,
+        lanes: &[Self::Lane],
+        wo: Vec3s<'_>,
+        u: Vec2sMut<'_>,
+        ok: &mut [bool],
+        scratch: &mut Self::Scratch,
+    );
 }
 
 struct Prepare<'a, 's, S: ChunkedSampler> {
@@ -62,10 +96,11 @@ impl<S: ChunkedSampler> Kernel for Sample<'_, '_, S> {
     #[inline(always)]
     fn run(mut self) {
         let n = self.lanes.len();
+        let mut scratch = S::Scratch::new();
         for (a, b) in chunks(n, S::CHUNK) {
-            let u = self.u.range(a, b);
+            let (lanes, u) = (&self.lanes[a..b], self.u.range(a, b));
             self.s
-                .sample_chunk(&self.lanes[a..b], u, self.out.range(a, b));
+                .sample_chunk(lanes, u, self.out.range(a, b), &mut scratch);
         }
     }
 }
@@ -83,9 +118,11 @@ impl<S: ChunkedSampler> Kernel for Pdf<'_, '_, S> {
     #[inline(always)]
     fn run(self) {
         let n = self.lanes.len();
+        let mut scratch = S::Scratch::new();
         for (a, b) in chunks(n, S::CHUNK) {
-            let wo = self.wo.range(a, b);
-            self.s.pdf_chunk(&self.lanes[a..b], wo, &mut self.pdf[a..b]);
+            let (lanes, wo) = (&self.lanes[a..b], self.wo.range(a, b));
+            self.s
+                .pdf_chunk(lanes, wo, &mut self.pdf[a..b], &mut scratch);
         }
     }
 }
@@ -104,11 +141,11 @@ impl<S: ChunkedSampler> Kernel for Invert<'_, '_, S> {
     #[inline(always)]
     fn run(mut self) {
         let n = self.lanes.len();
+        let mut scratch = S::Scratch::new();
         for (a, b) in chunks(n, S::CHUNK) {
-            let wo = self.wo.range(a, b);
-            let lanes = &self.lanes[a..b];
-            self.s
-                .invert_chunk(lanes, wo, self.u.range(a, b), &mut self.ok[a..b]);
+            let (lanes, wo) = (&self.lanes[a..b], self.wo.range(a, b));
+            let (u, ok) = (self.u.range(a, b), &mut self.ok[a..b]);
+            self.s.invert_chunk(lanes, wo, u, ok, &mut scratch);
         }
     }
 }

@@ -315,6 +315,7 @@ macro_rules! per_lane_chunks {
             lanes: &[Option<$p>],
             u: $crate::wavefront::Vec2s<'_>,
             mut out: $crate::wavefront::SamplesMut<'_>,
+            _scratch: &mut Self::Scratch,
         ) {
             for (i, l) in lanes.iter().enumerate() {
                 out.set(
@@ -331,6 +332,7 @@ macro_rules! per_lane_chunks {
             lanes: &[Option<$p>],
             wo: $crate::wavefront::Vec3s<'_>,
             pdf: &mut [f32],
+            _scratch: &mut Self::Scratch,
         ) {
             for (i, l) in lanes.iter().enumerate() {
                 pdf[i] = l
@@ -346,6 +348,7 @@ macro_rules! per_lane_chunks {
             wo: $crate::wavefront::Vec3s<'_>,
             mut u: $crate::wavefront::Vec2sMut<'_>,
             ok: &mut [bool],
+            _scratch: &mut Self::Scratch,
         ) {
             for (i, l) in lanes.iter().enumerate() {
                 match l
@@ -380,6 +383,7 @@ macro_rules! mlp_lane_sampler {
             for $sampler<W>
         {
             type Lane = Option<$prepared>;
+            type Scratch = ();
             const CHUNK: usize = $chunk;
 
             #[inline(always)]

@@ -170,6 +170,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
 
 impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
     type Lane = Option<AffineFlowLane>;
+    type Scratch = ();
     const CHUNK: usize = CHUNK;
 
     #[inline(always)]
@@ -202,6 +203,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         lanes: &[Option<AffineFlowLane>],
         u: Vec2s<'_>,
         mut out: SamplesMut<'_>,
+        _scratch: &mut Self::Scratch,
     ) {
         let m = lanes.len();
         let all = wavefront::identity_index::<CHUNK>();
@@ -265,7 +267,13 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Option<AffineFlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(
+        &self,
+        lanes: &[Option<AffineFlowLane>],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        _scratch: &mut Self::Scratch,
+    ) {
         let mut ok = [false; CHUNK];
         let mut cos = [0.0f32; CHUNK];
         let mut zl = [Vec2::ZERO; CHUNK];
@@ -288,6 +296,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         wo: Vec3s<'_>,
         mut u: Vec2sMut<'_>,
         ok_out: &mut [bool],
+        _scratch: &mut Self::Scratch,
     ) {
         let mut ok = [false; CHUNK];
         let mut cos = [0.0f32; CHUNK];

@@ -14,11 +14,12 @@ use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::CONDITION_DIM;
 use crate::samplers::coupling::{
-    coupling_splines_chunk, density_from_log, FreeEnds, COUPLING_INPUTS, HIDDEN,
+    coupling_splines_chunk, density_from_log, CouplingBuffers, CouplingLanes, CouplingShares,
+    FreeEnds, COUPLING_INPUTS, HIDDEN,
 };
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::chunked::ChunkedSampler;
+use crate::wavefront::chunked::{ChunkScratch, ChunkedSampler};
 use crate::wavefront::lanes::V8;
 use crate::wavefront::simd::Isa;
 use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
@@ -31,10 +32,36 @@ const GROUPS: usize = CHUNK / 8;
 
 type Splines = [Knots<DISK_FLOW_BINS, V8>; GROUPS];
 
+/// The working memory of a batched call: the couplings' buffers and two sets of splines.
+pub struct Scratch {
+    b: CouplingBuffers<DISK_SPLINE_RAW_LEN, CHUNK>,
+    k0: Splines,
+    k1: Splines,
+}
+
+impl ChunkScratch for Scratch {
+    #[inline(always)]
+    fn new() -> Self {
+        Scratch {
+            b: CouplingBuffers::new(),
+            k0: [Knots::zeroed(); GROUPS],
+            k1: [Knots::zeroed(); GROUPS],
+        }
+    }
+}
+
+impl CouplingShares for DiskFlowLane {
+    #[inline(always)]
+    fn share(&self, net: usize) -> &[f32; HIDDEN] {
+        &self.share[net & 1]
+    }
+}
+
 impl<W: Weights + Copy> DiskFlowSampler<W> {
     /// The splines of coupling network `net` (0 or 1) for the lanes `idx[..m]` of a chunk,
-    /// each at its own other coordinate `v[lane]`: group `g` holds the splines of
+    /// each at its own other coordinate `v[lane]`: group `g` of `knots` holds the splines of
     /// `idx[8g .. 8g + 8]`.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn knots_for(
         &self,
@@ -43,6 +70,7 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
         idx: &[usize; CHUNK],
         m: usize,
         v: &[f32; CHUNK],
+        b: &mut CouplingBuffers<DISK_SPLINE_RAW_LEN, CHUNK>,
         knots: &mut Splines,
     ) {
         let offset = if net == 0 {
@@ -50,21 +78,14 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
         } else {
             DISK_FLOW_COUPLING1
         };
-        let mut share = [[0.0f32; HIDDEN]; CHUNK];
-        let mut vv = [0.0f32; CHUNK];
-        for k in 0..m {
-            if let Some(s) = &lanes[idx[k]] {
-                share[k] = s.share[net];
-            }
-            vv[k] = v[idx[k]];
-        }
-        coupling_splines_chunk::<FreeEnds, W, DISK_FLOW_BINS, DISK_SPLINE_RAW_LEN, CHUNK>(
+        let at = CouplingLanes { lanes, idx, m, v };
+        coupling_splines_chunk::<FreeEnds, W, _, DISK_FLOW_BINS, DISK_SPLINE_RAW_LEN, CHUNK>(
             &self.params,
             offset as u32,
-            &share,
-            &vv,
-            m,
+            net,
+            at,
             0.0,
+            b,
             knots,
         );
     }
@@ -79,12 +100,13 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
         py: &[f32; CHUNK],
         b: &mut [Vec2; CHUNK],
         ld: &mut [f32; CHUNK],
+        sc: &mut Scratch,
     ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
         let all = wavefront::identity_index::<CHUNK>();
-        let mut k = [Knots::<DISK_FLOW_BINS, V8>::zeroed(); GROUPS];
-        self.knots_for(1, lanes, &all, m, px, &mut k);
+        let k = &mut sc.k0;
+        self.knots_for(1, lanes, &all, m, px, &mut sc.b, k);
         let mut yb = [0.0f32; CHUNK];
         let mut cb = [0.0f32; CHUNK];
         let mut ld1 = [0.0f32; CHUNK];
@@ -95,7 +117,7 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
             d.store(&mut ld1[8 * g..]);
             c.store(&mut cb[8 * g..]);
         }
-        self.knots_for(0, lanes, &all, m, &yb, &mut k);
+        self.knots_for(0, lanes, &all, m, &yb, &mut sc.b, k);
         for g in 0..groups {
             let (x, c) = (V8::load(&px[8 * g..]), V8::load(&cb[8 * g..]));
             let (s0, d) = k[g].forward_lanes(in_chord_lanes(x, c));
@@ -132,6 +154,7 @@ impl<W: Weights + Copy> DiskFlowSampler<W> {
 
 impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
     type Lane = Option<DiskFlowLane>;
+    type Scratch = Scratch;
     const CHUNK: usize = CHUNK;
     // The splines run in eight-lane groups.
     const WIDEST: Isa = Isa::X86V3;
@@ -165,7 +188,13 @@ impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Option<DiskFlowLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn sample_chunk(
+        &self,
+        lanes: &[Option<DiskFlowLane>],
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+        scratch: &mut Self::Scratch,
+    ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
         let all = wavefront::identity_index::<CHUNK>();
@@ -181,16 +210,15 @@ impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
             }
         }
         // Sampling direction: x = C(b.y)·S₀⁻¹(…), y = C(x)·S₁⁻¹(…).
-        let mut k0 = [Knots::<DISK_FLOW_BINS, V8>::zeroed(); GROUPS];
-        let mut k1 = k0;
-        self.knots_for(0, lanes, &all, m, &by, &mut k0);
+        let Scratch { b: buf, k0, k1 } = scratch;
+        self.knots_for(0, lanes, &all, m, &by, buf, k0);
         let mut px = [0.0f32; CHUNK];
         let mut py = [0.0f32; CHUNK];
         for g in 0..groups {
             let (b_x, b_y) = (V8::load(&bx[8 * g..]), V8::load(&by[8 * g..]));
             chord_inverse(&k0[g], b_x, b_y).store(&mut px[8 * g..]);
         }
-        self.knots_for(1, lanes, &all, m, &px, &mut k1);
+        self.knots_for(1, lanes, &all, m, &px, buf, k1);
         // Density direction at the sample (`Prepared::sample`): coupling 1's spline is the
         // same; coupling 0's is rebuilt where its input (the base point's y) changed.
         let mut yb = [0.0f32; CHUNK];
@@ -220,7 +248,7 @@ impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
             }
         }
         if n_again > 0 {
-            self.knots_for(0, lanes, &again, n_again, &yb, &mut k0);
+            self.knots_for(0, lanes, &again, n_again, &yb, buf, k0);
             let (mut x, mut c) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
             for k in 0..n_again {
                 x[k] = px[again[k]];
@@ -248,11 +276,17 @@ impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Option<DiskFlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(
+        &self,
+        lanes: &[Option<DiskFlowLane>],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        scratch: &mut Self::Scratch,
+    ) {
         let (px, py, cos, ok) = Self::disk_points(lanes, wo);
         let mut b = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
-        self.base_chunk(lanes, &px, &py, &mut b, &mut ld);
+        self.base_chunk(lanes, &px, &py, &mut b, &mut ld, scratch);
         for l in 0..lanes.len() {
             pdf[l] = if ok[l] {
                 warp::disk_to_solid_angle(density_from_log(log_density(ld[l])), cos[l])
@@ -269,11 +303,12 @@ impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
         wo: Vec3s<'_>,
         mut u: Vec2sMut<'_>,
         ok_out: &mut [bool],
+        scratch: &mut Self::Scratch,
     ) {
         let (px, py, _, ok) = Self::disk_points(lanes, wo);
         let mut b = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
-        self.base_chunk(lanes, &px, &py, &mut b, &mut ld);
+        self.base_chunk(lanes, &px, &py, &mut b, &mut ld, scratch);
         for l in 0..lanes.len() {
             let r = if ok[l] { invert_base(b[l]) } else { None };
             ok_out[l] = r.is_some();

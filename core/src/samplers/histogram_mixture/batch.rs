@@ -12,6 +12,7 @@ const CHUNK: usize = 32;
 
 impl<W: Weights + Copy> ChunkedSampler for HistogramMixtureSampler<W> {
     type Lane = Option<HistogramMixtureLane>;
+    type Scratch = ();
     const CHUNK: usize = CHUNK;
 
     #[inline(always)]
@@ -48,14 +49,26 @@ impl<W: Weights + Copy> ChunkedSampler for HistogramMixtureSampler<W> {
     }
 
     #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Self::Lane], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn sample_chunk(
+        &self,
+        lanes: &[Self::Lane],
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+        _scratch: &mut Self::Scratch,
+    ) {
         for (i, l) in lanes.iter().enumerate() {
             out.set(i, l.as_ref().and_then(|l| self.lane_sample(l, u.at(i))));
         }
     }
 
     #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(
+        &self,
+        lanes: &[Self::Lane],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        _scratch: &mut Self::Scratch,
+    ) {
         for (i, l) in lanes.iter().enumerate() {
             pdf[i] = match (l, warp::upper_hemisphere(wo.at(i))) {
                 (Some(l), Some(w)) => {
@@ -73,6 +86,7 @@ impl<W: Weights + Copy> ChunkedSampler for HistogramMixtureSampler<W> {
         wo: Vec3s<'_>,
         mut u: Vec2sMut<'_>,
         ok: &mut [bool],
+        _scratch: &mut Self::Scratch,
     ) {
         for (i, l) in lanes.iter().enumerate() {
             let r = l.as_ref().and_then(|l| self.lane_invert(l, wo.at(i)));

@@ -57,6 +57,7 @@ impl<W: Weights + Copy> ReparamSampler<W> {}
 
 impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
     type Lane = Option<ReparamLane>;
+    type Scratch = ();
     const CHUNK: usize = CHUNK;
 
     #[inline(always)]
@@ -96,7 +97,13 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
     }
 
     #[inline(always)]
-    fn sample_chunk(&self, lanes: &[Option<ReparamLane>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+    fn sample_chunk(
+        &self,
+        lanes: &[Option<ReparamLane>],
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+        scratch: &mut Self::Scratch,
+    ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
         let w = &self.params;
@@ -178,11 +185,17 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
             y: &out.wo.y[..m],
             z: &out.wo.z[..m],
         };
-        self.pdf_chunk(lanes, wo, &mut out.mis_pdf[..m]);
+        self.pdf_chunk(lanes, wo, &mut out.mis_pdf[..m], scratch);
     }
 
     #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Option<ReparamLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(
+        &self,
+        lanes: &[Option<ReparamLane>],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        _scratch: &mut Self::Scratch,
+    ) {
         let m = lanes.len();
         let w = &self.params;
         let mut ok = [false; CHUNK];
@@ -225,6 +238,7 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         _wo: Vec3s<'_>,
         _u: Vec2sMut<'_>,
         ok: &mut [bool],
+        _scratch: &mut Self::Scratch,
     ) {
         for o in ok[..lanes.len()].iter_mut() {
             *o = false;

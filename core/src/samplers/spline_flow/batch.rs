@@ -12,10 +12,13 @@ use super::{
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
-use crate::samplers::coupling::{coupling_splines_chunk, BoundedEnds, COUPLING_INPUTS, HIDDEN};
+use crate::samplers::coupling::{
+    coupling_splines_chunk, BoundedEnds, CouplingBuffers, CouplingLanes, CouplingShares,
+    COUPLING_INPUTS, HIDDEN,
+};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::chunked::ChunkedSampler;
+use crate::wavefront::chunked::{ChunkScratch, ChunkedSampler};
 use crate::wavefront::lanes::{self, V8};
 use crate::wavefront::simd::Isa;
 use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
@@ -28,6 +31,34 @@ const GROUPS: usize = CHUNK / 8;
 
 /// Activations of a chunk: `[feature][lane]`.
 type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
+
+/// The splines of a chunk's lanes, one group of eight lanes each.
+type Splines = [Knots<SPLINE_BINS, V8>; GROUPS];
+
+/// The working memory of a batched call: the couplings' buffers and two sets of splines.
+pub struct Scratch {
+    b: CouplingBuffers<SPLINE_RAW_LEN, CHUNK>,
+    k0: Splines,
+    k1: Splines,
+}
+
+impl ChunkScratch for Scratch {
+    #[inline(always)]
+    fn new() -> Self {
+        Scratch {
+            b: CouplingBuffers::new(),
+            k0: [Knots::zeroed(); GROUPS],
+            k1: [Knots::zeroed(); GROUPS],
+        }
+    }
+}
+
+impl CouplingShares for SplineFlowLane {
+    #[inline(always)]
+    fn share(&self, net: usize) -> &[f32; HIDDEN] {
+        &self.share[net & 1]
+    }
+}
 
 /// The base Gaussians of a chunk's lanes, as rows (refused lanes: `μ = 0`, `σ = 1`).
 struct Base {
@@ -82,7 +113,9 @@ impl Base {
 
 impl<W: Weights + Copy> SplineFlowSampler<W> {
     /// The splines of coupling network `net` for the lanes `idx[..m]` of a chunk, each at its
-    /// own other coordinate `v[lane]`: group `g` holds the splines of `idx[8g .. 8g + 8]`.
+    /// own other coordinate `v[lane]`: group `g` of `knots` holds the splines of
+    /// `idx[8g .. 8g + 8]`.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn knots_for(
         &self,
@@ -91,24 +124,18 @@ impl<W: Weights + Copy> SplineFlowSampler<W> {
         idx: &[usize; CHUNK],
         m: usize,
         v: &[f32; CHUNK],
-        knots: &mut [Knots<SPLINE_BINS, V8>; GROUPS],
+        b: &mut CouplingBuffers<SPLINE_RAW_LEN, CHUNK>,
+        knots: &mut Splines,
     ) {
         let which = if net == FLOW_COUPLING0 { 0 } else { 1 };
-        let mut share = [[0.0f32; HIDDEN]; CHUNK];
-        let mut vv = [0.0f32; CHUNK];
-        for k in 0..m {
-            if let Some(s) = &lanes[idx[k]] {
-                share[k] = s.share[which];
-            }
-            vv[k] = v[idx[k]];
-        }
-        coupling_splines_chunk::<BoundedEnds, W, SPLINE_BINS, SPLINE_RAW_LEN, CHUNK>(
+        let at = CouplingLanes { lanes, idx, m, v };
+        coupling_splines_chunk::<BoundedEnds, W, _, SPLINE_BINS, SPLINE_RAW_LEN, CHUNK>(
             &self.params,
             net as u32,
-            &share,
-            &vv,
-            m,
+            which,
+            at,
             TAIL_BOUND,
+            b,
             knots,
         );
     }
@@ -123,12 +150,13 @@ impl<W: Weights + Copy> SplineFlowSampler<W> {
         py: &[f32; CHUNK],
         zl: &mut [Vec2; CHUNK],
         ld: &mut [f32; CHUNK],
+        sc: &mut Scratch,
     ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
         let all = wavefront::identity_index::<CHUNK>();
-        let mut k = [Knots::<SPLINE_BINS, V8>::zeroed(); GROUPS];
-        self.knots_for(FLOW_COUPLING1, lanes, &all, m, px, &mut k);
+        let k = &mut sc.k0;
+        self.knots_for(FLOW_COUPLING1, lanes, &all, m, px, &mut sc.b, k);
         let mut yl = [0.0f32; CHUNK];
         let mut ld1 = [0.0f32; CHUNK];
         for g in 0..groups {
@@ -136,7 +164,7 @@ impl<W: Weights + Copy> SplineFlowSampler<W> {
             a.store(&mut yl[8 * g..]);
             d.store(&mut ld1[8 * g..]);
         }
-        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &yl, &mut k);
+        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &yl, &mut sc.b, k);
         for g in 0..groups {
             let (a, d) = k[g].forward_lanes(V8::load(&px[8 * g..]));
             for i in 0..8 {
@@ -152,6 +180,7 @@ impl<W: Weights + Copy> SplineFlowSampler<W> {
 
 impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
     type Lane = Option<SplineFlowLane>;
+    type Scratch = Scratch;
     const CHUNK: usize = CHUNK;
     // The splines run in eight-lane groups.
     const WIDEST: Isa = Isa::X86V3;
@@ -206,6 +235,7 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
         lanes: &[Option<SplineFlowLane>],
         u: Vec2s<'_>,
         mut out: SamplesMut<'_>,
+        scratch: &mut Self::Scratch,
     ) {
         let m = lanes.len();
         let groups = m.div_ceil(8);
@@ -235,9 +265,8 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
             };
         }
         // Sampling direction: x = RQ⁻¹(z.x; coupling0(z.y)), y = RQ⁻¹(z.y; coupling1(x)).
-        let mut k0 = [Knots::<SPLINE_BINS, V8>::zeroed(); GROUPS];
-        let mut k1 = k0;
-        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &zy, &mut k0);
+        let Scratch { b, k0, k1 } = scratch;
+        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &zy, b, k0);
         let mut px = [0.0f32; CHUNK];
         let mut py = [0.0f32; CHUNK];
         for g in 0..groups {
@@ -246,7 +275,7 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
                 .0
                 .store(&mut px[8 * g..]);
         }
-        self.knots_for(FLOW_COUPLING1, lanes, &all, m, &px, &mut k1);
+        self.knots_for(FLOW_COUPLING1, lanes, &all, m, &px, b, k1);
         // Density direction at the sample (`Prepared::sample`): coupling 1's spline is the
         // same; coupling 0's is rebuilt where its input y' = RQ(y) differs from z.y.
         let mut yl = [0.0f32; CHUNK];
@@ -275,7 +304,7 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
             }
         }
         if n_again > 0 {
-            self.knots_for(FLOW_COUPLING0, lanes, &again, n_again, &yl, &mut k0);
+            self.knots_for(FLOW_COUPLING0, lanes, &again, n_again, &yl, b, k0);
             let mut x = [0.0f32; CHUNK];
             for k in 0..n_again {
                 x[k] = px[again[k]];
@@ -303,7 +332,13 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
     }
 
     #[inline(always)]
-    fn pdf_chunk(&self, lanes: &[Option<SplineFlowLane>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+    fn pdf_chunk(
+        &self,
+        lanes: &[Option<SplineFlowLane>],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        scratch: &mut Self::Scratch,
+    ) {
         let m = lanes.len();
         let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         let mut cos = [0.0f32; CHUNK];
@@ -317,7 +352,7 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
         }
         let mut zl = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
-        self.latent_chunk(lanes, &px, &py, &mut zl, &mut ld);
+        self.latent_chunk(lanes, &px, &py, &mut zl, &mut ld, scratch);
         let (mut xl, mut yl) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         for l in 0..m {
             (xl[l], yl[l]) = (zl[l].x, zl[l].y);
@@ -340,6 +375,7 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
         wo: Vec3s<'_>,
         mut u: Vec2sMut<'_>,
         ok_out: &mut [bool],
+        scratch: &mut Self::Scratch,
     ) {
         let m = lanes.len();
         let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
@@ -352,7 +388,7 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
         }
         let mut zl = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
-        self.latent_chunk(lanes, &px, &py, &mut zl, &mut ld);
+        self.latent_chunk(lanes, &px, &py, &mut zl, &mut ld, scratch);
         for l in 0..m {
             let r = match (&lanes[l], ok[l]) {
                 (Some(st), true) => st.invert_base(zl[l]),
