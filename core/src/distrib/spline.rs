@@ -212,6 +212,22 @@ impl<const K: usize> Knots<K> {
     }
 }
 
+#[cfg(not(target_arch = "spirv"))]
+impl<const K: usize> Knots<K, crate::wavefront::lanes::V8> {
+    /// All-zero knots of eight lanes, for buffers that are filled before use.
+    pub(crate) const ZERO_LANES: Self = {
+        let z = crate::wavefront::lanes::V8::splat(0.0);
+        Knots {
+            x: [z; K],
+            y: [z; K],
+            raw_d: [z; K],
+            raw_d_last: z,
+            free_ends: false,
+            bound: 0.0,
+        }
+    };
+}
+
 // The generic methods are crate-internal (users only see `L = f32`).
 #[allow(private_bounds)]
 impl<const K: usize, L: Lane> Knots<K, L> {

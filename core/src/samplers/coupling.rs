@@ -135,21 +135,23 @@ pub(crate) struct CouplingBuffers<const RAW: usize, const CHUNK: usize> {
     v: [f32; CHUNK],
     /// The raw spline parameters.
     raw: Soa<RAW, CHUNK>,
+    /// The raw spline parameters of one group of eight lanes.
+    group: [V8; RAW],
 }
 
 #[cfg(not(target_arch = "spirv"))]
 impl<const RAW: usize, const CHUNK: usize> CouplingBuffers<RAW, CHUNK> {
     /// Zeroed buffers.
-    #[inline(always)]
-    pub(crate) fn new() -> Self {
+    pub(crate) const ZERO: Self = {
         CouplingBuffers {
             h: [[0.0; CHUNK]; HIDDEN],
             h2: [[0.0; CHUNK]; HIDDEN],
             e: [[0.0; CHUNK]; OTHER_DIM],
             v: [0.0; CHUNK],
             raw: [[0.0; CHUNK]; RAW],
+            group: [V8::splat(0.0); RAW],
         }
-    }
+    };
 }
 
 /// A coupling network (`dense(39, 32)` LeakyReLU, `dense(32, 32)` LeakyReLU,
@@ -326,11 +328,10 @@ impl<
         }
         coupling_raw_chunk(w, offset, m, b);
         for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
-            let mut r = [V8::splat(0.0); RAW];
-            for (rj, row) in r.iter_mut().zip(b.raw.iter()) {
+            for (rj, row) in b.group.iter_mut().zip(b.raw.iter()) {
                 *rj = V8::load(&row[8 * g..]);
             }
-            E::set_knots(kn, &r, tail_bound);
+            E::set_knots(kn, &b.group, tail_bound);
         }
     }
 }

@@ -12,13 +12,12 @@ use crate::error::Result;
 /// (so that large buffers are not zeroed again at every chunk), its contents meaningless
 /// between chunks.
 pub trait ChunkScratch {
-    /// Fresh working memory.
-    fn new() -> Self;
+    /// Fresh working memory (a constant, so that a call writes it in place).
+    const NEW: Self;
 }
 
 impl ChunkScratch for () {
-    #[inline(always)]
-    fn new() {}
+    const NEW: () = ();
 }
 
 /// How a sampler computes one chunk of at most `CHUNK` lanes (arguments already checked).
@@ -96,7 +95,7 @@ impl<S: ChunkedSampler> Kernel for Sample<'_, '_, S> {
     #[inline(always)]
     fn run(mut self) {
         let n = self.lanes.len();
-        let mut scratch = S::Scratch::new();
+        let mut scratch = S::Scratch::NEW;
         for (a, b) in chunks(n, S::CHUNK) {
             let (lanes, u) = (&self.lanes[a..b], self.u.range(a, b));
             self.s
@@ -118,7 +117,7 @@ impl<S: ChunkedSampler> Kernel for Pdf<'_, '_, S> {
     #[inline(always)]
     fn run(self) {
         let n = self.lanes.len();
-        let mut scratch = S::Scratch::new();
+        let mut scratch = S::Scratch::NEW;
         for (a, b) in chunks(n, S::CHUNK) {
             let (lanes, wo) = (&self.lanes[a..b], self.wo.range(a, b));
             self.s
@@ -141,7 +140,7 @@ impl<S: ChunkedSampler> Kernel for Invert<'_, '_, S> {
     #[inline(always)]
     fn run(mut self) {
         let n = self.lanes.len();
-        let mut scratch = S::Scratch::new();
+        let mut scratch = S::Scratch::NEW;
         for (a, b) in chunks(n, S::CHUNK) {
             let (lanes, wo) = (&self.lanes[a..b], self.wo.range(a, b));
             let (u, ok) = (self.u.range(a, b), &mut self.ok[a..b]);

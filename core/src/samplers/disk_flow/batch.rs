@@ -40,14 +40,11 @@ pub struct Scratch {
 }
 
 impl ChunkScratch for Scratch {
-    #[inline(always)]
-    fn new() -> Self {
-        Scratch {
-            b: CouplingBuffers::new(),
-            k0: [Knots::zeroed(); GROUPS],
-            k1: [Knots::zeroed(); GROUPS],
-        }
-    }
+    const NEW: Self = Scratch {
+        b: CouplingBuffers::ZERO,
+        k0: [Knots::ZERO_LANES; GROUPS],
+        k1: [Knots::ZERO_LANES; GROUPS],
+    };
 }
 
 impl CouplingShares for DiskFlowLane {
