@@ -124,7 +124,7 @@ pub(crate) trait CouplingShares {
 /// [`ChunkScratch`](crate::wavefront::chunked::ChunkScratch): made once per batched call, so
 /// that no coupling zeroes or copies its activations.
 #[cfg(not(target_arch = "spirv"))]
-pub(crate) struct CouplingBuffers<const RAW: usize, const CHUNK: usize> {
+pub struct CouplingBuffers<const RAW: usize, const CHUNK: usize> {
     /// The first hidden layer (starting as the lanes' shares).
     h: Soa<HIDDEN, CHUNK>,
     /// The second hidden layer.
@@ -151,6 +151,26 @@ impl<const RAW: usize, const CHUNK: usize> CouplingBuffers<RAW, CHUNK> {
             raw: [[0.0; CHUNK]; RAW],
             group: [V8::splat(0.0); RAW],
         }
+    };
+}
+
+/// A flow's [`ChunkScratch`](crate::wavefront::chunked::ChunkScratch): the couplings'
+/// buffers and two sets of splines of `K` bins (one group of eight lanes each).
+#[cfg(not(target_arch = "spirv"))]
+pub struct FlowScratch<const K: usize, const RAW: usize, const CHUNK: usize, const GROUPS: usize> {
+    pub(crate) b: CouplingBuffers<RAW, CHUNK>,
+    pub(crate) k0: [Knots<K, V8>; GROUPS],
+    pub(crate) k1: [Knots<K, V8>; GROUPS],
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl<const K: usize, const RAW: usize, const CHUNK: usize, const GROUPS: usize>
+    crate::wavefront::chunked::ChunkScratch for FlowScratch<K, RAW, CHUNK, GROUPS>
+{
+    const NEW: Self = FlowScratch {
+        b: CouplingBuffers::ZERO,
+        k0: [Knots::ZERO_LANES; GROUPS],
+        k1: [Knots::ZERO_LANES; GROUPS],
     };
 }
 

@@ -15,11 +15,11 @@ use crate::math;
 use crate::nn::CONDITION_DIM;
 use crate::samplers::coupling::{
     coupling_splines_chunk, density_from_log, CouplingBuffers, CouplingLanes, CouplingShares,
-    FreeEnds, COUPLING_INPUTS, HIDDEN,
+    FlowScratch, FreeEnds, COUPLING_INPUTS, HIDDEN,
 };
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::chunked::{ChunkScratch, ChunkedSampler};
+use crate::wavefront::chunked::ChunkedSampler;
 use crate::wavefront::lanes::V8;
 use crate::wavefront::simd::Isa;
 use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
@@ -32,20 +32,8 @@ const GROUPS: usize = CHUNK / 8;
 
 type Splines = [Knots<DISK_FLOW_BINS, V8>; GROUPS];
 
-/// The working memory of a batched call: the couplings' buffers and two sets of splines.
-pub struct Scratch {
-    b: CouplingBuffers<DISK_SPLINE_RAW_LEN, CHUNK>,
-    k0: Splines,
-    k1: Splines,
-}
-
-impl ChunkScratch for Scratch {
-    const NEW: Self = Scratch {
-        b: CouplingBuffers::ZERO,
-        k0: [Knots::ZERO_LANES; GROUPS],
-        k1: [Knots::ZERO_LANES; GROUPS],
-    };
-}
+/// The working memory of a batched call.
+type Scratch = FlowScratch<DISK_FLOW_BINS, DISK_SPLINE_RAW_LEN, CHUNK, GROUPS>;
 
 impl CouplingShares for DiskFlowLane {
     #[inline(always)]
@@ -207,7 +195,7 @@ impl<W: Weights + Copy> ChunkedSampler for DiskFlowSampler<W> {
             }
         }
         // Sampling direction: x = C(b.y)·S₀⁻¹(…), y = C(x)·S₁⁻¹(…).
-        let Scratch { b: buf, k0, k1 } = scratch;
+        let FlowScratch { b: buf, k0, k1 } = scratch;
         self.knots_for(0, lanes, &all, m, &by, buf, k0);
         let mut px = [0.0f32; CHUNK];
         let mut py = [0.0f32; CHUNK];

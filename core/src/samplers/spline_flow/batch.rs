@@ -14,11 +14,11 @@ use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
 use crate::samplers::coupling::{
     coupling_splines_chunk, BoundedEnds, CouplingBuffers, CouplingLanes, CouplingShares,
-    COUPLING_INPUTS, HIDDEN,
+    FlowScratch, COUPLING_INPUTS, HIDDEN,
 };
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::chunked::{ChunkScratch, ChunkedSampler};
+use crate::wavefront::chunked::ChunkedSampler;
 use crate::wavefront::lanes::{self, V8};
 use crate::wavefront::simd::Isa;
 use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
@@ -35,20 +35,8 @@ type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
 /// The splines of a chunk's lanes, one group of eight lanes each.
 type Splines = [Knots<SPLINE_BINS, V8>; GROUPS];
 
-/// The working memory of a batched call: the couplings' buffers and two sets of splines.
-pub struct Scratch {
-    b: CouplingBuffers<SPLINE_RAW_LEN, CHUNK>,
-    k0: Splines,
-    k1: Splines,
-}
-
-impl ChunkScratch for Scratch {
-    const NEW: Self = Scratch {
-        b: CouplingBuffers::ZERO,
-        k0: [Knots::ZERO_LANES; GROUPS],
-        k1: [Knots::ZERO_LANES; GROUPS],
-    };
-}
+/// The working memory of a batched call.
+type Scratch = FlowScratch<SPLINE_BINS, SPLINE_RAW_LEN, CHUNK, GROUPS>;
 
 impl CouplingShares for SplineFlowLane {
     #[inline(always)]
@@ -262,7 +250,7 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
             };
         }
         // Sampling direction: x = RQ⁻¹(z.x; coupling0(z.y)), y = RQ⁻¹(z.y; coupling1(x)).
-        let Scratch { b, k0, k1 } = scratch;
+        let FlowScratch { b, k0, k1 } = scratch;
         self.knots_for(FLOW_COUPLING0, lanes, &all, m, &zy, b, k0);
         let mut px = [0.0f32; CHUNK];
         let mut py = [0.0f32; CHUNK];
