@@ -370,9 +370,42 @@ macro_rules! forward_weights {
     };
 }
 
-/// Fixed-size host arrays (test tables, constants).
+/// Fixed-size arrays (test tables, constants). Indexed directly rather than forwarded to the
+/// slice impl: rust-gpu cannot make a slice of an array.
 impl<const N: usize> Weights for [f32; N] {
-    forward_weights!(self => self.as_slice());
+    #[inline(always)]
+    fn len(&self) -> u32 {
+        N as u32
+    }
+    #[inline(always)]
+    fn as_f32_slice(&self) -> Option<&[f32]> {
+        Some(self)
+    }
+    #[inline(always)]
+    fn at(&self, i: u32) -> f32 {
+        let i = i as usize;
+        if i < N {
+            self[i]
+        } else {
+            0.0
+        }
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    #[inline(always)]
+    fn accumulate<const I: usize, const O: usize>(
+        &self,
+        offset: u32,
+        row0: u32,
+        x: &[f32; I],
+        acc: &mut [f32; O],
+    ) {
+        accumulate_slice(self, offset, row0, x, acc);
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    #[inline(always)]
+    fn read<const M: usize>(&self, offset: u32) -> [f32; M] {
+        read_slice(self, offset)
+    }
 }
 
 /// Host arrays the caller owns (measured materials read from files, test tables).
