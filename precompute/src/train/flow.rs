@@ -499,3 +499,25 @@ pub fn affine_pdf_f64(params: &[f32], phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec
     }
     (-0.5 * (x * x + y * y) - (std::f64::consts::TAU).ln() + ld).exp()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::train::TrainConfig;
+
+    /// The command line's χ² options (`TrainConfig::fine_tuned_mut`) reach the two spline
+    /// flows only.
+    #[test]
+    fn chi2_options_reach_the_spline_flows_only() {
+        let mut cfg = TrainConfig::default();
+        for m in cfg.fine_tuned_mut() {
+            m.chi2_weight = 7.0;
+        }
+        for k in SamplerKind::ALL {
+            if let Some(m) = cfg.max_likelihood.get(k) {
+                let spline = matches!(k, SamplerKind::SplineFlow | SamplerKind::DiskFlow);
+                assert_eq!(m.chi2_weight == 7.0, spline, "{k:?}");
+            }
+        }
+    }
+}
