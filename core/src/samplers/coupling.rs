@@ -331,20 +331,15 @@ impl<
         } = self;
         let m = at.m.min(CHUNK);
         for k in 0..CHUNK {
-            let lane = at.idx.get(k).and_then(|&i| at.lanes.get(i)?.as_ref());
-            let share = match (k < m, lane) {
-                (true, Some(s)) => Some(s.share(net)),
-                _ => None,
-            };
+            // The chunk lane of coupling lane `k`; lanes from `m` on run on zeros.
+            let i = at.idx.get(k).copied().filter(|_| k < m);
+            let share = i
+                .and_then(|i| at.lanes.get(i)?.as_ref())
+                .map(|s| s.share(net));
             for j in 0..HIDDEN {
                 b.h[j][k] = share.map_or(0.0, |s| s[j]);
             }
-            let v = at.idx.get(k).and_then(|&i| at.v.get(i));
-            b.v[k] = if k < m {
-                v.copied().unwrap_or(0.0)
-            } else {
-                0.0
-            };
+            b.v[k] = i.and_then(|i| at.v.get(i)).copied().unwrap_or(0.0);
         }
         coupling_raw_chunk(w, offset, m, b);
         for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
