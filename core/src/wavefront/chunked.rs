@@ -203,3 +203,114 @@ impl<S: ChunkedSampler> BatchSampler for S {
         Ok(())
     }
 }
+
+/// [`ChunkedSampler`]'s `sample_chunk`, `pdf_chunk` and `invert_chunk` for lanes that are
+/// `Option<P>` of a scalar [`Prepared`](crate::Prepared) state `P` that needs no weights: the scalar code
+/// lane by lane.
+macro_rules! per_lane_chunks {
+    ($p:ty) => {
+        #[inline(always)]
+        fn sample_chunk(
+            &self,
+            lanes: &[Option<$p>],
+            u: $crate::wavefront::Vec2s<'_>,
+            mut out: $crate::wavefront::SamplesMut<'_>,
+            _scratch: &mut Self::Scratch,
+        ) {
+            for (i, l) in lanes.iter().enumerate() {
+                out.set(
+                    i,
+                    l.as_ref()
+                        .and_then(|p| $crate::Prepared::sample(p, u.at(i))),
+                );
+            }
+        }
+
+        #[inline(always)]
+        fn pdf_chunk(
+            &self,
+            lanes: &[Option<$p>],
+            wo: $crate::wavefront::Vec3s<'_>,
+            pdf: &mut [f32],
+            _scratch: &mut Self::Scratch,
+        ) {
+            for (i, l) in lanes.iter().enumerate() {
+                pdf[i] = l
+                    .as_ref()
+                    .map_or(0.0, |p| $crate::Prepared::pdf(p, wo.at(i)));
+            }
+        }
+
+        #[inline(always)]
+        fn invert_chunk(
+            &self,
+            lanes: &[Option<$p>],
+            wo: $crate::wavefront::Vec3s<'_>,
+            mut u: $crate::wavefront::Vec2sMut<'_>,
+            ok: &mut [bool],
+            _scratch: &mut Self::Scratch,
+        ) {
+            for (i, l) in lanes.iter().enumerate() {
+                match l
+                    .as_ref()
+                    .and_then(|p| $crate::Prepared::invert(p, wo.at(i)))
+                {
+                    Some(v) => {
+                        u.set(i, v);
+                        ok[i] = true;
+                    }
+                    None => ok[i] = false,
+                }
+            }
+        }
+    };
+}
+pub(crate) use per_lane_chunks;
+
+/// The [`ChunkedSampler`] of a sampler whose prepare is one ReLU
+/// MLP of the encoded condition (`relu_mlp` over `layers`, `hidden` wide, `outputs` out)
+/// followed by a per-lane constructor `from` of its scalar [`Prepared`](crate::Prepared) state, in chunks of
+/// `chunk` lanes; sample, pdf and invert run [`per_lane_chunks`].
+macro_rules! mlp_lane_sampler {
+    (
+        $sampler:ident => $prepared:ident :: $from:ident,
+        chunk: $chunk:expr,
+        hidden: $hidden:expr,
+        outputs: $outputs:expr,
+        layers: [$($layer:expr),+ $(,)?] $(,)?
+    ) => {
+        impl<W: $crate::weights::Weights> $crate::wavefront::chunked::ChunkedSampler
+            for $sampler<W>
+        {
+            type Lane = Option<$prepared>;
+            type Scratch = ();
+            const CHUNK: usize = $chunk;
+
+            #[inline(always)]
+            fn prepare_chunk(
+                &self,
+                phi: $crate::wavefront::Features<'_>,
+                wi: $crate::wavefront::Vec3s<'_>,
+                lanes: &mut [Self::Lane],
+            ) {
+                use $crate::wavefront::{dense, encoded_conditions, lanes_from_outputs, Soa};
+                const CHUNK: usize = $chunk;
+                let m = lanes.len();
+                let (c, valid) = encoded_conditions::<CHUNK>(&phi, &wi);
+                let mut o: Soa<{ $outputs }, CHUNK> = [[0.0; CHUNK]; $outputs];
+                let layers = [$($layer),+];
+                dense::relu_mlp::<_, _, { $hidden }, _, CHUNK, { [$(stringify!($layer)),+].len() }>(
+                    &self.params,
+                    &layers,
+                    &c,
+                    &mut o,
+                    m,
+                );
+                lanes_from_outputs(&o, &valid, lanes, $prepared::$from);
+            }
+
+            $crate::wavefront::per_lane_chunks!($prepared);
+        }
+    };
+}
+pub(crate) use mlp_lane_sampler;
