@@ -1,7 +1,8 @@
 //! Dense layers over a chunk of `B` lanes in structure-of-arrays form: `x[i][b]` is input
 //! `i` of lane `b`. The product runs in register tiles of a few outputs × 16 or 32 lanes, so
-//! a weight is read once per tile and every multiply-add is a SIMD operation; a layer's
-//! weights are widened (f16, unaligned bytes) once per tile and chunk.
+//! a weight is read once per tile and every multiply-add is a SIMD operation; aligned f32
+//! weights are read in place, others (f16, unaligned bytes) widened into a copy once per
+//! tile and chunk.
 //!
 //! Per lane the sum is `bias + x[0]·W[0] + x[1]·W[1] + …` in input order. On x86-64 with
 //! AVX-512 (x86-64-v4) or AVX2 + FMA (x86-64-v3) each step is one fused multiply-add
@@ -264,6 +265,15 @@ struct Args<'a, W: ?Sized, const I: usize, const B: usize> {
 }
 
 impl<W: Weights + ?Sized, const I: usize, const B: usize> Args<'_, W, I, B> {
+    /// Rows `row0 .. row0 + I` of the `· × O` matrix in place, when the weights are an
+    /// aligned f32 slice (the tiles then read them without a copy).
+    #[inline(always)]
+    fn rows<const O: usize>(&self) -> Option<&[[f32; O]; I]> {
+        let base = self.offset as usize + self.row0 as usize * O;
+        let s = self.w.as_f32_slice()?.get(base..base + I * O)?;
+        s.as_chunks::<O>().0.try_into().ok()
+    }
+
     /// Columns `j0 .. j0 + J` of rows `row0 .. row0 + I` of the `· × O` matrix, widened to
     /// f32 (0 past column `O − 1`).
     #[inline(always)]
@@ -562,16 +572,76 @@ fn block<
     y: &mut [[f32; B]; O],
     j0: usize,
 ) {
-    let tile = a.tile::<O, J>(j0);
     let bias = a.bias::<O, J>(j0);
+    match a.rows::<O>() {
+        // `Tiled::call`'s blocks end within the row; the guard lets the compiler drop the
+        // column checks of the reads.
+        Some(rows) if j0 + J <= O => {
+            lane_tiles::<S, W, _, I, O, B, J, NV>(s, a, &InPlace { rows, j0 }, &bias, y, j0)
+        }
+        _ => lane_tiles::<S, W, _, I, O, B, J, NV>(s, a, &a.tile::<O, J>(j0), &bias, y, j0),
+    }
+}
+
+/// The weights of a tile of `J` outputs: `w(i, t)` is input `i`'s weight for output
+/// `j0 + t`.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+trait TileWeights<const I: usize, const J: usize> {
+    fn w(&self, i: usize, t: usize) -> f32;
+}
+
+/// A widened copy ([`Args::tile`]).
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+impl<const I: usize, const J: usize> TileWeights<I, J> for [[f32; J]; I] {
+    #[inline(always)]
+    fn w(&self, i: usize, t: usize) -> f32 {
+        self[i][t]
+    }
+}
+
+/// The f32 rows of the matrix read in place, from column `j0` (`j0 + J ≤ O`).
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+struct InPlace<'a, const I: usize, const O: usize> {
+    rows: &'a [[f32; O]; I],
+    j0: usize,
+}
+
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+impl<const I: usize, const O: usize, const J: usize> TileWeights<I, J> for InPlace<'_, I, O> {
+    #[inline(always)]
+    fn w(&self, i: usize, t: usize) -> f32 {
+        self.rows[i][self.j0 + t]
+    }
+}
+
+/// [`block`]'s lane tiles with the tile's weights `tile`.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline(always)]
+fn lane_tiles<
+    S: Fma,
+    W: Weights + ?Sized,
+    T: TileWeights<I, J>,
+    const I: usize,
+    const O: usize,
+    const B: usize,
+    const J: usize,
+    const NV: usize,
+>(
+    s: S,
+    a: &Args<'_, W, I, B>,
+    tile: &T,
+    bias: &[f32; J],
+    y: &mut [[f32; B]; O],
+    j0: usize,
+) {
     let wide = NV * S::LANES;
     let mut b0 = 0;
     while b0 + wide <= B && b0 + wide - S::LANES < a.m {
-        micro::<S, W, I, O, B, J, NV>(s, a, &tile, &bias, y, j0, b0);
+        micro::<S, W, T, I, O, B, J, NV>(s, a, tile, bias, y, j0, b0);
         b0 += wide;
     }
     while b0 < a.m {
-        micro::<S, W, I, O, B, J, 1>(s, a, &tile, &bias, y, j0, b0);
+        micro::<S, W, T, I, O, B, J, 1>(s, a, tile, bias, y, j0, b0);
         b0 += S::LANES;
     }
 }
@@ -582,6 +652,7 @@ fn block<
 fn micro<
     S: Fma,
     W: Weights + ?Sized,
+    T: TileWeights<I, J>,
     const I: usize,
     const O: usize,
     const B: usize,
@@ -590,7 +661,7 @@ fn micro<
 >(
     s: S,
     a: &Args<'_, W, I, B>,
-    tile: &[[f32; J]; I],
+    tile: &T,
     bias: &[f32; J],
     y: &mut [[f32; B]; O],
     j0: usize,
@@ -612,7 +683,7 @@ fn micro<
             *e = s.load(&a.x[i], b0 + v * l);
         }
         for t in 0..J {
-            let wv = s.splat(tile[i][t]);
+            let wv = s.splat(tile.w(i, t));
             for v in 0..NV {
                 acc[t][v] = s.fma(xv[v], wv, acc[t][v]);
             }
