@@ -330,16 +330,18 @@ impl<
             ..
         } = self;
         let m = at.m.min(CHUNK);
-        for k in 0..CHUNK {
-            // The chunk lane of coupling lane `k`; lanes from `m` on run on zeros.
-            let i = at.idx.get(k).copied().filter(|_| k < m);
-            let share = i
-                .and_then(|i| at.lanes.get(i)?.as_ref())
+        // Lanes from `m` on keep what an earlier coupling left in the buffers: lanes are
+        // independent and no result reads those, so they are not zeroed.
+        for (k, &i) in at.idx.iter().enumerate().take(m) {
+            let share = at
+                .lanes
+                .get(i)
+                .and_then(Option::as_ref)
                 .map(|s| s.share(net));
             for j in 0..HIDDEN {
                 b.h[j][k] = share.map_or(0.0, |s| s[j]);
             }
-            b.v[k] = i.and_then(|i| at.v.get(i)).copied().unwrap_or(0.0);
+            b.v[k] = at.v.get(i).copied().unwrap_or(0.0);
         }
         coupling_raw_chunk(w, offset, m, b);
         for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
