@@ -14,6 +14,9 @@ use {
     core::marker::PhantomData,
 };
 
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) mod flow;
+
 /// Frequency bands of the encoding of the coupling layers' "other coordinate" (release: 4).
 pub const OTHER_BANDS: usize = 4;
 /// Length of the encoded other coordinate: `1 + 2·OTHER_BANDS` = 9.

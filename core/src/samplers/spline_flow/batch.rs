@@ -1,7 +1,7 @@
-//! [`SplineFlowSampler`] over wavefronts ([`BatchSampler`]). Lanes run in chunks of [`CHUNK`]: the
-//! networks as matrix products over the chunk's lanes ([`dense`]), the splines, Box–Muller and
-//! the densities per lane through the scalar path's own functions (the paths agree within
-//! the `wavefront` tolerances).
+//! [`SplineFlowSampler`] over wavefronts ([`BatchSampler`](crate::BatchSampler)): the
+//! two-coupling flow's chunks ([`coupling_flow_chunks`]) with a Gaussian base, bounded
+//! splines, and the base network in `prepare` (the paths agree within the `wavefront`
+//! tolerances).
 
 use glam::Vec2;
 
@@ -12,31 +12,16 @@ use super::{
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::nn::{Activation, CONDITION_DIM};
-use crate::samplers::coupling::{
-    coupling_splines_chunk, BoundedEnds, CouplingBuffers, CouplingLanes, CouplingShares,
-    FlowScratch, COUPLING_INPUTS, HIDDEN,
+use crate::samplers::coupling::flow::{
+    coupling_flow_chunks, coupling_shares, lane_shares, CouplingFlow, Rows, CHUNK,
 };
-use crate::samplers::Sample;
-use crate::warp::{self, inside_disk};
-use crate::wavefront::chunked::ChunkedSampler;
+use crate::samplers::coupling::{BoundedEnds, CouplingShares, HIDDEN};
 use crate::wavefront::lanes::{self, V8};
-use crate::wavefront::simd::Isa;
-use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
+use crate::wavefront::{self, dense, Features, Vec2s, Vec3s};
 use crate::weights::Weights;
-
-/// Lanes per chunk: activations, splines and lane states of a chunk stay in L1.
-const CHUNK: usize = 32;
-/// Groups of eight lanes per chunk (the splines are evaluated eight lanes at a time).
-const GROUPS: usize = CHUNK / 8;
 
 /// Activations of a chunk: `[feature][lane]`.
 type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
-
-/// The splines of a chunk's lanes, one group of eight lanes each.
-type Splines = [Knots<SPLINE_BINS, V8>; GROUPS];
-
-/// The working memory of a batched call.
-type Scratch = FlowScratch<SPLINE_BINS, SPLINE_RAW_LEN, CHUNK, GROUPS>;
 
 impl CouplingShares for SplineFlowLane {
     #[inline(always)]
@@ -96,82 +81,20 @@ impl Base {
     }
 }
 
-impl<W: Weights + Copy> SplineFlowSampler<W> {
-    /// The splines of coupling network `net` for the lanes `idx[..m]` of a chunk, each at its
-    /// own other coordinate `v[lane]`: group `g` of `knots` holds the splines of
-    /// `idx[8g .. 8g + 8]`.
-    #[allow(clippy::too_many_arguments)]
+impl<W: Weights + Copy> CouplingFlow<SPLINE_BINS, SPLINE_RAW_LEN> for SplineFlowSampler<W> {
+    type Lane = SplineFlowLane;
+    type W = W;
+    type Ends = BoundedEnds;
+    const COUPLINGS: [usize; 2] = [FLOW_COUPLING0, FLOW_COUPLING1];
+    const TAIL_BOUND: f32 = TAIL_BOUND;
+
     #[inline(always)]
-    fn knots_for(
-        &self,
-        net: usize,
-        lanes: &[Option<SplineFlowLane>],
-        idx: &[usize; CHUNK],
-        m: usize,
-        v: &[f32; CHUNK],
-        b: &mut CouplingBuffers<SPLINE_RAW_LEN, CHUNK>,
-        knots: &mut Splines,
-    ) {
-        let which = if net == FLOW_COUPLING0 { 0 } else { 1 };
-        let at = CouplingLanes { lanes, idx, m, v };
-        coupling_splines_chunk::<BoundedEnds, W, _, SPLINE_BINS, SPLINE_RAW_LEN, CHUNK>(
-            &self.params,
-            net as u32,
-            which,
-            at,
-            TAIL_BOUND,
-            b,
-            knots,
-        );
+    fn weights(&self) -> &W {
+        &self.params
     }
 
-    /// The latent points and log-dets of the disk points `p` (density direction,
-    /// `SplineFlowPrepared::to_latent`) of a chunk's lanes.
     #[inline(always)]
-    fn latent_chunk(
-        &self,
-        lanes: &[Option<SplineFlowLane>],
-        px: &[f32; CHUNK],
-        py: &[f32; CHUNK],
-        zl: &mut [Vec2; CHUNK],
-        ld: &mut [f32; CHUNK],
-        sc: &mut Scratch,
-    ) {
-        let m = lanes.len();
-        let groups = m.div_ceil(8);
-        let all = wavefront::identity_index::<CHUNK>();
-        let k = &mut sc.k0;
-        self.knots_for(FLOW_COUPLING1, lanes, &all, m, px, &mut sc.b, k);
-        let mut yl = [0.0f32; CHUNK];
-        let mut ld1 = [0.0f32; CHUNK];
-        for g in 0..groups {
-            let (a, d) = k[g].forward_lanes(V8::load(&py[8 * g..]));
-            a.store(&mut yl[8 * g..]);
-            d.store(&mut ld1[8 * g..]);
-        }
-        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &yl, &mut sc.b, k);
-        for g in 0..groups {
-            let (a, d) = k[g].forward_lanes(V8::load(&px[8 * g..]));
-            for i in 0..8 {
-                let l = 8 * g + i;
-                if l < m {
-                    zl[l] = Vec2::new(a.0[i], yl[l]);
-                    ld[l] = d.0[i] + ld1[l];
-                }
-            }
-        }
-    }
-}
-
-impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
-    type Lane = Option<SplineFlowLane>;
-    type Scratch = Scratch;
-    const CHUNK: usize = CHUNK;
-    // The splines run in eight-lane groups.
-    const WIDEST: Isa = Isa::X86V3;
-
-    #[inline(always)]
-    fn prepare_chunk(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<SplineFlowLane>]) {
+    fn prepare_lanes(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<SplineFlowLane>]) {
         let m = out.len();
         let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
@@ -193,43 +116,24 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
             &mut o,
             m,
         );
-        let mut share: [Soa<HIDDEN>; 2] = [[[0.0; CHUNK]; HIDDEN]; 2];
-        for (s, net) in share.iter_mut().zip([FLOW_COUPLING0, FLOW_COUPLING1]) {
-            dense::bias::<W, COUPLING_INPUTS, HIDDEN, CHUNK>(w, net as u32, s);
-            dense::accumulate::<W, CONDITION_DIM, HIDDEN, CHUNK>(w, net as u32, 0, &c, s, m);
-        }
+        let share = coupling_shares(self, &c, m);
         for l in 0..m {
             out[l] = if valid[l] {
                 let oo = [o[0][l], o[1][l], o[2][l], o[3][l]];
-                let mut sh = [[0.0f32; HIDDEN]; 2];
-                for (dst, src) in sh.iter_mut().zip(share.iter()) {
-                    for j in 0..HIDDEN {
-                        dst[j] = src[j][l];
-                    }
-                }
-                SplineFlowLane::new(&oo, sh)
+                SplineFlowLane::new(&oo, lane_shares(&share, l))
             } else {
                 None
             };
         }
     }
 
+    /// `z = μ + σ ⊙ n` with `n` from Box–Muller.
     #[inline(always)]
-    fn sample_chunk(
-        &self,
-        lanes: &[Option<SplineFlowLane>],
-        u: Vec2s<'_>,
-        mut out: SamplesMut<'_>,
-        scratch: &mut Self::Scratch,
-    ) {
-        let m = lanes.len();
-        let groups = m.div_ceil(8);
-        let all = wavefront::identity_index::<CHUNK>();
-        // Base points z = μ + σ ⊙ n (refused lanes keep z = 0 and are dropped at the end).
+    fn draw_base(lanes: &[Option<SplineFlowLane>], u: &Vec2s<'_>) -> (Rows, Rows, [bool; CHUNK]) {
         let base = Base::of(lanes);
         let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         let mut ok = [false; CHUNK];
-        for l in 0..m {
+        for l in 0..lanes.len() {
             if let (Some(_), Some(uu)) = (&lanes[l], math::sanitize_u2(u.at(l))) {
                 (u0[l], u1[l]) = (uu.x, uu.y);
                 ok[l] = true;
@@ -249,140 +153,47 @@ impl<W: Weights + Copy> ChunkedSampler for SplineFlowSampler<W> {
                 0.0
             };
         }
-        // Sampling direction: x = RQ⁻¹(z.x; coupling0(z.y)), y = RQ⁻¹(z.y; coupling1(x)).
-        let FlowScratch { b, k0, k1 } = scratch;
-        self.knots_for(FLOW_COUPLING0, lanes, &all, m, &zy, b, k0);
-        let mut px = [0.0f32; CHUNK];
-        let mut py = [0.0f32; CHUNK];
-        for g in 0..groups {
-            k0[g]
-                .inverse_with::<false>(V8::load(&zx[8 * g..]))
-                .0
-                .store(&mut px[8 * g..]);
-        }
-        self.knots_for(FLOW_COUPLING1, lanes, &all, m, &px, b, k1);
-        // Density direction at the sample (`Prepared::sample`): coupling 1's spline is the
-        // same; coupling 0's is rebuilt where its input y' = RQ(y) differs from z.y.
-        let mut yl = [0.0f32; CHUNK];
-        let mut ld1 = [0.0f32; CHUNK];
-        for g in 0..groups {
-            let y = k1[g].inverse_with::<false>(V8::load(&zy[8 * g..])).0;
-            y.store(&mut py[8 * g..]);
-            let (a, d) = k1[g].forward_lanes(y);
-            a.store(&mut yl[8 * g..]);
-            d.store(&mut ld1[8 * g..]);
-        }
-        let mut xl = [0.0f32; CHUNK];
-        let mut ld0 = [0.0f32; CHUNK];
-        for g in 0..groups {
-            let (a, d) = k0[g].forward_lanes(V8::load(&px[8 * g..]));
-            a.store(&mut xl[8 * g..]);
-            d.store(&mut ld0[8 * g..]);
-        }
-        let mut again = [0usize; CHUNK];
-        let mut n_again = 0;
-        for l in 0..m {
-            ok[l] = ok[l] && inside_disk(Vec2::new(px[l], py[l]));
-            if ok[l] && yl[l].to_bits() != zy[l].to_bits() {
-                again[n_again] = l;
-                n_again += 1;
-            }
-        }
-        if n_again > 0 {
-            self.knots_for(FLOW_COUPLING0, lanes, &again, n_again, &yl, b, k0);
-            let mut x = [0.0f32; CHUNK];
-            for k in 0..n_again {
-                x[k] = px[again[k]];
-            }
-            for g in 0..n_again.div_ceil(8) {
-                let (a, d) = k0[g].forward_lanes(V8::load(&x[8 * g..]));
-                for i in 0..8 {
-                    if let Some(&l) = again[..n_again].get(8 * g + i) {
-                        xl[l] = a.0[i];
-                        ld0[l] = d.0[i];
-                    }
-                }
-            }
-        }
-        let mut p = base.log_densities(&xl, &yl, &ld0, &ld1);
-        lanes::densities_from_log(&mut p);
-        for l in 0..m {
-            let s = if ok[l] {
-                Sample::from_disk(Vec2::new(px[l], py[l]), p[l])
-            } else {
-                None
-            };
-            out.set(l, s);
-        }
+        (zx, zy, ok)
     }
 
     #[inline(always)]
-    fn pdf_chunk(
-        &self,
-        lanes: &[Option<SplineFlowLane>],
-        wo: Vec3s<'_>,
-        pdf: &mut [f32],
-        scratch: &mut Self::Scratch,
-    ) {
-        let m = lanes.len();
-        let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
-        let mut cos = [0.0f32; CHUNK];
-        let mut ok = [false; CHUNK];
-        for l in 0..m {
-            if let (Some(_), Some(w)) = (&lanes[l], warp::upper_hemisphere(wo.at(l))) {
-                (px[l], py[l]) = (w.x, w.y);
-                cos[l] = w.z;
-                ok[l] = inside_disk(warp::to_disk(w));
-            }
-        }
-        let mut zl = [Vec2::ZERO; CHUNK];
-        let mut ld = [0.0f32; CHUNK];
-        self.latent_chunk(lanes, &px, &py, &mut zl, &mut ld, scratch);
-        let (mut xl, mut yl) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
-        for l in 0..m {
-            (xl[l], yl[l]) = (zl[l].x, zl[l].y);
-        }
-        let mut p = Base::of(lanes).log_densities(&xl, &yl, &ld, &[0.0; CHUNK]);
-        lanes::densities_from_log(&mut p);
-        for l in 0..m {
-            pdf[l] = if ok[l] {
-                warp::disk_to_solid_angle(p[l], cos[l])
-            } else {
-                0.0
-            };
-        }
+    fn inverse0(k: &Knots<SPLINE_BINS, V8>, bx: V8, _by: V8) -> V8 {
+        k.inverse_with::<false>(bx).0
     }
 
     #[inline(always)]
-    fn invert_chunk(
-        &self,
+    fn inverse1(k: &Knots<SPLINE_BINS, V8>, by: V8, _x: V8) -> V8 {
+        k.inverse_with::<false>(by).0
+    }
+
+    #[inline(always)]
+    fn forward1(k: &Knots<SPLINE_BINS, V8>, y: V8, _x: V8) -> (V8, V8, V8) {
+        let (a, d) = k.forward_lanes(y);
+        (a, d, V8::splat(0.0))
+    }
+
+    #[inline(always)]
+    fn forward0(k: &Knots<SPLINE_BINS, V8>, x: V8, _c: V8) -> (V8, V8) {
+        k.forward_lanes(x)
+    }
+
+    #[inline(always)]
+    fn densities(
         lanes: &[Option<SplineFlowLane>],
-        wo: Vec3s<'_>,
-        mut u: Vec2sMut<'_>,
-        ok_out: &mut [bool],
-        scratch: &mut Self::Scratch,
-    ) {
-        let m = lanes.len();
-        let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
-        let mut ok = [false; CHUNK];
-        for l in 0..m {
-            if let (Some(_), Some(w)) = (&lanes[l], warp::upper_hemisphere(wo.at(l))) {
-                (px[l], py[l]) = (w.x, w.y);
-                ok[l] = inside_disk(warp::to_disk(w));
-            }
-        }
-        let mut zl = [Vec2::ZERO; CHUNK];
-        let mut ld = [0.0f32; CHUNK];
-        self.latent_chunk(lanes, &px, &py, &mut zl, &mut ld, scratch);
-        for l in 0..m {
-            let r = match (&lanes[l], ok[l]) {
-                (Some(st), true) => st.invert_base(zl[l]),
-                _ => None,
-            };
-            ok_out[l] = r.is_some();
-            if let Some(v) = r {
-                u.set(l, v);
-            }
-        }
+        bx: &Rows,
+        by: &Rows,
+        ld0: &Rows,
+        ld1: &Rows,
+    ) -> Rows {
+        let mut p = Base::of(lanes).log_densities(bx, by, ld0, ld1);
+        lanes::densities_from_log(&mut p);
+        p
+    }
+
+    #[inline(always)]
+    fn invert_base(lane: &SplineFlowLane, b: Vec2) -> Option<Vec2> {
+        lane.invert_base(b)
     }
 }
+
+coupling_flow_chunks!(SplineFlowSampler => SplineFlowLane, SPLINE_BINS, SPLINE_RAW_LEN);
