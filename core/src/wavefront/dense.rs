@@ -197,8 +197,16 @@ fn product<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
         start,
         act: store_act,
     };
+    // At most eight lanes fill one AVX2 vector: AVX-512's sixteen would compute as many
+    // unused lanes as used ones (the same sums either way: fused multiply-adds in input
+    // order).
     #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
-    let done = match simd::current() {
+    let isa = match simd::current() {
+        Isa::X86V4 if m <= 8 => Isa::X86V3,
+        isa => isa,
+    };
+    #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+    let done = match isa {
         Isa::X86V4 => match pulp::x86::V4::try_new() {
             Some(s) => {
                 s.vectorize(Tiled::<_, W, I, O, B, 8, 2> {
