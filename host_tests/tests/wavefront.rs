@@ -645,3 +645,54 @@ fn length_mismatches_are_errors_that_write_nothing() {
     assert!(out.wo[0].iter().all(|&v| v == -7.0));
     assert!(Vec3s::from_rows(&[0.0; 8], 3).is_none());
 }
+
+/// One dense layer `dense(I, O)` of random f32 weights over the lanes of `x`: the first `m`
+/// lanes computed alone (the kernel's lane-by-lane path for one or two lanes) equal, bit
+/// for bit, the same lanes computed in a full chunk (the lane tiles).
+fn small_products_equal_tiles<const I: usize, const O: usize>(r: &mut TestRng) {
+    use neusample::nn::Activation;
+    use neusample::wavefront::dense_layer;
+    const B: usize = 32;
+    let w: Vec<f32> = (0..I * O + O)
+        .map(|_| r.random::<f32>() * 2.0 - 1.0)
+        .collect();
+    let mut x = [[0.0f32; B]; I];
+    for row in x.iter_mut() {
+        for v in row.iter_mut() {
+            *v = r.random::<f32>() * 4.0 - 2.0;
+        }
+    }
+    for act in [
+        Activation::Identity,
+        Activation::Relu,
+        Activation::LeakyRelu,
+    ] {
+        let mut full = [[0.0f32; B]; O];
+        dense_layer::<_, I, O, B>(&w, 0, &x, act, &mut full, B);
+        for m in [1, 2, 3] {
+            let mut y = [[0.0f32; B]; O];
+            dense_layer::<_, I, O, B>(&w, 0, &x, act, &mut y, m);
+            for (j, (a, b)) in y.iter().zip(full.iter()).enumerate() {
+                for l in 0..m {
+                    assert_eq!(
+                        a[l].to_bits(),
+                        b[l].to_bits(),
+                        "dense({I}, {O}) {act:?}, {m} lanes: output {j} lane {l}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn small_batches_give_the_tiles_sums() {
+    for_each_isa(|_| {
+        let mut r = rng(7);
+        small_products_equal_tiles::<39, 32>(&mut r);
+        small_products_equal_tiles::<32, 59>(&mut r);
+        small_products_equal_tiles::<64, 3>(&mut r);
+        small_products_equal_tiles::<14, 64>(&mut r);
+        small_products_equal_tiles::<32, 16>(&mut r);
+    });
+}

@@ -282,6 +282,15 @@ impl<W: Weights + ?Sized, const I: usize, const B: usize> Args<'_, W, I, B> {
         s.as_chunks::<O>().0.try_into().ok()
     }
 
+    /// The aligned f32 weights from row `row0` of the `· × O` matrix to the end of the
+    /// parameters (the rows, then at least the bias), for [`by_lane`].
+    #[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+    #[inline(always)]
+    fn rows_onward<const O: usize>(&self) -> Option<&[f32]> {
+        let base = self.offset as usize + self.row0 as usize * O;
+        self.w.as_f32_slice()?.get(base..)
+    }
+
     /// Columns `j0 .. j0 + J` of rows `row0 .. row0 + I` of the `· × O` matrix, widened to
     /// f32 (0 past column `O − 1`).
     #[inline(always)]
@@ -536,6 +545,12 @@ impl<
     #[inline(always)]
     fn call(self) {
         let Tiled { s, args, y } = self;
+        if args.m <= LANE_BY_LANE {
+            if let Some(w) = args.rows_onward::<O>() {
+                by_lane::<S, W, I, O, B>(s, args, w, y);
+                return;
+            }
+        }
         let full = O / J * J;
         let mut j0 = 0;
         while j0 < full {
@@ -559,6 +574,81 @@ impl<
         } else if const { O % J == 7 } {
             block::<S, W, I, O, B, 7, NV>(s, args, y, full);
         }
+    }
+}
+
+/// Products of at most this many lanes run [`by_lane`].
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+const LANE_BY_LANE: usize = 2;
+
+/// Output vectors [`by_lane`] holds at once.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+const BY_LANE_VECTORS: usize = 8;
+
+/// The product lane by lane with the layer's outputs across the vector, the weight rows
+/// `w` (from row `row0` on, [`Args::rows_onward`]) read in place: for one or two lanes the
+/// lane tiles would leave most of each vector idle. The same fused multiply-adds in input
+/// order, so the same sums.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline(always)]
+fn by_lane<S: Fma, W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
+    s: S,
+    a: &Args<'_, W, I, B>,
+    w: &[f32],
+    y: &mut [[f32; B]; O],
+) {
+    let l = S::LANES;
+    let mut j0 = 0;
+    while j0 < O {
+        let nv = (O - j0).div_ceil(l).min(BY_LANE_VECTORS);
+        let bias = a.bias::<O, { BY_LANE_VECTORS * 16 }>(j0);
+        for lane in 0..a.m.min(B) {
+            let mut acc = [s.splat(0.0); BY_LANE_VECTORS];
+            for (v, acc) in acc.iter_mut().enumerate().take(nv) {
+                let mut init = [0.0f32; 16];
+                for (t, e) in init.iter_mut().enumerate().take(l) {
+                    let j = j0 + v * l + t;
+                    *e = match (a.start, y.get(j)) {
+                        (Start::Output, Some(row)) => row[lane],
+                        _ => bias[v * l + t],
+                    };
+                }
+                *acc = s.load(&init, 0);
+            }
+            for i in 0..I {
+                let x = s.splat(a.x[i][lane]);
+                for (v, acc) in acc.iter_mut().enumerate().take(nv) {
+                    let wv = load_part(s, w, i * O + j0 + v * l);
+                    *acc = s.fma(x, wv, *acc);
+                }
+            }
+            for (v, acc) in acc.iter().enumerate().take(nv) {
+                let mut out = [0.0f32; 16];
+                s.store(s.act(a.act, *acc), &mut out, 0);
+                for (t, e) in out.iter().enumerate().take(l) {
+                    if let Some(row) = y.get_mut(j0 + v * l + t) {
+                        row[lane] = *e;
+                    }
+                }
+            }
+        }
+        j0 += nv * l;
+    }
+}
+
+/// `w[at .. at + LANES]`, zeros past the end of `w`.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+#[inline(always)]
+fn load_part<S: Fma>(s: S, w: &[f32], at: usize) -> S::V {
+    if at + S::LANES <= w.len() {
+        s.load(w, at)
+    } else {
+        let mut part = [0.0f32; 16];
+        let n = w.len().saturating_sub(at).min(S::LANES);
+        if let Some(src) = w.get(at..at + n) {
+            part[..n].copy_from_slice(src);
+        }
+        s.load(&part, 0)
     }
 }
 
