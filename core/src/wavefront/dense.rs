@@ -273,22 +273,23 @@ struct Args<'a, W: ?Sized, const I: usize, const B: usize> {
 }
 
 impl<W: Weights + ?Sized, const I: usize, const B: usize> Args<'_, W, I, B> {
-    /// Rows `row0 .. row0 + I` of the `· × O` matrix in place, when the weights are an
-    /// aligned f32 slice (the tiles then read them without a copy).
-    #[inline(always)]
-    fn rows<const O: usize>(&self) -> Option<&[[f32; O]; I]> {
-        let base = self.offset as usize + self.row0 as usize * O;
-        let s = self.w.as_f32_slice()?.get(base..base + I * O)?;
-        s.as_chunks::<O>().0.try_into().ok()
-    }
-
     /// The aligned f32 weights from row `row0` of the `· × O` matrix to the end of the
-    /// parameters (the rows, then at least the bias), for [`by_lane`].
+    /// parameters (the rows, then at least the bias), for [`by_lane`]; `None` for other
+    /// storage.
     #[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
     #[inline(always)]
     fn rows_onward<const O: usize>(&self) -> Option<&[f32]> {
         let base = self.offset as usize + self.row0 as usize * O;
         self.w.as_f32_slice()?.get(base..)
+    }
+
+    /// Rows `row0 .. row0 + I` of [`Self::rows_onward`] (the tiles then read them without
+    /// a copy).
+    #[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
+    #[inline(always)]
+    fn rows<const O: usize>(&self) -> Option<&[[f32; O]; I]> {
+        let s = self.rows_onward::<O>()?.get(..I * O)?;
+        s.as_chunks::<O>().0.try_into().ok()
     }
 
     /// Columns `j0 .. j0 + J` of rows `row0 .. row0 + I` of the `· × O` matrix, widened to

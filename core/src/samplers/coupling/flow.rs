@@ -55,8 +55,19 @@ pub(crate) trait CouplingFlow<const K: usize, const RAW: usize> {
     /// The lane states of a chunk's conditions (`None` for refused lanes).
     fn prepare_lanes(&self, phi: Features<'_>, wi: Vec3s<'_>, out: &mut [Option<Self::Lane>]);
 
+    /// The base distribution's parameters for a chunk's lanes (read once per call of
+    /// [`Self::draw_base`] and [`Self::densities`]).
+    type Base;
+
+    /// [`Self::Base`] of the lanes.
+    fn base(lanes: &[Option<Self::Lane>]) -> Self::Base;
+
     /// Base points drawn from `u` (0 where refused) and which lanes drew one.
-    fn draw_base(lanes: &[Option<Self::Lane>], u: &Vec2s<'_>) -> (Rows, Rows, [bool; CHUNK]);
+    fn draw_base(
+        base: &Self::Base,
+        lanes: &[Option<Self::Lane>],
+        u: &Vec2s<'_>,
+    ) -> (Rows, Rows, [bool; CHUNK]);
 
     /// Coupling 0 inverted: the disk point's `x` from the base point's `(x, y)`.
     fn inverse0(k: &Knots<K, V8>, bx: V8, by: V8) -> V8;
@@ -75,13 +86,7 @@ pub(crate) trait CouplingFlow<const K: usize, const RAW: usize> {
 
     /// The densities on the disk (area measure) of lanes whose base points are `(bx, by)`,
     /// with the couplings' log-derivatives `ld0 + ld1`.
-    fn densities(
-        lanes: &[Option<Self::Lane>],
-        bx: &Rows,
-        by: &Rows,
-        ld0: &Rows,
-        ld1: &Rows,
-    ) -> Rows;
+    fn densities(base: &Self::Base, bx: &Rows, by: &Rows, ld0: &Rows, ld1: &Rows) -> Rows;
 
     /// The random numbers that draw the base point `b` (`Prepared::invert`'s last step).
     fn invert_base(lane: &Self::Lane, b: Vec2) -> Option<Vec2>;
@@ -151,7 +156,8 @@ pub(crate) fn sample_chunk<const K: usize, const RAW: usize, F: CouplingFlow<K, 
     let groups = m.div_ceil(8);
     let all = wavefront::identity_index::<CHUNK>();
     // Refused lanes keep the base point 0 and are dropped at the end.
-    let (bx, by, mut ok) = F::draw_base(lanes, &u);
+    let base = F::base(lanes);
+    let (bx, by, mut ok) = F::draw_base(&base, lanes, &u);
     let FlowScratch { b, k0, k1 } = scratch;
     let at = |idx, m, v| CouplingLanes { lanes, idx, m, v };
     splines(f, 0, at(&all, m, &by), b, k0);
@@ -207,7 +213,7 @@ pub(crate) fn sample_chunk<const K: usize, const RAW: usize, F: CouplingFlow<K, 
             }
         }
     }
-    let p = F::densities(lanes, &xb, &yb, &ld0, &ld1);
+    let p = F::densities(&base, &xb, &yb, &ld0, &ld1);
     for l in 0..m {
         let s = if ok[l] {
             Sample::from_disk(Vec2::new(px[l], py[l]), p[l])
@@ -288,7 +294,7 @@ pub(crate) fn pdf_chunk<const K: usize, const RAW: usize, F: CouplingFlow<K, RAW
 ) {
     let (px, py, cos, ok) = disk_points(lanes, &wo);
     let (xb, yb, ld) = to_base(f, lanes, &px, &py, scratch);
-    let p = F::densities(lanes, &xb, &yb, &ld, &[0.0; CHUNK]);
+    let p = F::densities(&F::base(lanes), &xb, &yb, &ld, &[0.0; CHUNK]);
     for l in 0..lanes.len() {
         pdf[l] = if ok[l] {
             warp::disk_to_solid_angle(p[l], cos[l])

@@ -53,9 +53,19 @@ impl<W: Weights + Copy> CouplingFlow<DISK_FLOW_BINS, DISK_SPLINE_RAW_LEN> for Di
         }
     }
 
+    /// Uniform on the disk: no parameters.
+    type Base = ();
+
+    #[inline(always)]
+    fn base(_lanes: &[Option<DiskFlowLane>]) {}
+
     /// The concentric map of `u`.
     #[inline(always)]
-    fn draw_base(lanes: &[Option<DiskFlowLane>], u: &Vec2s<'_>) -> (Rows, Rows, [bool; CHUNK]) {
+    fn draw_base(
+        _base: &(),
+        lanes: &[Option<DiskFlowLane>],
+        u: &Vec2s<'_>,
+    ) -> (Rows, Rows, [bool; CHUNK]) {
         let mut bx = [0.0f32; CHUNK];
         let mut by = [0.0f32; CHUNK];
         let mut ok = [false; CHUNK];
@@ -93,13 +103,7 @@ impl<W: Weights + Copy> CouplingFlow<DISK_FLOW_BINS, DISK_SPLINE_RAW_LEN> for Di
 
     /// Uniform base: `ld0 + ld1 − ln π`.
     #[inline(always)]
-    fn densities(
-        _lanes: &[Option<DiskFlowLane>],
-        _bx: &Rows,
-        _by: &Rows,
-        ld0: &Rows,
-        ld1: &Rows,
-    ) -> Rows {
+    fn densities(_base: &(), _bx: &Rows, _by: &Rows, ld0: &Rows, ld1: &Rows) -> Rows {
         let mut p = [0.0f32; CHUNK];
         for l in 0..CHUNK {
             p[l] = density_from_log(log_density(ld0[l] + ld1[l]));

@@ -31,7 +31,7 @@ impl CouplingShares for SplineFlowLane {
 }
 
 /// The base Gaussians of a chunk's lanes, as rows (refused lanes: `μ = 0`, `σ = 1`).
-struct Base {
+pub(crate) struct Base {
     mx: [f32; CHUNK],
     my: [f32; CHUNK],
     sx: [f32; CHUNK],
@@ -127,10 +127,20 @@ impl<W: Weights + Copy> CouplingFlow<SPLINE_BINS, SPLINE_RAW_LEN> for SplineFlow
         }
     }
 
+    type Base = Base;
+
+    #[inline(always)]
+    fn base(lanes: &[Option<SplineFlowLane>]) -> Base {
+        Base::of(lanes)
+    }
+
     /// `z = μ + σ ⊙ n` with `n` from Box–Muller.
     #[inline(always)]
-    fn draw_base(lanes: &[Option<SplineFlowLane>], u: &Vec2s<'_>) -> (Rows, Rows, [bool; CHUNK]) {
-        let base = Base::of(lanes);
+    fn draw_base(
+        base: &Base,
+        lanes: &[Option<SplineFlowLane>],
+        u: &Vec2s<'_>,
+    ) -> (Rows, Rows, [bool; CHUNK]) {
         let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
         let mut ok = [false; CHUNK];
         for l in 0..lanes.len() {
@@ -178,14 +188,8 @@ impl<W: Weights + Copy> CouplingFlow<SPLINE_BINS, SPLINE_RAW_LEN> for SplineFlow
     }
 
     #[inline(always)]
-    fn densities(
-        lanes: &[Option<SplineFlowLane>],
-        bx: &Rows,
-        by: &Rows,
-        ld0: &Rows,
-        ld1: &Rows,
-    ) -> Rows {
-        let mut p = Base::of(lanes).log_densities(bx, by, ld0, ld1);
+    fn densities(base: &Base, bx: &Rows, by: &Rows, ld0: &Rows, ld1: &Rows) -> Rows {
+        let mut p = base.log_densities(bx, by, ld0, ld1);
         lanes::densities_from_log(&mut p);
         p
     }
