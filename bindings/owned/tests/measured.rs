@@ -438,7 +438,7 @@ fn bad_files_name_the_field() {
 /// directions and variates with bad lanes mixed in, at batch sizes that leave partial chunks.
 #[test]
 fn batched_is_scalar_bit_for_bit() {
-    use neusample::wavefront::{RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
+    use neusample::wavefront::{prefer_isa, Isa, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
     let mut state = 0x9E37_79B9_7F4A_7C15u64;
     let mut next = move || {
         state ^= state << 13;
@@ -473,7 +473,9 @@ fn batched_is_scalar_bit_for_bit() {
     let (ox, oy, oz) = (col(&wo, 0), col(&wo, 1), col(&wo, 2));
     let ux: Vec<f32> = u.iter().map(|v| v.x).collect();
     let uy: Vec<f32> = u.iter().map(|v| v.y).collect();
-    for file in FILES {
+    // Every instruction set this machine has (AVX-512 reads the tables with gathers).
+    let isas = Isa::ALL.into_iter().filter(|&i| prefer_isa(Some(i)) == i);
+    for (isa, file) in isas.flat_map(|i| FILES.iter().map(move |f| (i.name(), f))) {
         let m = open(file);
         let mat = m.material();
         let mut f = vec![vec![0.0f32; n]; 3];
@@ -533,9 +535,9 @@ fn batched_is_scalar_bit_for_bit() {
                 assert_eq!(
                     got_f.map(f32::to_bits),
                     want_f.map(f32::to_bits),
-                    "{file} eval {i}"
+                    "{file} {isa} eval {i}"
                 );
-                assert_eq!(pdf[i].to_bits(), want_pdf.to_bits(), "{file} pdf {i}");
+                assert_eq!(pdf[i].to_bits(), want_pdf.to_bits(), "{file} {isa} pdf {i}");
                 let want = p
                     .as_ref()
                     .and_then(|p| p.sample(u[i]))
@@ -556,9 +558,10 @@ fn batched_is_scalar_bit_for_bit() {
                 assert_eq!(
                     got.map(f32::to_bits),
                     want.map(f32::to_bits),
-                    "{file} sample {i}"
+                    "{file} {isa} sample {i}"
                 );
             }
         }
     }
+    prefer_isa(None);
 }

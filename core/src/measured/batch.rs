@@ -3,7 +3,8 @@
 //!
 //! Lanes run in chunks of [`CHUNK`] through the scalar path's arithmetic, operation for
 //! operation, written as loops over the chunk so that they vectorise: the transcendental
-//! functions are `math`'s branch-free ones (libm's numbers), table reads are gathers, and the
+//! functions are `math`'s branch-free ones (libm's numbers), table reads are gathers (one
+//! instruction per chunk with AVX-512, [`Gather16`]; a load per lane elsewhere), and the
 //! two binary searches of sampling take a fixed number of steps with the scalar search's
 //! probes. The results are therefore the scalar path's **bit for bit**. Tables that are not
 //! plain f32 slices (f16 or unaligned blob tensors) take the scalar path lane by lane.
@@ -14,7 +15,7 @@ use crate::distrib::marginal2d::{invert_segment, lerp, patch, sample_segment, Sl
 use crate::error::Result;
 use crate::math;
 use crate::wavefront::check_len;
-use crate::wavefront::simd::{dispatch, Kernel};
+use crate::wavefront::simd::{dispatch, Gather16, Kernel};
 use crate::wavefront::{chunks, RgbMut, SamplesMut, Vec2s, Vec3s};
 use crate::weights::Weights;
 
@@ -23,9 +24,9 @@ use super::{
     MeasuredMaterial, MeasuredShape,
 };
 
-/// Lanes per chunk: one AVX2 register (wider chunks measured slower: their lane arrays
-/// spill, and the searches of sampling loop longer).
-const CHUNK: usize = 8;
+/// Lanes per chunk: one AVX-512 register, so that a table read is one gather instruction
+/// ([`Gather16`]).
+const CHUNK: usize = 16;
 
 /// Node grids with up to this many nodes are searched by counting (which vectorises); longer
 /// ones by the scalar binary search per lane.
@@ -166,6 +167,7 @@ impl<W: Weights> MeasuredMaterial<W> {
                 if s.n_phi > 1 { s.n_theta } else { 0 },
                 if s.n_theta > 1 { 1 } else { 0 },
             ],
+            g16: Gather16::new(),
         };
         // Slices blend along φi only with more than one φi node.
         if s.n_phi > 1 {
@@ -260,6 +262,8 @@ struct Ctx<'a> {
     counted: bool,
     /// The slice strides of [`SliceBlend`].
     stride: [u32; 2],
+    /// Table reads as gathers, where AVX-512 is in use.
+    g16: Option<Gather16>,
 }
 
 /// Element `i` of `t` (not empty), the last one past the end: a load without a branch that
@@ -269,11 +273,64 @@ fn at(t: &[f32], i: u32) -> f32 {
     t[(i as usize).min(t.len() - 1)]
 }
 
-/// One lane's slice blend ([`SliceBlend`] without its lane-independent strides).
-#[derive(Copy, Clone, Default)]
-struct Blend {
-    slice: u32,
-    w: [[f32; 2]; 2],
+/// One value per lane of a chunk.
+type Lanes = [f32; CHUNK];
+/// One table index per lane.
+type Idx = [u32; CHUNK];
+/// Each lane's slice-blend weights, `[axis][node]` ([`SliceBlend`]'s `weight`).
+type BlendWeights = [[Lanes; 2]; 2];
+
+/// `[e(0), e(1), …]` over a chunk's lanes, as a plain loop (so that it vectorises; a
+/// closure would be a function of its own, compiled without `dispatch`'s instruction set).
+macro_rules! per_lane {
+    ($zero:expr, |$l:ident| $e:expr) => {{
+        let mut o = [$zero; CHUNK];
+        for $l in 0..CHUNK {
+            o[$l] = $e;
+        }
+        o
+    }};
+}
+
+/// `i + k` on every lane.
+#[inline(always)]
+fn plus(i: &Idx, k: u32) -> Idx {
+    per_lane!(0, |l| i[l] + k)
+}
+
+/// `i + j` lane by lane.
+#[inline(always)]
+fn add(i: &Idx, j: &Idx) -> Idx {
+    per_lane!(0, |l| i[l] + j[l])
+}
+
+/// `i − 1` where `i > 0`, else 0, on every lane (the cell before `i`, read at 0 where there
+/// is none and then unused).
+#[inline(always)]
+fn before(i: &Idx) -> Idx {
+    per_lane!(0, |l| if i[l] > 0 { i[l] - 1 } else { 0 })
+}
+
+/// `patch` on every lane: each lane's cell `(column, row)` and its position in it.
+#[inline(always)]
+fn patches(w: u32, h: u32, pos: &[Lanes; 2]) -> (Idx, Idx, [Lanes; 2]) {
+    let (mut c, mut r, mut t) = ([0; CHUNK], [0; CHUNK], [[0.0; CHUNK]; 2]);
+    for l in 0..CHUNK {
+        let (cl, rl, tl) = patch(w, h, Vec2::new(pos[0][l], pos[1][l]));
+        (c[l], r[l], t[0][l], t[1][l]) = (cl, rl, tl.x, tl.y);
+    }
+    (c, r, t)
+}
+
+/// The bilinear interpolation of a cell's corners at `t` on every lane.
+#[inline(always)]
+fn bilerp(v: &[Lanes; 4], t: &[Lanes; 2]) -> Lanes {
+    let [v00, v10, v01, v11] = v;
+    per_lane!(0.0, |l| lerp(
+        lerp(v00[l], v10[l], t[0][l]),
+        lerp(v01[l], v11[l], t[0][l]),
+        t[1][l]
+    ))
 }
 
 /// A table of slices of `w × h` values and its running integrals (a `Marginal2D`).
@@ -286,84 +343,137 @@ struct Dist<'a> {
     h: u32,
 }
 
+/// Every step below is `Marginal2D`'s on each lane of a chunk: the same operations in the
+/// same order, written as loops over the lanes (table reads are gathers).
 impl Ctx<'_> {
-    /// `SliceBlend::lookup`: the blended value of `t` at element `i` of the first slice
-    /// (slices of `n`). Without `φi` blending its weights are `(1, 0)`, so the first axis
-    /// reads one element (`a·1 + a·0 = a` for the finite values the tables hold).
+    /// [`at`] on every lane: one gather instruction with AVX-512, else a load per lane.
     #[inline(always)]
-    fn lookup<const A: bool>(&self, t: &[f32], n: u32, i: u32, b: &Blend) -> f32 {
-        let i1 = i + self.stride[1] * n;
-        let (a0, a1) = if A {
-            let j = self.stride[0] * n;
-            (
-                at(t, i) * b.w[0][0] + at(t, i + j) * b.w[0][1],
-                at(t, i1) * b.w[0][0] + at(t, i1 + j) * b.w[0][1],
-            )
-        } else {
-            (at(t, i), at(t, i1))
-        };
-        a0 * b.w[1][0] + a1 * b.w[1][1]
+    fn gather(&self, t: &[f32], i: &Idx) -> Lanes {
+        match self.g16 {
+            Some(g) => g.read(t, i),
+            None => per_lane!(0.0, |l| at(t, i[l])),
+        }
     }
 
-    /// `Marginal2D::corners` of the blended slice.
+    /// `SliceBlend::lookup`: the blended value of `t` at element `i` of each lane's first
+    /// slice (slices of `n`). Without `φi` blending its weights are `(1, 0)`, so the first
+    /// axis reads one element (`a·1 + a·0 = a` for the finite values the tables hold).
     #[inline(always)]
-    fn corners<const A: bool>(&self, d: &Dist<'_>, b: &Blend, c: u32, r: u32) -> [f32; 4] {
+    fn lookup<const A: bool>(&self, t: &[f32], n: u32, i: &Idx, w: &BlendWeights) -> Lanes {
+        let i1 = plus(i, self.stride[1] * n);
+        let (a0, a1) = if A {
+            let j = self.stride[0] * n;
+            let (x0, x1) = (self.gather(t, i), self.gather(t, &plus(i, j)));
+            let (y0, y1) = (self.gather(t, &i1), self.gather(t, &plus(&i1, j)));
+            (
+                per_lane!(0.0, |l| x0[l] * w[0][0][l] + x1[l] * w[0][1][l]),
+                per_lane!(0.0, |l| y0[l] * w[0][0][l] + y1[l] * w[0][1][l]),
+            )
+        } else {
+            (self.gather(t, i), self.gather(t, &i1))
+        };
+        per_lane!(0.0, |l| a0[l] * w[1][0][l] + a1[l] * w[1][1][l])
+    }
+
+    /// `Marginal2D::corners` of cell `(c, r)` of each lane's blended slice.
+    #[inline(always)]
+    fn corners<const A: bool>(
+        &self,
+        d: &Dist<'_>,
+        slice: &Idx,
+        w: &BlendWeights,
+        c: &Idx,
+        r: &Idx,
+    ) -> [Lanes; 4] {
         let n = d.w * d.h;
-        let i = b.slice * n + r * d.w + c;
+        let i = per_lane!(0, |l| slice[l] * n + r[l] * d.w + c[l]);
         [
-            self.lookup::<A>(d.data, n, i, b),
-            self.lookup::<A>(d.data, n, i + 1, b),
-            self.lookup::<A>(d.data, n, i + d.w, b),
-            self.lookup::<A>(d.data, n, i + d.w + 1, b),
+            self.lookup::<A>(d.data, n, &i, w),
+            self.lookup::<A>(d.data, n, &plus(&i, 1), w),
+            self.lookup::<A>(d.data, n, &plus(&i, d.w), w),
+            self.lookup::<A>(d.data, n, &plus(&i, d.w + 1), w),
         ]
     }
 
-    /// `Marginal2D::eval` of the blended slice.
+    /// `Marginal2D::eval` of each lane's blended slice.
     #[inline(always)]
-    fn eval<const A: bool>(&self, d: &Dist<'_>, b: &Blend, pos: Vec2) -> f32 {
-        let (c, r, t) = patch(d.w, d.h, pos);
-        let [v00, v10, v01, v11] = self.corners::<A>(d, b, c, r);
-        lerp(lerp(v00, v10, t.x), lerp(v01, v11, t.x), t.y)
+    fn eval<const A: bool>(
+        &self,
+        d: &Dist<'_>,
+        slice: &Idx,
+        w: &BlendWeights,
+        pos: &[Lanes; 2],
+    ) -> Lanes {
+        let (c, r, t) = patches(d.w, d.h, pos);
+        bilerp(&self.corners::<A>(d, slice, w, &c, &r), &t)
     }
 
     /// `Marginal2D::eval` of a single-slice table (`SliceBlend::single(0)`: one read per
     /// corner).
     #[inline(always)]
-    fn eval_single(t: &[f32], w: u32, h: u32, pos: Vec2) -> f32 {
-        let (c, r, tt) = patch(w, h, pos);
-        let i = r * w + c;
-        let (v00, v10, v01, v11) = (at(t, i), at(t, i + 1), at(t, i + w), at(t, i + w + 1));
-        lerp(lerp(v00, v10, tt.x), lerp(v01, v11, tt.x), tt.y)
+    fn eval_single(&self, t: &[f32], w: u32, h: u32, pos: &[Lanes; 2]) -> Lanes {
+        let (c, r, tt) = patches(w, h, pos);
+        let i = per_lane!(0, |l| r[l] * w + c[l]);
+        let v = [
+            self.gather(t, &i),
+            self.gather(t, &plus(&i, 1)),
+            self.gather(t, &plus(&i, w)),
+            self.gather(t, &plus(&i, w + 1)),
+        ];
+        bilerp(&v, &tt)
     }
 
-    /// `Marginal2D::invert` of the blended slice.
+    /// `Marginal2D::invert` of each lane's blended slice: the sample-space positions and
+    /// the densities.
     #[inline(always)]
-    fn invert<const A: bool>(&self, d: &Dist<'_>, b: &Blend, pos: Vec2) -> (Vec2, f32) {
-        let w = d.w;
-        let (n_marg, n_cond) = (d.h - 1, d.h * (w - 1));
-        let (c, r, t) = patch(w, d.h, pos);
-        let [v00, v10, v01, v11] = self.corners::<A>(d, b, c, r);
-        let c0 = lerp(v00, v01, t.y);
-        let c1 = lerp(v10, v11, t.y);
-        let pdf = lerp(c0, c1, t.x);
+    fn invert<const A: bool>(
+        &self,
+        d: &Dist<'_>,
+        slice: &Idx,
+        w: &BlendWeights,
+        pos: &[Lanes; 2],
+    ) -> ([Lanes; 2], Lanes) {
+        let (n_marg, n_cond) = (d.h - 1, d.h * (d.w - 1));
+        let (c, r, t) = patches(d.w, d.h, pos);
+        let [v00, v10, v01, v11] = self.corners::<A>(d, slice, w, &c, &r);
+        let c0 = per_lane!(0.0, |l| lerp(v00[l], v01[l], t[1][l]));
+        let c1 = per_lane!(0.0, |l| lerp(v10[l], v11[l], t[1][l]));
+        let pdf = per_lane!(0.0, |l| lerp(c0[l], c1[l], t[0][l]));
+        let inv_w = 1.0 / (d.w - 1) as f32;
+        let mut ux = per_lane!(0.0, |l| invert_segment(t[0][l], inv_w, c0[l], c1[l]));
+        let off = per_lane!(0, |l| slice[l] * n_cond + r[l] * (d.w - 1));
+        let cm = add(&off, &before(&c));
+        let v0 = self.lookup::<A>(d.cond, n_cond, &cm, w);
+        let v1 = self.lookup::<A>(d.cond, n_cond, &plus(&cm, d.w - 1), w);
+        for l in 0..CHUNK {
+            let plus = ux[l] + lerp(v0[l], v1[l], t[1][l]);
+            ux[l] = if c[l] > 0 { plus } else { ux[l] };
+        }
+        let r0 = self.lookup::<A>(d.cond, n_cond, &plus(&off, (d.w - 1) - 1), w);
+        let r1 = self.lookup::<A>(d.cond, n_cond, &plus(&off, 2 * (d.w - 1) - 1), w);
+        let inv_h = 1.0 / (d.h - 1) as f32;
+        let mut uy = [0.0; CHUNK];
+        for l in 0..CHUNK {
+            ux[l] /= lerp(r0[l], r1[l], t[1][l]);
+            uy[l] = invert_segment(t[1][l], inv_h, r0[l], r1[l]);
+        }
+        let im = add(&per_lane!(0, |l| slice[l] * n_marg), &before(&r));
+        let mv = self.lookup::<A>(d.marg, n_marg, &im, w);
+        for l in 0..CHUNK {
+            let plus = uy[l] + mv[l];
+            uy[l] = if r[l] > 0 { plus } else { uy[l] };
+        }
+        ([ux, uy], pdf)
+    }
 
-        let mut ux = invert_segment(t.x, 1.0 / (w - 1) as f32, c0, c1);
-        let off_cond = b.slice * n_cond + r * (w - 1);
-        // Column c − 1, read at column 0 where there is none (and then unused).
-        let cm = if c > 0 { c - 1 } else { 0 };
-        let v0 = self.lookup::<A>(d.cond, n_cond, off_cond + cm, b);
-        let v1 = self.lookup::<A>(d.cond, n_cond, off_cond + cm + (w - 1), b);
-        let plus = ux + lerp(v0, v1, t.y);
-        ux = if c > 0 { plus } else { ux };
-        let r0 = self.lookup::<A>(d.cond, n_cond, off_cond + (w - 1) - 1, b);
-        let r1 = self.lookup::<A>(d.cond, n_cond, off_cond + 2 * (w - 1) - 1, b);
-        ux /= lerp(r0, r1, t.y);
-
-        let mut uy = invert_segment(t.y, 1.0 / (d.h - 1) as f32, r0, r1);
-        let rm = if r > 0 { r - 1 } else { 0 };
-        let plus = uy + self.lookup::<A>(d.marg, n_marg, b.slice * n_marg + rm, b);
-        uy = if r > 0 { plus } else { uy };
-        (Vec2::new(ux, uy), pdf)
+    /// The blended conditional integral of `d` at element `i` (row offset + column) of each
+    /// lane's row pair, interpolated at `uy` between the rows.
+    #[inline(always)]
+    fn cond<const A: bool>(&self, d: &Dist<'_>, w: &BlendWeights, i: &Idx, uy: &Lanes) -> Lanes {
+        let n_cond = d.h * (d.w - 1);
+        let v0 = self.lookup::<A>(d.cond, n_cond, i, w);
+        let v1 = self.lookup::<A>(d.cond, n_cond, &plus(i, d.w - 1), w);
+        per_lane!(0.0, |l| lerp(v0[l], v1[l], uy[l]))
     }
 
     #[inline(always)]
@@ -389,9 +499,6 @@ impl Ctx<'_> {
     }
 }
 
-/// One value per lane of a chunk.
-type Lanes = [f32; CHUNK];
-
 /// One chunk's prepared lanes (`MeasuredPrepared` in structure-of-arrays form).
 struct Prepared {
     ok: [bool; CHUNK],
@@ -400,24 +507,9 @@ struct Prepared {
     /// The signs that fold directions into the stored azimuths.
     flip: [Lanes; 2],
     phi_i: Lanes,
-    slice: [u32; CHUNK],
-    /// The blend weights `w[axis][node]`.
-    w: [[Lanes; 2]; 2],
+    slice: Idx,
+    w: BlendWeights,
     inv_4sigma: Lanes,
-}
-
-impl Prepared {
-    /// Lane `l`'s blend.
-    #[inline(always)]
-    fn blend(&self, l: usize) -> Blend {
-        Blend {
-            slice: self.slice[l],
-            w: [
-                [self.w[0][0][l], self.w[0][1][l]],
-                [self.w[1][0][l], self.w[1][1][l]],
-            ],
-        }
-    }
 }
 
 /// Lanes `a .. a + m` of `v` in structure-of-arrays form (the rest of the chunk `+z`).
@@ -439,7 +531,7 @@ fn load3(v: &Vec3s<'_>, a: usize, m: usize) -> [Lanes; 3] {
 /// weights across it, counting the interior nodes below `p` (ascending nodes: the binary
 /// search's answer).
 #[inline(always)]
-fn locate(nodes: &[f32], p: &Lanes, idx: &mut [u32; CHUNK], w: &mut [Lanes; 2]) {
+fn locate(c: &Ctx<'_>, nodes: &[f32], p: &Lanes, idx: &mut Idx, w: &mut [Lanes; 2]) {
     *idx = [0; CHUNK];
     *w = [[1.0; CHUNK], [0.0; CHUNK]];
     let n = nodes.len();
@@ -451,12 +543,8 @@ fn locate(nodes: &[f32], p: &Lanes, idx: &mut [u32; CHUNK], w: &mut [Lanes; 2]) 
             idx[l] += u32::from(node < p[l]);
         }
     }
-    let mut p0 = [0.0; CHUNK];
-    let mut p1 = [0.0; CHUNK];
-    for l in 0..CHUNK {
-        p0[l] = at(nodes, idx[l]);
-        p1[l] = at(nodes, idx[l] + 1);
-    }
+    let p0 = c.gather(nodes, idx);
+    let p1 = c.gather(nodes, &plus(idx, 1));
     for l in 0..CHUNK {
         let t = math::clamp((p[l] - p0[l]) / (p1[l] - p0[l]), 0.0, 1.0);
         w[0][l] = 1.0 - t;
@@ -465,21 +553,22 @@ fn locate(nodes: &[f32], p: &Lanes, idx: &mut [u32; CHUNK], w: &mut [Lanes; 2]) 
 }
 
 /// `search` (the first index in `0 ..= last` where `below` is false) on every lane: the
-/// scalar binary search's steps, each lane idle once it has its answer. A macro rather than a
-/// function of a closure, so that the predicate is compiled for `dispatch`'s instruction set.
+/// scalar binary search's steps, each lane idle once it has its answer; `below` gives every
+/// lane's outcome at the lanes' probes `i`. A macro rather than a function of a closure, so
+/// that the predicate is compiled for `dispatch`'s instruction set.
 macro_rules! search {
-    ($last:expr, |$l:ident, $i:ident| $below:expr) => {{
+    ($last:expr, |$i:ident| $below:expr) => {{
         let last: u32 = $last;
         let mut lo = [0u32; CHUNK];
         let mut hi = [last; CHUNK];
         // The scalar search halves 0 ..= last each step: ⌈log₂(last + 1)⌉ steps.
         for _ in 0..(u32::BITS - last.leading_zeros()) {
-            for $l in 0..CHUNK {
-                let $i = (lo[$l] + hi[$l]) / 2;
-                let active = lo[$l] < hi[$l];
-                let b = $below;
-                lo[$l] = if active & b { $i + 1 } else { lo[$l] };
-                hi[$l] = if active & !b { $i } else { hi[$l] };
+            let $i: Idx = per_lane!(0, |l| (lo[l] + hi[l]) / 2);
+            let below: [bool; CHUNK] = $below;
+            for l in 0..CHUNK {
+                let active = lo[l] < hi[l];
+                lo[l] = if active & below[l] { $i[l] + 1 } else { lo[l] };
+                hi[l] = if active & !below[l] { $i[l] } else { hi[l] };
             }
         }
         lo
@@ -554,10 +643,7 @@ impl Ctx<'_> {
             [won[0][l], won[1][l], won[2][l]] = [w.x, w.y, w.z];
         }
         let h = self.half(&p, &won);
-        let mut sample = [Vec2::ZERO; CHUNK];
-        for l in 0..CHUNK {
-            sample[l] = self.invert::<A>(&self.vndf(), &p.blend(l), h.u_m[l]).0;
-        }
+        let (sample, _) = self.invert::<A>(&self.vndf(), &p.slice, &p.w, &h.u_m);
         let f = self.rgb::<A>(&p, &sample, &h.u_m);
         for l in 0..m {
             let keep = p.ok[l] & ok[l] & h.ok[l];
@@ -580,20 +666,14 @@ impl Ctx<'_> {
         let mut p = self.empty();
         self.prepare::<A, false>(wi, a, m, &mut p);
         let h = self.half(&p, &load3(wo, a, m));
-        let mut vndf_pdf = [0.0; CHUNK];
-        let mut lum_pdf = [0.0; CHUNK];
-        for l in 0..CHUNK {
-            let b = p.blend(l);
-            let (sample, v) = self.invert::<A>(&self.vndf(), &b, h.u_m[l]);
-            vndf_pdf[l] = v;
-            lum_pdf[l] = self.eval::<A>(&self.luminance(), &b, sample);
-        }
+        let (sample, vndf_pdf) = self.invert::<A>(&self.vndf(), &p.slice, &p.w, &h.u_m);
+        let lum_pdf = self.eval::<A>(&self.luminance(), &p.slice, &p.w, &sample);
         let mut d = [0.0; CHUNK];
         for l in 0..CHUNK {
             let [mx, my, mz] = [h.m[0][l], h.m[1][l], h.m[2][l]];
             let sin_theta_m = math::sqrt(mx * mx + my * my);
             let wi = Vec3::new(p.wi[0][l], p.wi[1][l], p.wi[2][l]);
-            let jac = jacobian(h.u_m[l].x, sin_theta_m, wi.dot(Vec3::new(mx, my, mz)));
+            let jac = jacobian(h.u_m[0][l], sin_theta_m, wi.dot(Vec3::new(mx, my, mz)));
             let v = math::finite_density(vndf_pdf[l] * lum_pdf[l] / jac);
             d[l] = if p.ok[l] & h.ok[l] { v } else { 0.0 };
         }
@@ -618,9 +698,10 @@ impl Ctx<'_> {
     ) {
         let mut p = self.empty();
         self.prepare::<A, WEIGHT>(wi, a, m, &mut p);
-        let mut uu = [Vec2::ZERO; CHUNK];
-        for (l, o) in uu.iter_mut().enumerate().take(m) {
-            *o = u.at(a + l);
+        let mut uu = [[0.0; CHUNK]; 2];
+        for l in 0..m {
+            let v = u.at(a + l);
+            (uu[0][l], uu[1][l]) = (v.x, v.y);
         }
         self.sample_lanes::<A, WEIGHT>(&p, &uu, out, weight, a, m);
     }
@@ -673,8 +754,8 @@ impl Ctx<'_> {
         if self.counted {
             let mut i0 = [0; CHUNK];
             let mut i1 = [0; CHUNK];
-            locate(t.phi_i, &p.phi_i, &mut i0, &mut p.w[0]);
-            locate(t.theta_i, &theta_i, &mut i1, &mut p.w[1]);
+            locate(self, t.phi_i, &p.phi_i, &mut i0, &mut p.w[0]);
+            locate(self, t.theta_i, &theta_i, &mut i1, &mut p.w[1]);
             let n1 = t.theta_i.len() as u32;
             for l in 0..CHUNK {
                 p.slice[l] = i0[l] * n1 + i1[l];
@@ -695,15 +776,12 @@ impl Ctx<'_> {
         if !SIGMA {
             return;
         }
-        let mut u_wi = [Vec2::ZERO; CHUNK];
-        for l in 0..CHUNK {
-            u_wi[l] = Vec2::new(theta2u(theta_i[l]), phi2u(p.phi_i[l]));
-        }
+        let u_wi = [
+            per_lane!(0.0, |l| theta2u(theta_i[l])),
+            per_lane!(0.0, |l| phi2u(p.phi_i[l])),
+        ];
         let [sw, sh] = [self.s.sigma[0].max(2), self.s.sigma[1].max(2)];
-        let mut sigma = [0.0; CHUNK];
-        for l in 0..CHUNK {
-            sigma[l] = Self::eval_single(t.sigma, sw, sh, u_wi[l]);
-        }
+        let sigma = self.eval_single(t.sigma, sw, sh, &u_wi);
         for l in 0..CHUNK {
             p.inv_4sigma[l] = if sigma[l] > 0.0 { 0.25 / sigma[l] } else { 0.0 };
         }
@@ -715,7 +793,7 @@ impl Ctx<'_> {
     fn half(&self, p: &Prepared, wo: &[Lanes; 3]) -> Half {
         let mut h = Half {
             m: [[0.0; CHUNK]; 3],
-            u_m: [Vec2::ZERO; CHUNK],
+            u_m: [[0.0; CHUNK]; 2],
             ok: [false; CHUNK],
         };
         for l in 0..CHUNK {
@@ -734,7 +812,7 @@ impl Ctx<'_> {
             let uy = phi2u(rel);
             let uy = uy - math::floor(uy);
             [h.m[0][l], h.m[1][l], h.m[2][l]] = [m.x, m.y, m.z];
-            h.u_m[l] = Vec2::new(theta2u(theta_m), uy);
+            [h.u_m[0][l], h.u_m[1][l]] = [theta2u(theta_m), uy];
             h.ok[l] = ok & ok_m;
         }
         h
@@ -746,17 +824,17 @@ impl Ctx<'_> {
     fn rgb<const A: bool>(
         &self,
         p: &Prepared,
-        sample: &[Vec2; CHUNK],
-        u_m: &[Vec2; CHUNK],
+        sample: &[Lanes; 2],
+        u_m: &[Lanes; 2],
     ) -> [Lanes; 3] {
         let [w, h] = [self.s.rgb[0].max(2), self.s.rgb[1].max(2)];
-        let mut scale = [1.0; CHUNK];
-        if self.jacobian {
+        let scale = if self.jacobian {
             let [nw, nh] = [self.s.ndf[0].max(2), self.s.ndf[1].max(2)];
-            for l in 0..CHUNK {
-                scale[l] = Self::eval_single(self.f.ndf, nw, nh, u_m[l]) * p.inv_4sigma[l];
-            }
-        }
+            let d = self.eval_single(self.f.ndf, nw, nh, u_m);
+            per_lane!(0.0, |l| d[l] * p.inv_4sigma[l])
+        } else {
+            [1.0; CHUNK]
+        };
         // The channel is the innermost slice index: the blend's slices and strides times 3.
         let c3 = Ctx {
             stride: [self.stride[0] * 3, self.stride[1] * 3],
@@ -769,40 +847,14 @@ impl Ctx<'_> {
             w,
             h,
         };
+        let (col, row, t) = patches(w, h, sample);
         let mut out = [[0.0; CHUNK]; 3];
-        for l in 0..CHUNK {
-            let b = p.blend(l);
-            for (c, o) in out.iter_mut().enumerate() {
-                let bc = Blend {
-                    slice: b.slice * 3 + c as u32,
-                    w: b.w,
-                };
-                o[l] = c3.eval::<A>(&d, &bc, sample[l]);
-            }
-        }
-        for o in &mut out {
-            for l in 0..CHUNK {
-                o[l] = math::finite_density(o[l] * scale[l]);
-            }
+        for (c, o) in out.iter_mut().enumerate() {
+            let slice = per_lane!(0, |l| p.slice[l] * 3 + c as u32);
+            let v = bilerp(&c3.corners::<A>(&d, &slice, &p.w, &col, &row), &t);
+            *o = per_lane!(0.0, |l| math::finite_density(v[l] * scale[l]));
         }
         out
-    }
-
-    /// Element `i` of the blended marginal integral of `d`.
-    #[inline(always)]
-    fn marg<const A: bool>(&self, d: &Dist<'_>, b: &Blend, i: u32) -> f32 {
-        let n_marg = d.h - 1;
-        self.lookup::<A>(d.marg, n_marg, b.slice * n_marg + i, b)
-    }
-
-    /// The blended conditional integral of `d` at element `i` (row offset + column) of its
-    /// row pair, interpolated at `uy` between the rows.
-    #[inline(always)]
-    fn cond<const A: bool>(&self, d: &Dist<'_>, b: &Blend, i: u32, uy: f32) -> f32 {
-        let n_cond = d.h * (d.w - 1);
-        let v0 = self.lookup::<A>(d.cond, n_cond, i, b);
-        let v1 = self.lookup::<A>(d.cond, n_cond, i + (d.w - 1), b);
-        lerp(v0, v1, uy)
     }
 
     /// `Marginal2D::sample` of the blended slices on every lane.
@@ -811,56 +863,48 @@ impl Ctx<'_> {
         &self,
         d: &Dist<'_>,
         p: &Prepared,
-        u: &[Vec2; CHUNK],
-    ) -> ([Vec2; CHUNK], Lanes) {
+        u: &[Lanes; 2],
+    ) -> ([Lanes; 2], Lanes) {
         let (w, h) = (d.w, d.h);
-        let n_cond = h * (w - 1);
+        let (n_marg, n_cond) = (h - 1, h * (w - 1));
         let eps = f32::EPSILON / 2.0;
-        let mut ux = [0.0; CHUNK];
-        let mut uy = [0.0; CHUNK];
+        let mut ux = per_lane!(0.0, |l| math::clamp(u[0][l], eps, math::ONE_MINUS_EPSILON));
+        let mut uy = per_lane!(0.0, |l| math::clamp(u[1][l], eps, math::ONE_MINUS_EPSILON));
+        let marg = per_lane!(0, |l| p.slice[l] * n_marg);
+        let row = search!(h - 2, |i| {
+            let v = self.lookup::<A>(d.marg, n_marg, &add(&marg, &i), &p.w);
+            per_lane!(false, |l| v[l] < uy[l])
+        });
+        let mv = self.lookup::<A>(d.marg, n_marg, &add(&marg, &before(&row)), &p.w);
         for l in 0..CHUNK {
-            ux[l] = math::clamp(u[l].x, eps, math::ONE_MINUS_EPSILON);
-            uy[l] = math::clamp(u[l].y, eps, math::ONE_MINUS_EPSILON);
-        }
-        let row = search!(h - 2, |l, i| self.marg::<A>(d, &p.blend(l), i) < uy[l]);
-        let mut r0 = [0.0; CHUNK];
-        let mut r1 = [0.0; CHUNK];
-        let mut off = [0u32; CHUNK];
-        for l in 0..CHUNK {
-            let b = p.blend(l);
-            let rm = if row[l] > 0 { row[l] - 1 } else { 0 };
-            let minus = uy[l] - self.marg::<A>(d, &b, rm);
+            let minus = uy[l] - mv[l];
             uy[l] = if row[l] > 0 { minus } else { uy[l] };
-            off[l] = b.slice * n_cond + row[l] * (w - 1);
-            r0[l] = self.lookup::<A>(d.cond, n_cond, off[l] + (w - 1) - 1, &b);
-            r1[l] = self.lookup::<A>(d.cond, n_cond, off[l] + 2 * (w - 1) - 1, &b);
         }
+        let off = per_lane!(0, |l| p.slice[l] * n_cond + row[l] * (w - 1));
+        let r0 = self.lookup::<A>(d.cond, n_cond, &plus(&off, (w - 1) - 1), &p.w);
+        let r1 = self.lookup::<A>(d.cond, n_cond, &plus(&off, 2 * (w - 1) - 1), &p.w);
         for l in 0..CHUNK {
             uy[l] = sample_segment(uy[l], (h - 1) as f32, r0[l], r1[l]);
             ux[l] *= lerp(r0[l], r1[l], uy[l]);
         }
-        let col = search!(w - 2, |l, i| {
-            self.cond::<A>(d, &p.blend(l), off[l] + i, uy[l]) < ux[l]
+        let col = search!(w - 2, |i| {
+            let v = self.cond::<A>(d, &p.w, &add(&off, &i), &uy);
+            per_lane!(false, |l| v[l] < ux[l])
         });
-        let mut corners = [[0.0; 4]; CHUNK];
+        let cv = self.cond::<A>(d, &p.w, &add(&off, &before(&col)), &uy);
         for l in 0..CHUNK {
-            let b = p.blend(l);
-            let cm = if col[l] > 0 { col[l] - 1 } else { 0 };
-            let minus = ux[l] - self.cond::<A>(d, &b, off[l] + cm, uy[l]);
+            let minus = ux[l] - cv[l];
             ux[l] = if col[l] > 0 { minus } else { ux[l] };
-            corners[l] = self.corners::<A>(d, &b, col[l], row[l]);
         }
-        let mut pos = [Vec2::ZERO; CHUNK];
+        let [v00, v10, v01, v11] = self.corners::<A>(d, &p.slice, &p.w, &col, &row);
+        let mut pos = [[0.0; CHUNK]; 2];
         let mut pdf = [0.0; CHUNK];
         for l in 0..CHUNK {
-            let [v00, v10, v01, v11] = corners[l];
-            let c0 = lerp(v00, v01, uy[l]);
-            let c1 = lerp(v10, v11, uy[l]);
+            let c0 = lerp(v00[l], v01[l], uy[l]);
+            let c1 = lerp(v10[l], v11[l], uy[l]);
             let x = sample_segment(ux[l], (w - 1) as f32, c0, c1);
-            pos[l] = Vec2::new(
-                (col[l] as f32 + x) * (1.0 / (w - 1) as f32),
-                (row[l] as f32 + uy[l]) * (1.0 / (h - 1) as f32),
-            );
+            pos[0][l] = (col[l] as f32 + x) * (1.0 / (w - 1) as f32);
+            pos[1][l] = (row[l] as f32 + uy[l]) * (1.0 / (h - 1) as f32);
             pdf[l] = lerp(c0, c1, x);
         }
         (pos, pdf)
@@ -872,7 +916,7 @@ impl Ctx<'_> {
     fn sample_lanes<const A: bool, const WEIGHT: bool>(
         &self,
         p: &Prepared,
-        u: &[Vec2; CHUNK],
+        u: &[Lanes; 2],
         out: &mut SamplesMut<'_>,
         mut weight: Option<&mut RgbMut<'_>>,
         a: usize,
@@ -880,22 +924,20 @@ impl Ctx<'_> {
     ) {
         // As the scalar path: u's components swapped, refused outside [0, 1].
         let mut ok = [false; CHUNK];
-        let mut us = [Vec2::ZERO; CHUNK];
+        let mut us = [[0.0; CHUNK]; 2];
         for l in 0..CHUNK {
-            let (x, y) = (u[l].y, u[l].x);
+            let (x, y) = (u[1][l], u[0][l]);
             ok[l] = p.ok[l] & (x >= 0.0) & (x <= 1.0) & (y >= 0.0) & (y <= 1.0);
-            us[l] = Vec2::new(
-                if x < math::ONE_MINUS_EPSILON {
-                    x
-                } else {
-                    math::ONE_MINUS_EPSILON
-                },
-                if y < math::ONE_MINUS_EPSILON {
-                    y
-                } else {
-                    math::ONE_MINUS_EPSILON
-                },
-            );
+            us[0][l] = if x < math::ONE_MINUS_EPSILON {
+                x
+            } else {
+                math::ONE_MINUS_EPSILON
+            };
+            us[1][l] = if y < math::ONE_MINUS_EPSILON {
+                y
+            } else {
+                math::ONE_MINUS_EPSILON
+            };
         }
         let (sample, lum_pdf) = self.sample_dist::<A>(&self.luminance(), p, &us);
         let (u_m, vndf_pdf) = self.sample_dist::<A>(&self.vndf(), p, &sample);
@@ -908,8 +950,8 @@ impl Ctx<'_> {
         };
         for l in 0..CHUNK {
             // u2phi is never −0, so adding +0 where the data is anisotropic changes nothing.
-            phi_m[l] = u2phi(u_m[l].y) + add[l];
-            theta_m[l] = u2theta(u_m[l].x);
+            phi_m[l] = u2phi(u_m[1][l]) + add[l];
+            theta_m[l] = u2theta(u_m[0][l]);
         }
         let mut sc = [[0.0; CHUNK]; 2];
         let mut st = [[0.0; CHUNK]; 2];
@@ -933,7 +975,7 @@ impl Ctx<'_> {
             let mv = Vec3::new(cos_phi * sin_theta, sin_phi * sin_theta, cos_theta);
             let wi = Vec3::new(p.wi[0][l], p.wi[1][l], p.wi[2][l]);
             let dot = mv.dot(wi);
-            pdf[l] = vndf_pdf[l] * lum_pdf[l] / jacobian(u_m[l].x, sin_theta, dot);
+            pdf[l] = vndf_pdf[l] * lum_pdf[l] / jacobian(u_m[0][l], sin_theta, dot);
             let w = mv * (2.0 * dot) - wi;
             [wo[0][l], wo[1][l], wo[2][l]] = [w.x * p.flip[0][l], w.y * p.flip[1][l], w.z];
             ok[l] &= (wo[2][l] > 0.0) & (pdf[l] > 0.0) & math::is_finite(pdf[l]);
@@ -972,7 +1014,8 @@ impl Ctx<'_> {
 /// The half vectors of a chunk ([`Ctx::half`]).
 struct Half {
     m: [Lanes; 3],
-    u_m: [Vec2; CHUNK],
+    /// Their table coordinates `(u(θm), u(φm))`.
+    u_m: [Lanes; 2],
     ok: [bool; CHUNK],
 }
 

@@ -160,3 +160,65 @@ pub(crate) fn dispatch<K: Kernel>(k: K) -> K::Output {
     // the dense layers choose between their tiles.
     k.run()
 }
+
+/// Proof that the batched kernels run with AVX-512 now ([`current`] is [`Isa::X86V4`] and the
+/// CPU has it), so that table reads of sixteen lanes can be one gather instruction. LLVM does
+/// not form gathers on its own here: rustc compiles for the generic x86-64 CPU, whose cost
+/// model prices them high, and the reads stay scalar loads and inserts.
+#[derive(Copy, Clone)]
+pub(crate) struct Gather16 {
+    #[cfg(target_arch = "x86_64")]
+    _v4: pulp::x86::V4,
+}
+
+impl Gather16 {
+    /// The proof, where AVX-512 is in use; `None` elsewhere (other instruction sets, other
+    /// architectures).
+    #[inline]
+    pub(crate) fn new() -> Option<Self> {
+        #[cfg(target_arch = "x86_64")]
+        if current() == Isa::X86V4 {
+            return pulp::x86::V4::try_new().map(|v4| Gather16 { _v4: v4 });
+        }
+        None
+    }
+
+    /// `t[min(i[l], t.len() − 1)]` on each of sixteen lanes (zeros for an empty `t`): a
+    /// branch-free read of a table whose indices are in range.
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    pub(crate) fn read(self, t: &[f32], i: &[u32; 16]) -> [f32; 16] {
+        let mut out = [0.0f32; 16];
+        if t.is_empty() {
+            return out;
+        }
+        #[cfg(target_arch = "x86_64")]
+        {
+            use core::arch::x86_64::{
+                _mm512_i32gather_ps, _mm512_loadu_si512, _mm512_min_epu32, _mm512_set1_epi32,
+                _mm512_storeu_ps,
+            };
+            // The gather sign-extends its 32-bit offsets: clamp below 2³¹ too.
+            let last = (t.len() - 1).min(i32::MAX as usize) as i32;
+            // SAFETY: `self` exists only where `V4::try_new` succeeded, so the CPU has
+            // AVX-512F. The unaligned load and store move exactly the 64 bytes of `i` and
+            // `out`. Every offset is clamped to `last`, which is below `t.len()` and 2³¹, so
+            // the gather reads elements of `t` only.
+            unsafe {
+                let idx = _mm512_min_epu32(
+                    _mm512_loadu_si512(i.as_ptr().cast()),
+                    _mm512_set1_epi32(last),
+                );
+                _mm512_storeu_ps(
+                    out.as_mut_ptr(),
+                    _mm512_i32gather_ps::<4>(idx, t.as_ptr().cast()),
+                );
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        for l in 0..16 {
+            out[l] = t[(i[l] as usize).min(t.len() - 1)];
+        }
+        out
+    }
+}
