@@ -487,13 +487,15 @@ fn asin_r(z: f32) -> f32 {
 pub fn asin(x: f32) -> f32 {
     let hx = x.to_bits();
     let ix = hx & 0x7fff_ffff;
+    // R's argument: x² for |x| < 0.5, (1 − |x|)/2 above (one R per lane, not both).
+    let z = (1.0 - abs(x)) * 0.5;
+    let r = asin_r(if ix < 0x3f00_0000 { x * x } else { z });
     // |x| < 0.5 (and x itself below 2⁻¹², where x·R(x²) vanishes against x).
-    let small = x + x * asin_r(x * x);
+    let small = x + x * r;
     let small = if ix < 0x3980_0000 { x } else { small };
     // 0.5 ≤ |x| < 1.
-    let z = (1.0 - abs(x)) * 0.5;
     let s = sqrt_f64(z as f64);
-    let big = (PIO2_F64 - 2.0 * (s + s * (asin_r(z) as f64))) as f32;
+    let big = (PIO2_F64 - 2.0 * (s + s * (r as f64))) as f32;
     let big = if hx >> 31 != 0 { -big } else { big };
     // |x| = 1: ±π/2 (libm adds 2⁻¹²⁰ for inexactness, which rounds away).
     let one = ((x as f64) * PIO2_F64 + f64::from_bits(0x3870_0000_0000_0000)) as f32;
@@ -536,16 +538,20 @@ pub fn atan(x: f32) -> f32 {
     let ix = x.to_bits() & 0x7fff_ffff;
     let neg = x.to_bits() >> 31 != 0;
     let ax = abs(x);
-    // The argument reductions of |x| ≥ 7/16, each computed, one chosen.
-    let (r, hi, lo) = if ix < 0x3f30_0000 {
-        ((2.0 * ax - 1.0) / (2.0 + ax), ATAN_HI[0], ATAN_LO[0])
+    // The argument reductions of |x| ≥ 7/16, (a·|x| + b) / (c + d·|x|) with the interval's
+    // coefficients chosen first, so one division per lane: libm's (2|x| − 1)/(2 + |x|),
+    // (|x| − 1)/(|x| + 1), (|x| − 1.5)/(1 + 1.5|x|) and −1/|x|, bit for bit (a product by 1
+    // and a sum with 0 are exact; 0·|x| is NaN only for |x| = ∞, where `huge` is chosen).
+    let (a, b, c, d, hi, lo) = if ix < 0x3f30_0000 {
+        (2.0, -1.0, 2.0, 1.0, ATAN_HI[0], ATAN_LO[0])
     } else if ix < 0x3f98_0000 {
-        ((ax - 1.0) / (ax + 1.0), ATAN_HI[1], ATAN_LO[1])
+        (1.0, -1.0, 1.0, 1.0, ATAN_HI[1], ATAN_LO[1])
     } else if ix < 0x401c_0000 {
-        ((ax - 1.5) / (1.0 + 1.5 * ax), ATAN_HI[2], ATAN_LO[2])
+        (1.0, -1.5, 1.0, 1.5, ATAN_HI[2], ATAN_LO[2])
     } else {
-        (-1.0 / ax, ATAN_HI[3], ATAN_LO[3])
+        (0.0, -1.0, 0.0, 1.0, ATAN_HI[3], ATAN_LO[3])
     };
+    let r = (a * ax + b) / (c + d * ax);
     let reduced = ix >= 0x3ee0_0000;
     let v = if reduced { r } else { x };
     let z = v * v;
