@@ -473,7 +473,7 @@ fn batched_is_scalar_bit_for_bit() {
     let (ox, oy, oz) = (col(&wo, 0), col(&wo, 1), col(&wo, 2));
     let ux: Vec<f32> = u.iter().map(|v| v.x).collect();
     let uy: Vec<f32> = u.iter().map(|v| v.y).collect();
-    // Every instruction set this machine has (AVX-512 reads the tables with gathers).
+    // Every instruction set this machine has (AVX-512 and AVX2 read the tables with gathers).
     let isas = Isa::ALL.into_iter().filter(|&i| prefer_isa(Some(i)) == i);
     for (isa, file) in isas.flat_map(|i| FILES.iter().map(move |f| (i.name(), f))) {
         let m = open(file);

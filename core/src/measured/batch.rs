@@ -4,9 +4,9 @@
 //! Lanes run in chunks of [`CHUNK`] through the scalar path's arithmetic, operation for
 //! operation, written as loops over the chunk so that they vectorise: the transcendental
 //! functions are `math`'s branch-free ones (libm's numbers), table reads are gathers (one
-//! instruction per chunk with AVX-512, [`Gather16`]; a load per lane elsewhere), and the
-//! two binary searches of sampling take a fixed number of steps with the scalar search's
-//! probes. The results are therefore the scalar path's **bit for bit**. Tables that are not
+//! instruction per chunk with AVX-512, two with AVX2, [`Gather16`]; a load per lane on the
+//! portable path), and the two binary searches of sampling take a fixed number of steps
+//! with the scalar search's probes. The results are therefore the scalar path's **bit for bit**. Tables that are not
 //! plain f32 slices (f16 or unaligned blob tensors) take the scalar path lane by lane.
 
 use glam::{Vec2, Vec3};
@@ -24,8 +24,8 @@ use super::{
     MeasuredMaterial, MeasuredShape,
 };
 
-/// Lanes per chunk: one AVX-512 register, so that a table read is one gather instruction
-/// ([`Gather16`]).
+/// Lanes per chunk: one AVX-512 register (two AVX2 ones), so that a table read is one
+/// gather instruction, or two ([`Gather16`]).
 const CHUNK: usize = 16;
 
 /// Node grids with up to this many nodes are searched by counting (which vectorises); longer
@@ -262,7 +262,7 @@ struct Ctx<'a> {
     counted: bool,
     /// The slice strides of [`SliceBlend`].
     stride: [u32; 2],
-    /// Table reads as gathers, where AVX-512 is in use.
+    /// Table reads as gathers, where AVX2 or AVX-512 is in use.
     g16: Option<Gather16>,
 }
 
@@ -346,7 +346,8 @@ struct Dist<'a> {
 /// Every step below is `Marginal2D`'s on each lane of a chunk: the same operations in the
 /// same order, written as loops over the lanes (table reads are gathers).
 impl Ctx<'_> {
-    /// [`at`] on every lane: one gather instruction with AVX-512, else a load per lane.
+    /// [`at`] on every lane: one gather instruction with AVX-512, two with AVX2, else a
+    /// load per lane.
     #[inline(always)]
     fn gather(&self, t: &[f32], i: &Idx) -> Lanes {
         match self.g16 {

@@ -161,24 +161,43 @@ pub(crate) fn dispatch<K: Kernel>(k: K) -> K::Output {
     k.run()
 }
 
-/// Proof that the batched kernels run with AVX-512 now ([`current`] is [`Isa::X86V4`] and the
-/// CPU has it), so that table reads of sixteen lanes can be one gather instruction. LLVM does
+/// Proof that the batched kernels run with AVX2 or AVX-512 now ([`current`] is
+/// [`Isa::X86V3`] or [`Isa::X86V4`] and the CPU has it), so that a table read of sixteen
+/// lanes is gather instructions: one with AVX-512, two of eight lanes with AVX2. LLVM does
 /// not form gathers on its own here: rustc compiles for the generic x86-64 CPU, whose cost
 /// model prices them high, and the reads stay scalar loads and inserts.
 #[derive(Copy, Clone)]
 pub(crate) struct Gather16 {
     #[cfg(target_arch = "x86_64")]
-    _v4: pulp::x86::V4,
+    isa: GatherIsa,
+}
+
+/// The instruction set a [`Gather16`] proves.
+#[cfg(target_arch = "x86_64")]
+#[derive(Copy, Clone)]
+enum GatherIsa {
+    V3(pulp::x86::V3),
+    V4(pulp::x86::V4),
 }
 
 impl Gather16 {
-    /// The proof, where AVX-512 is in use; `None` elsewhere (other instruction sets, other
-    /// architectures).
+    /// The proof, where AVX2 or AVX-512 is in use; `None` elsewhere (the portable path,
+    /// other architectures).
     #[inline]
     pub(crate) fn new() -> Option<Self> {
         #[cfg(target_arch = "x86_64")]
-        if current() == Isa::X86V4 {
-            return pulp::x86::V4::try_new().map(|v4| Gather16 { _v4: v4 });
+        match current() {
+            Isa::X86V4 => {
+                return pulp::x86::V4::try_new().map(|v4| Gather16 {
+                    isa: GatherIsa::V4(v4),
+                })
+            }
+            Isa::X86V3 => {
+                return pulp::x86::V3::try_new().map(|v3| Gather16 {
+                    isa: GatherIsa::V3(v3),
+                })
+            }
+            _ => {}
         }
         None
     }
@@ -195,24 +214,43 @@ impl Gather16 {
         #[cfg(target_arch = "x86_64")]
         {
             use core::arch::x86_64::{
-                _mm512_i32gather_ps, _mm512_loadu_si512, _mm512_min_epu32, _mm512_set1_epi32,
-                _mm512_storeu_ps,
+                _mm256_i32gather_ps, _mm256_loadu_si256, _mm256_min_epu32, _mm256_set1_epi32,
+                _mm256_storeu_ps, _mm512_i32gather_ps, _mm512_loadu_si512, _mm512_min_epu32,
+                _mm512_set1_epi32, _mm512_storeu_ps,
             };
-            // The gather sign-extends its 32-bit offsets: clamp below 2³¹ too.
+            // The gathers sign-extend their 32-bit offsets: clamp below 2³¹ too.
             let last = (t.len() - 1).min(i32::MAX as usize) as i32;
-            // SAFETY: `self` exists only where `V4::try_new` succeeded, so the CPU has
-            // AVX-512F. The unaligned load and store move exactly the 64 bytes of `i` and
-            // `out`. Every offset is clamped to `last`, which is below `t.len()` and 2³¹, so
-            // the gather reads elements of `t` only.
-            unsafe {
-                let idx = _mm512_min_epu32(
-                    _mm512_loadu_si512(i.as_ptr().cast()),
-                    _mm512_set1_epi32(last),
-                );
-                _mm512_storeu_ps(
-                    out.as_mut_ptr(),
-                    _mm512_i32gather_ps::<4>(idx, t.as_ptr().cast()),
-                );
+            match self.isa {
+                // SAFETY: `GatherIsa::V4` exists only where `V4::try_new` succeeded, so the
+                // CPU has AVX-512F. The unaligned load and store move exactly the 64 bytes
+                // of `i` and `out`. Every offset is clamped to `last`, which is below
+                // `t.len()` and 2³¹, so the gather reads elements of `t` only.
+                GatherIsa::V4(_) => unsafe {
+                    let idx = _mm512_min_epu32(
+                        _mm512_loadu_si512(i.as_ptr().cast()),
+                        _mm512_set1_epi32(last),
+                    );
+                    _mm512_storeu_ps(
+                        out.as_mut_ptr(),
+                        _mm512_i32gather_ps::<4>(idx, t.as_ptr().cast()),
+                    );
+                },
+                // SAFETY: `GatherIsa::V3` exists only where `V3::try_new` succeeded, so the
+                // CPU has AVX2. Each half's unaligned load and store move exactly 32 bytes
+                // of `i` and `out` (lanes 0..8, then 8..16). Every offset is clamped to
+                // `last`, which is below `t.len()` and 2³¹, so the gathers read elements of
+                // `t` only.
+                GatherIsa::V3(_) => unsafe {
+                    let last = _mm256_set1_epi32(last);
+                    for h in [0, 8] {
+                        let idx =
+                            _mm256_min_epu32(_mm256_loadu_si256(i.as_ptr().add(h).cast()), last);
+                        _mm256_storeu_ps(
+                            out.as_mut_ptr().add(h),
+                            _mm256_i32gather_ps::<4>(t.as_ptr().cast(), idx),
+                        );
+                    }
+                },
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
