@@ -322,6 +322,12 @@ fn patches(w: u32, h: u32, pos: &[Lanes; 2]) -> (Idx, Idx, [Lanes; 2]) {
     (c, r, t)
 }
 
+/// `x0·w[0] + x1·w[1]` on every lane (one axis of [`SliceBlend`]).
+#[inline(always)]
+fn blend(x0: &Lanes, x1: &Lanes, w: &[Lanes; 2]) -> Lanes {
+    per_lane!(0.0, |l| x0[l] * w[0][l] + x1[l] * w[1][l])
+}
+
 /// The bilinear interpolation of a cell's corners at `t` on every lane.
 #[inline(always)]
 fn bilerp(v: &[Lanes; 4], t: &[Lanes; 2]) -> Lanes {
@@ -356,6 +362,20 @@ impl Ctx<'_> {
         }
     }
 
+    /// [`at`] of `i` and of `i + 1` on every lane: adjacent elements, read as 64-bit gathers
+    /// where [`Gather16`] exists (`i` is at most the table's length − 2 there: indices are in
+    /// range for validated tables).
+    #[inline(always)]
+    fn gather_pair(&self, t: &[f32], i: &Idx) -> (Lanes, Lanes) {
+        match self.g16 {
+            Some(g) => g.read_pair(t, i),
+            None => (
+                per_lane!(0.0, |l| at(t, i[l])),
+                per_lane!(0.0, |l| at(t, i[l] + 1)),
+            ),
+        }
+    }
+
     /// `SliceBlend::lookup`: the blended value of `t` at element `i` of each lane's first
     /// slice (slices of `n`). Without `φi` blending its weights are `(1, 0)`, so the first
     /// axis reads one element (`a·1 + a·0 = a` for the finite values the tables hold).
@@ -376,6 +396,31 @@ impl Ctx<'_> {
         per_lane!(0.0, |l| a0[l] * w[1][0][l] + a1[l] * w[1][1][l])
     }
 
+    /// [`Self::lookup`] at `i` and at `i + 1` (a cell's two columns), each slice's two
+    /// elements read together.
+    #[inline(always)]
+    fn lookup_pair<const A: bool>(
+        &self,
+        t: &[f32],
+        n: u32,
+        i: &Idx,
+        w: &BlendWeights,
+    ) -> (Lanes, Lanes) {
+        let i1 = plus(i, self.stride[1] * n);
+        let ((a0, b0), (a1, b1)) = if A {
+            let j = self.stride[0] * n;
+            let (x0, x1) = (self.gather_pair(t, i), self.gather_pair(t, &plus(i, j)));
+            let (y0, y1) = (self.gather_pair(t, &i1), self.gather_pair(t, &plus(&i1, j)));
+            (
+                (blend(&x0.0, &x1.0, &w[0]), blend(&x0.1, &x1.1, &w[0])),
+                (blend(&y0.0, &y1.0, &w[0]), blend(&y0.1, &y1.1, &w[0])),
+            )
+        } else {
+            (self.gather_pair(t, i), self.gather_pair(t, &i1))
+        };
+        (blend(&a0, &a1, &w[1]), blend(&b0, &b1, &w[1]))
+    }
+
     /// `Marginal2D::corners` of cell `(c, r)` of each lane's blended slice.
     #[inline(always)]
     fn corners<const A: bool>(
@@ -388,12 +433,9 @@ impl Ctx<'_> {
     ) -> [Lanes; 4] {
         let n = d.w * d.h;
         let i = per_lane!(0, |l| slice[l] * n + r[l] * d.w + c[l]);
-        [
-            self.lookup::<A>(d.data, n, &i, w),
-            self.lookup::<A>(d.data, n, &plus(&i, 1), w),
-            self.lookup::<A>(d.data, n, &plus(&i, d.w), w),
-            self.lookup::<A>(d.data, n, &plus(&i, d.w + 1), w),
-        ]
+        let (v00, v10) = self.lookup_pair::<A>(d.data, n, &i, w);
+        let (v01, v11) = self.lookup_pair::<A>(d.data, n, &plus(&i, d.w), w);
+        [v00, v10, v01, v11]
     }
 
     /// `Marginal2D::eval` of each lane's blended slice.
@@ -415,13 +457,9 @@ impl Ctx<'_> {
     fn eval_single(&self, t: &[f32], w: u32, h: u32, pos: &[Lanes; 2]) -> Lanes {
         let (c, r, tt) = patches(w, h, pos);
         let i = per_lane!(0, |l| r[l] * w + c[l]);
-        let v = [
-            self.gather(t, &i),
-            self.gather(t, &plus(&i, 1)),
-            self.gather(t, &plus(&i, w)),
-            self.gather(t, &plus(&i, w + 1)),
-        ];
-        bilerp(&v, &tt)
+        let (v00, v10) = self.gather_pair(t, &i);
+        let (v01, v11) = self.gather_pair(t, &plus(&i, w));
+        bilerp(&[v00, v10, v01, v11], &tt)
     }
 
     /// `Marginal2D::invert` of each lane's blended slice: the sample-space positions and
@@ -544,8 +582,7 @@ fn locate(c: &Ctx<'_>, nodes: &[f32], p: &Lanes, idx: &mut Idx, w: &mut [Lanes; 
             idx[l] += u32::from(node < p[l]);
         }
     }
-    let p0 = c.gather(nodes, idx);
-    let p1 = c.gather(nodes, &plus(idx, 1));
+    let (p0, p1) = c.gather_pair(nodes, idx);
     for l in 0..CHUNK {
         let t = math::clamp((p[l] - p0[l]) / (p1[l] - p0[l]), 0.0, 1.0);
         w[0][l] = 1.0 - t;

@@ -259,4 +259,73 @@ impl Gather16 {
         }
         out
     }
+
+    /// `(t[j], t[j + 1])` with `j = min(i[l], t.len() − 2)` on each of sixteen lanes: two
+    /// adjacent elements per lane (a bilinear cell's row, a node interval). With AVX2 they
+    /// are read as 64-bit gathers, which move half the elements of two 32-bit ones; with
+    /// AVX-512 as two [`Self::read`]s. For a `t` of fewer than two elements, [`Self::read`]
+    /// of `i` and `i + 1`.
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    pub(crate) fn read_pair(self, t: &[f32], i: &[u32; 16]) -> ([f32; 16], [f32; 16]) {
+        if t.len() < 2 {
+            let next = core::array::from_fn(|l| i[l].saturating_add(1));
+            return (self.read(t, i), self.read(t, &next));
+        }
+        // A pair starts at most at len − 2; offsets below 2³¹ (gathers sign-extend them).
+        let last = (t.len() - 2).min(i32::MAX as usize - 1) as u32;
+        let (mut a, mut b) = ([0.0f32; 16], [0.0f32; 16]);
+        #[cfg(target_arch = "x86_64")]
+        match self.isa {
+            // The 64-bit gathers of AVX-512 are not used: not measured on a CPU that has them.
+            GatherIsa::V4(_) => {
+                let j = core::array::from_fn(|l| i[l].min(last));
+                let next = core::array::from_fn(|l| j[l] + 1);
+                return (self.read(t, &j), self.read(t, &next));
+            }
+            // SAFETY: `GatherIsa::V3` exists only where `V3::try_new` succeeded, so the CPU
+            // has AVX2. Each half's unaligned load and stores move exactly 32 bytes of `i`,
+            // `a` and `b` (lanes 0..8, then 8..16). Every offset is clamped to `last` ≤
+            // `t.len()` − 2, so each 8-byte read (scale 4: offsets count f32s) covers elements
+            // `j` and `j + 1` of `t` only; gathers need no alignment.
+            GatherIsa::V3(_) => unsafe {
+                use core::arch::x86_64::{
+                    _mm256_castpd_ps, _mm256_castps_pd, _mm256_castsi256_ps,
+                    _mm256_castsi256_si128, _mm256_extracti128_si256, _mm256_i32gather_epi64,
+                    _mm256_loadu_si256, _mm256_min_epu32, _mm256_permute4x64_pd, _mm256_set1_epi32,
+                    _mm256_shuffle_ps, _mm256_storeu_ps,
+                };
+                let base = t.as_ptr().cast::<i64>();
+                let last = _mm256_set1_epi32(last as i32);
+                for h in [0, 8] {
+                    let idx = _mm256_min_epu32(_mm256_loadu_si256(i.as_ptr().add(h).cast()), last);
+                    // Lanes h..h+4 and h+4..h+8 as (a, b) pairs.
+                    let g0 = _mm256_castsi256_ps(_mm256_i32gather_epi64::<4>(
+                        base,
+                        _mm256_castsi256_si128(idx),
+                    ));
+                    let g1 = _mm256_castsi256_ps(_mm256_i32gather_epi64::<4>(
+                        base,
+                        _mm256_extracti128_si256::<1>(idx),
+                    ));
+                    // Per 128-bit half [x0 x1 x4 x5 | x2 x3 x6 x7], then the 64-bit quarters
+                    // reordered to x0..x7.
+                    let even = _mm256_castps_pd(_mm256_shuffle_ps::<0b10_00_10_00>(g0, g1));
+                    let odd = _mm256_castps_pd(_mm256_shuffle_ps::<0b11_01_11_01>(g0, g1));
+                    let (even, odd) = (
+                        _mm256_permute4x64_pd::<0b11_01_10_00>(even),
+                        _mm256_permute4x64_pd::<0b11_01_10_00>(odd),
+                    );
+                    _mm256_storeu_ps(a.as_mut_ptr().add(h), _mm256_castpd_ps(even));
+                    _mm256_storeu_ps(b.as_mut_ptr().add(h), _mm256_castpd_ps(odd));
+                }
+            },
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        for l in 0..16 {
+            let j = i[l].min(last) as usize;
+            (a[l], b[l]) = (t[j], t[j + 1]);
+        }
+        (a, b)
+    }
 }
