@@ -6,8 +6,9 @@
 //! functions are `math`'s branch-free ones (libm's numbers), table reads are gathers (one
 //! instruction per chunk with AVX-512, two with AVX2, [`Gather16`]; a load per lane on the
 //! portable path), and the two binary searches of sampling take a fixed number of steps
-//! with the scalar search's probes. The results are therefore the scalar path's **bit for bit**. Tables that are not
-//! plain f32 slices (f16 or unaligned blob tensors) take the scalar path lane by lane.
+//! with the scalar search's probes. The results are therefore the scalar path's **bit for
+//! bit**. Tables that are not plain f32 slices (f16 or unaligned blob tensors) take the
+//! scalar path lane by lane.
 
 use glam::{Vec2, Vec3};
 
@@ -362,9 +363,9 @@ impl Ctx<'_> {
         }
     }
 
-    /// [`at`] of `i` and of `i + 1` on every lane: adjacent elements, read as 64-bit gathers
-    /// where [`Gather16`] exists (`i` is at most the table's length − 2 there: indices are in
-    /// range for validated tables).
+    /// [`at`] of `i` and of `i + 1` on every lane: adjacent elements, read together where
+    /// [`Gather16`] exists, which clamps `i` to the table's length − 2 (no change for the
+    /// in-range indices of validated tables).
     #[inline(always)]
     fn gather_pair(&self, t: &[f32], i: &Idx) -> (Lanes, Lanes) {
         match self.g16 {
