@@ -387,14 +387,11 @@ impl Ctx<'_> {
             let j = self.stride[0] * n;
             let (x0, x1) = (self.gather(t, i), self.gather(t, &plus(i, j)));
             let (y0, y1) = (self.gather(t, &i1), self.gather(t, &plus(&i1, j)));
-            (
-                per_lane!(0.0, |l| x0[l] * w[0][0][l] + x1[l] * w[0][1][l]),
-                per_lane!(0.0, |l| y0[l] * w[0][0][l] + y1[l] * w[0][1][l]),
-            )
+            (blend(&x0, &x1, &w[0]), blend(&y0, &y1, &w[0]))
         } else {
             (self.gather(t, i), self.gather(t, &i1))
         };
-        per_lane!(0.0, |l| a0[l] * w[1][0][l] + a1[l] * w[1][1][l])
+        blend(&a0, &a1, &w[1])
     }
 
     /// [`Self::lookup`] at `i` and at `i + 1` (a cell's two columns), each slice's two
