@@ -185,8 +185,14 @@ impl Gather16 {
     /// other architectures).
     #[inline]
     pub(crate) fn new() -> Option<Self> {
+        Self::for_isa(current())
+    }
+
+    /// The proof for `isa`, where it is AVX2 or AVX-512 and the CPU has it.
+    #[inline]
+    fn for_isa(isa: Isa) -> Option<Self> {
         #[cfg(target_arch = "x86_64")]
-        match current() {
+        match isa {
             Isa::X86V4 => {
                 return pulp::x86::V4::try_new().map(|v4| Gather16 {
                     isa: GatherIsa::V4(v4),
@@ -199,6 +205,8 @@ impl Gather16 {
             }
             _ => {}
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = isa;
         None
     }
 
@@ -261,10 +269,9 @@ impl Gather16 {
     }
 
     /// `(t[j], t[j + 1])` with `j = min(i[l], t.len() − 2)` on each of sixteen lanes: two
-    /// adjacent elements per lane (a bilinear cell's row, a node interval). With AVX2 they
-    /// are read as 64-bit gathers, which move half the elements of two 32-bit ones; with
-    /// AVX-512 as two [`Self::read`]s. For a `t` of fewer than two elements, [`Self::read`]
-    /// of `i` and `i + 1`.
+    /// adjacent elements per lane (a bilinear cell's row, a node interval), read as 64-bit
+    /// gathers, which move half the elements of two 32-bit ones. For a `t` of fewer than two
+    /// elements, [`Self::read`] of `i` and `i + 1`.
     #[inline(always)]
     #[allow(unsafe_code)]
     pub(crate) fn read_pair(self, t: &[f32], i: &[u32; 16]) -> ([f32; 16], [f32; 16]) {
@@ -277,12 +284,39 @@ impl Gather16 {
         let (mut a, mut b) = ([0.0f32; 16], [0.0f32; 16]);
         #[cfg(target_arch = "x86_64")]
         match self.isa {
-            // The 64-bit gathers of AVX-512 are not used: not measured on a CPU that has them.
-            GatherIsa::V4(_) => {
-                let j = core::array::from_fn(|l| i[l].min(last));
-                let next = core::array::from_fn(|l| j[l] + 1);
-                return (self.read(t, &j), self.read(t, &next));
-            }
+            // SAFETY: `GatherIsa::V4` exists only where `V4::try_new` succeeded, so the CPU
+            // has AVX-512F. The unaligned load and stores move exactly the 64 bytes of `i`,
+            // `a` and `b`. Every offset is clamped to `last` ≤ `t.len()` − 2, so each 8-byte
+            // read (scale 4: offsets count f32s) covers elements `j` and `j + 1` of `t` only;
+            // gathers need no alignment.
+            GatherIsa::V4(_) => unsafe {
+                use core::arch::x86_64::{
+                    _mm512_castsi512_ps, _mm512_castsi512_si256, _mm512_extracti64x4_epi64,
+                    _mm512_i32gather_epi64, _mm512_loadu_si512, _mm512_min_epu32,
+                    _mm512_permutex2var_ps, _mm512_set1_epi32, _mm512_setr_epi32, _mm512_storeu_ps,
+                };
+                let base = t.as_ptr().cast::<i64>();
+                let idx = _mm512_min_epu32(
+                    _mm512_loadu_si512(i.as_ptr().cast()),
+                    _mm512_set1_epi32(last as i32),
+                );
+                // Lanes 0..8 and 8..16 as (a, b) pairs: [a0 b0 a1 b1 … a7 b7], then the
+                // even and odd elements of the two picked out.
+                let g0 = _mm512_castsi512_ps(_mm512_i32gather_epi64::<4>(
+                    _mm512_castsi512_si256(idx),
+                    base,
+                ));
+                let g1 = _mm512_castsi512_ps(_mm512_i32gather_epi64::<4>(
+                    _mm512_extracti64x4_epi64::<1>(idx),
+                    base,
+                ));
+                let even =
+                    _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+                let odd =
+                    _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
+                _mm512_storeu_ps(a.as_mut_ptr(), _mm512_permutex2var_ps(g0, even, g1));
+                _mm512_storeu_ps(b.as_mut_ptr(), _mm512_permutex2var_ps(g0, odd, g1));
+            },
             // SAFETY: `GatherIsa::V3` exists only where `V3::try_new` succeeded, so the CPU
             // has AVX2. Each half's unaligned load and stores move exactly 32 bytes of `i`,
             // `a` and `b` (lanes 0..8, then 8..16). Every offset is clamped to `last` ≤
@@ -327,5 +361,65 @@ impl Gather16 {
             (a[l], b[l]) = (t[j], t[j + 1]);
         }
         (a, b)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Gather16, Isa};
+
+    /// Every gathering instruction set this CPU has reads what indexing reads: in-range
+    /// indices, indices past the end (clamped), 2³¹ and above (the gathers' sign), and
+    /// tables of zero, one and two elements.
+    #[test]
+    fn gathers_read_what_indexing_reads() {
+        let mut state = 0x9e37_79b9_u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        for isa in [Isa::X86V3, Isa::X86V4] {
+            let Some(g) = Gather16::for_isa(isa) else {
+                continue;
+            };
+            for len in [0usize, 1, 2, 3, 5, 16, 37, 1000] {
+                let t: [f32; 1000] = core::array::from_fn(|k| k as f32 * 0.5 - 3.0);
+                let t = &t[..len];
+                for round in 0..64 {
+                    let i: [u32; 16] = core::array::from_fn(|l| match (round + l) % 5 {
+                        0 => next(),
+                        1 => u32::MAX - (next() % 4),
+                        2 => (1 << 31) + next() % 4,
+                        _ => next() % (len as u32 + 3),
+                    });
+                    let at = |k: u32, last: usize| t[(k as usize).min(last)];
+                    let read = g.read(t, &i);
+                    let (a, b) = g.read_pair(t, &i);
+                    for l in 0..16 {
+                        let want = if len == 0 { 0.0 } else { at(i[l], len - 1) };
+                        assert_eq!(
+                            read[l].to_bits(),
+                            want.to_bits(),
+                            "{isa:?} read {len} {i:?}"
+                        );
+                        let (wa, wb) = match len {
+                            0 => (0.0, 0.0),
+                            1 => (t[0], t[0]),
+                            _ => {
+                                let j = (i[l] as usize).min(len - 2);
+                                (t[j], t[j + 1])
+                            }
+                        };
+                        assert_eq!(
+                            (a[l].to_bits(), b[l].to_bits()),
+                            (wa.to_bits(), wb.to_bits()),
+                            "{isa:?} read_pair {len} lane {l} of {i:?}"
+                        );
+                    }
+                }
+            }
+        }
     }
 }
