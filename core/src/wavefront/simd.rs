@@ -380,13 +380,13 @@ mod tests {
             state ^= state << 5;
             state
         };
+        let table: [f32; 1000] = core::array::from_fn(|k| k as f32 * 0.5 - 3.0);
         for isa in [Isa::X86V3, Isa::X86V4] {
             let Some(g) = Gather16::for_isa(isa) else {
                 continue;
             };
             for len in [0usize, 1, 2, 3, 5, 16, 37, 1000] {
-                let t: [f32; 1000] = core::array::from_fn(|k| k as f32 * 0.5 - 3.0);
-                let t = &t[..len];
+                let t = &table[..len];
                 for round in 0..64 {
                     let i: [u32; 16] = core::array::from_fn(|l| match (round + l) % 5 {
                         0 => next(),
@@ -394,11 +394,14 @@ mod tests {
                         2 => (1 << 31) + next() % 4,
                         _ => next() % (len as u32 + 3),
                     });
-                    let at = |k: u32, last: usize| t[(k as usize).min(last)];
                     let read = g.read(t, &i);
                     let (a, b) = g.read_pair(t, &i);
                     for l in 0..16 {
-                        let want = if len == 0 { 0.0 } else { at(i[l], len - 1) };
+                        let want = if len == 0 {
+                            0.0
+                        } else {
+                            t[(i[l] as usize).min(len - 1)]
+                        };
                         assert_eq!(
                             read[l].to_bits(),
                             want.to_bits(),
