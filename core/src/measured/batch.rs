@@ -5,10 +5,11 @@
 //! operation, written as loops over the chunk so that they vectorise: the transcendental
 //! functions are `math`'s branch-free ones (libm's numbers), table reads are gathers (one
 //! instruction per chunk with AVX-512, two with AVX2, [`Gather16`]; a load per lane on the
-//! portable path), and the two binary searches of sampling take a fixed number of steps
-//! with the scalar search's probes. The results are therefore the scalar path's **bit for
-//! bit**. Tables that are not plain f32 slices (f16 or unaligned blob tensors) take the
-//! scalar path lane by lane.
+//! portable path of aarch64 and wasm), and the two binary searches of sampling take a fixed
+//! number of steps with the scalar search's probes. The results are therefore the scalar
+//! path's **bit for bit**. Tables that are not plain f32 slices (f16 or unaligned blob
+//! tensors) take the scalar path lane by lane, and so does an x86 CPU without AVX2 (the
+//! chunks are compiled for AVX2 and AVX-512 only there).
 
 use glam::{Vec2, Vec3};
 
@@ -16,7 +17,7 @@ use crate::distrib::marginal2d::{invert_segment, lerp, patch, sample_segment, Sl
 use crate::error::Result;
 use crate::math;
 use crate::wavefront::check_len;
-use crate::wavefront::simd::{dispatch, Gather16, Kernel};
+use crate::wavefront::simd::{dispatch_wide, Gather16, Kernel};
 use crate::wavefront::{chunks, RgbMut, SamplesMut, Vec2s, Vec3s};
 use crate::weights::Weights;
 
@@ -170,11 +171,8 @@ impl<W: Weights> MeasuredMaterial<W> {
             ],
             g16: Gather16::new(),
         };
-        // Slices blend along φi only with more than one φi node.
-        if s.n_phi > 1 {
-            dispatch(Job::<true> { c: ctx, op });
-        } else {
-            dispatch(Job::<false> { c: ctx, op });
+        if let Some(op) = run_chunks(ctx, op) {
+            self.per_lane(op);
         }
     }
 
@@ -211,6 +209,21 @@ impl<W: Weights> MeasuredMaterial<W> {
                 }
             }
         }
+    }
+}
+
+/// The chunked path, or `op` back (not run) on an x86 CPU without AVX2 (or with
+/// [`Isa::Portable`](crate::wavefront::Isa::Portable) chosen), where the scalar path gives
+/// the same bits: the chunks are not compiled for SSE2. Not generic and never inlined, so
+/// that it is compiled once, in this crate, whatever table type the material holds,
+/// instead of in every crate that calls a batched method.
+#[inline(never)]
+fn run_chunks<'a>(c: Ctx<'a>, op: Op<'a>) -> Option<Op<'a>> {
+    // Slices blend along φi only with more than one φi node.
+    if c.s.n_phi > 1 {
+        dispatch_wide(Job::<true> { c, op }).err().map(|j| j.op)
+    } else {
+        dispatch_wide(Job::<false> { c, op }).err().map(|j| j.op)
     }
 }
 
@@ -643,11 +656,7 @@ impl<const A: bool> Kernel for Job<'_, A> {
                 mut weight,
             } => {
                 for (a, b) in chunks(wi.len(), CHUNK) {
-                    let m = b - a;
-                    match &mut weight {
-                        Some(w) => c.sample_chunk::<A, true>(&wi, &u, &mut out, Some(w), a, m),
-                        None => c.sample_chunk::<A, false>(&wi, &u, &mut out, None, a, m),
-                    }
+                    c.sample_chunk::<A>(&wi, &u, &mut out, weight.as_mut(), a, b - a);
                 }
             }
         }
@@ -666,7 +675,7 @@ impl Ctx<'_> {
         m: usize,
     ) {
         let mut p = self.empty();
-        self.prepare::<A, true>(wi, a, m, &mut p);
+        self.prepare::<A>(wi, a, m, true, &mut p);
         let wo = load3(wo, a, m);
         // `eval` normalises wo, then `half` normalises it again.
         let mut won = [[0.0; CHUNK]; 3];
@@ -700,7 +709,7 @@ impl Ctx<'_> {
     fn pdf_chunk<const A: bool>(&self, wi: &Vec3s<'_>, wo: &Vec3s<'_>, pdf: &mut [f32], a: usize) {
         let m = pdf.len();
         let mut p = self.empty();
-        self.prepare::<A, false>(wi, a, m, &mut p);
+        self.prepare::<A>(wi, a, m, false, &mut p);
         let h = self.half(&p, &load3(wo, a, m));
         let (sample, vndf_pdf) = self.invert::<A>(&self.vndf(), &p.slice, &p.w, &h.u_m);
         let lum_pdf = self.eval::<A>(&self.luminance(), &p.slice, &p.w, &sample);
@@ -721,9 +730,10 @@ impl Ctx<'_> {
     }
 
     /// `sample_batch` of lanes `a .. a + m`; the weights (and the `sigma` table they need)
-    /// only with `WEIGHT`.
+    /// only with `weight`. A run-time choice, not a const parameter: one copy of the
+    /// sampling code serves both (the branch is taken once per chunk).
     #[inline(always)]
-    fn sample_chunk<const A: bool, const WEIGHT: bool>(
+    fn sample_chunk<const A: bool>(
         &self,
         wi: &Vec3s<'_>,
         u: &Vec2s<'_>,
@@ -733,13 +743,13 @@ impl Ctx<'_> {
         m: usize,
     ) {
         let mut p = self.empty();
-        self.prepare::<A, WEIGHT>(wi, a, m, &mut p);
+        self.prepare::<A>(wi, a, m, weight.is_some(), &mut p);
         let mut uu = [[0.0; CHUNK]; 2];
         for l in 0..m {
             let v = u.at(a + l);
             (uu[0][l], uu[1][l]) = (v.x, v.y);
         }
-        self.sample_lanes::<A, WEIGHT>(&p, &uu, out, weight, a, m);
+        self.sample_lanes::<A>(&p, &uu, out, weight, a, m);
     }
 
     /// A chunk's prepared lanes, before [`Ctx::prepare`] fills them.
@@ -757,13 +767,14 @@ impl Ctx<'_> {
     }
 
     /// `MeasuredMaterial::prepare` of lanes `a .. a + m` of `wi`, into `p`; the `sigma`
-    /// table (the scale of `f`) is read only when `SIGMA` (the density does not need it).
+    /// table (the scale of `f`) is read only when `sigma` (the density does not need it).
     #[inline(always)]
-    fn prepare<const A: bool, const SIGMA: bool>(
+    fn prepare<const A: bool>(
         &self,
         wi: &Vec3s<'_>,
         a: usize,
         m: usize,
+        sigma: bool,
         p: &mut Prepared,
     ) {
         let wi = load3(wi, a, m);
@@ -809,7 +820,7 @@ impl Ctx<'_> {
                 [[p.w[0][0][l], p.w[0][1][l]], [p.w[1][0][l], p.w[1][1][l]]] = b.weight;
             }
         }
-        if !SIGMA {
+        if !sigma {
             return;
         }
         let u_wi = [
@@ -947,9 +958,9 @@ impl Ctx<'_> {
     }
 
     /// `MeasuredPrepared::sample` on every lane, written for lanes `a .. a + m` (zero where
-    /// refused); the weights are read from the RGB tables and written only with `WEIGHT`.
+    /// refused); the weights are read from the RGB tables and written only with `weight`.
     #[inline(always)]
-    fn sample_lanes<const A: bool, const WEIGHT: bool>(
+    fn sample_lanes<const A: bool>(
         &self,
         p: &Prepared,
         u: &[Lanes; 2],
@@ -1016,22 +1027,20 @@ impl Ctx<'_> {
             [wo[0][l], wo[1][l], wo[2][l]] = [w.x * p.flip[0][l], w.y * p.flip[1][l], w.z];
             ok[l] &= (wo[2][l] > 0.0) & (pdf[l] > 0.0) & math::is_finite(pdf[l]);
         }
-        if WEIGHT {
-            if let Some(weight) = &mut weight {
-                let rgb = self.rgb::<A>(p, &sample, &u_m);
-                for l in 0..m {
-                    let inv_pdf = 1.0 / pdf[l];
-                    let f = if ok[l] {
-                        [
-                            math::finite_density(rgb[0][l] * inv_pdf),
-                            math::finite_density(rgb[1][l] * inv_pdf),
-                            math::finite_density(rgb[2][l] * inv_pdf),
-                        ]
-                    } else {
-                        [0.0; 3]
-                    };
-                    weight.set(a + l, f);
-                }
+        if let Some(weight) = &mut weight {
+            let rgb = self.rgb::<A>(p, &sample, &u_m);
+            for l in 0..m {
+                let inv_pdf = 1.0 / pdf[l];
+                let f = if ok[l] {
+                    [
+                        math::finite_density(rgb[0][l] * inv_pdf),
+                        math::finite_density(rgb[1][l] * inv_pdf),
+                        math::finite_density(rgb[2][l] * inv_pdf),
+                    ]
+                } else {
+                    [0.0; 3]
+                };
+                weight.set(a + l, f);
             }
         }
         for l in 0..m {

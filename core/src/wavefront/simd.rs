@@ -141,24 +141,48 @@ impl<K: Kernel> pulp::NullaryFnOnce for Job<K> {
 #[inline(always)]
 pub(crate) fn dispatch<K: Kernel>(k: K) -> K::Output {
     #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+    let k = match x86_wide(k) {
+        Ok(out) => return out,
+        Err(k) => k,
+    };
+    // aarch64: NEON is part of the target, so the code as compiled is the NEON path; only
+    // the dense layers choose between their tiles.
+    k.run()
+}
+
+/// [`dispatch`] without x86's baseline copy: on x86, `k` runs only with AVX2 or AVX-512 and
+/// comes back as `Err(k)`, not run, on a CPU without them or when [`Isa::Portable`] is
+/// chosen, so that the kernel is never compiled for SSE2 (its caller has a scalar path for
+/// those machines). Elsewhere (aarch64, wasm) it runs as compiled for the target.
+#[inline(always)]
+pub(crate) fn dispatch_wide<K: Kernel>(k: K) -> Result<K::Output, K> {
+    #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+    return x86_wide(k);
+    #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
+    Ok(k.run())
+}
+
+/// `k` compiled for AVX-512 or AVX2 where [`current`] is one of them (and not above
+/// [`Kernel::WIDEST`]); `Err(k)` otherwise.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+#[inline(always)]
+fn x86_wide<K: Kernel>(k: K) -> Result<K::Output, K> {
     match current() {
         isa @ (Isa::X86V4 | Isa::X86V3) => {
             // A constant per kernel: the copy for an instruction set above `K::WIDEST` is
             // never compiled.
             if const { K::WIDEST as u8 >= Isa::X86V4 as u8 } && isa == Isa::X86V4 {
                 if let Some(v4) = pulp::x86::V4::try_new() {
-                    return v4.vectorize(Job(k));
+                    return Ok(v4.vectorize(Job(k)));
                 }
             }
             if let Some(v3) = pulp::x86::V3::try_new() {
-                return v3.vectorize(Job(k));
+                return Ok(v3.vectorize(Job(k)));
             }
+            Err(k)
         }
-        Isa::Portable | Isa::Neon => {}
+        Isa::Portable | Isa::Neon => Err(k),
     }
-    // aarch64: NEON is part of the target, so the code as compiled is the NEON path; only
-    // the dense layers choose between their tiles.
-    k.run()
 }
 
 /// Proof that the batched kernels run with AVX2 or AVX-512 now ([`current`] is
