@@ -7,11 +7,11 @@
 #   4. `pip install ./bindings/python` (the documented command; one release build of the
 #      wheel, without the `train` feature, so burn is never compiled for it);
 #   5. pytest: unit tests, the Dr.Jit runtime against the Rust scalar path on every fixture
-#      blob, Mitsuba χ² on every fixture sampler (symbolic and evaluated plugins), the
+#      blob, Mitsuba χ² on every fixture sampler through the evaluated plugin and on each
+#      sampler in the symbolic plugin (every material with NEUSAMPLE_FULL_TESTS=1), the
 #      wrong-pdf controls, the render tests (NEUSAMPLE_REQUIRE_MITSUBA=1: a missing Mitsuba or
-#      Dr.Jit LLVM backend fails instead of skipping). Measured with an empty Dr.Jit kernel
-#      cache on the 2-core machine: 178 s, of which the Dr.Jit and symbolic-mode tests are
-#      about 100 s (the other 75 s are the Rust-plugin tests that were here before).
+#      Dr.Jit LLVM backend fails instead of skipping). `pytest --durations=20` prints where
+#      the time goes: the symbolic plugin's runs, which compile their own Dr.Jit kernels.
 # Environment: CARGO_TARGET_DIR (default target/), NEUSAMPLE_VENV (default target/ci-venv),
 # NEUSAMPLE_BINDINGS_CARGO_TESTED=1 when `cargo test --workspace` ran just before (step 3's
 # cargo tests are then not rebuilt with another feature set).
@@ -27,9 +27,9 @@ step "libllvm19 (Mitsuba llvm_ad_rgb)"
 if ! ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1 \
    && ! ls /usr/lib/x86_64-linux-gnu/libLLVM-19.so* >/dev/null 2>&1; then
   if [ "$(id -u)" = 0 ]; then
-    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null
+    apt-get -o DPkg::Lock::Timeout=600 update -qq && DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq libllvm19 >/dev/null
   else
-    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null
+    sudo apt-get -o DPkg::Lock::Timeout=600 update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600 install -y -qq libllvm19 >/dev/null
   fi
 fi
 ls /usr/lib/x86_64-linux-gnu/libLLVM*19* | head -1
@@ -76,7 +76,7 @@ CARGO_TARGET_DIR="$target" "$venv/bin/python" -m pip install -q --disable-pip-ve
 
 step "pytest (unit, Dr.Jit vs Rust, Mitsuba χ² symbolic + evaluated, controls, renders)"
 cd bindings/python/tests
-NEUSAMPLE_REQUIRE_MITSUBA=1 "$venv/bin/python" -m pytest -q -p no:cacheprovider .
+NEUSAMPLE_REQUIRE_MITSUBA=1 "$venv/bin/python" -m pytest -q -p no:cacheprovider --durations=20 .
 cd "$root"
 
 step "bindings done"

@@ -43,7 +43,7 @@ if [ ${#missing[@]} -gt 0 ]; then
     echo "installing ${missing[*]} (apt)"
     SUDO=""
     [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-    ($SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}") \
+    ($SUDO apt-get -o DPkg::Lock::Timeout=600 update -qq && DEBIAN_FRONTEND=noninteractive $SUDO apt-get -o DPkg::Lock::Timeout=600 install -y -qq "${missing[@]}") \
         >/dev/null 2>&1 || skip "cannot install ${missing[*]} with apt-get"
 fi
 command -v rustup >/dev/null 2>&1 || skip "rustup not found (the rust-gpu toolchain $TOOLCHAIN is installed with it)"
