@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The aarch64 build under emulation: cross-compiles the batched-vs-scalar tests
-# (`host_tests/tests/wavefront.rs`) for aarch64-unknown-linux-gnu and runs them with
+# (`host_tests/tests/wavefront.rs`) and the measured material's tests
+# (`bindings/owned/tests/measured.rs`: agreement with Mitsuba's values, the chunked path
+# against the scalar one bit for bit) for aarch64-unknown-linux-gnu and runs them with
 # qemu-user, so that the NEON path (Isa::Neon: the dense layers' NEON tiles) and the
 # portable path are checked against the scalar path as on an ARM machine. Installs what it
 # needs (rustup target, Debian's cross gcc for linking, qemu-user). Emulation checks results,
@@ -23,4 +25,6 @@ fi
 
 export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
 export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch64-linux-gnu"
-cargo test -p neusample-host-tests --target "$TARGET" --test wavefront "$@"
+# One cargo call for both packages: their features unify, so the core is compiled once.
+cargo test -p neusample-host-tests -p neusample-owned --target "$TARGET" \
+    --test wavefront --test measured "$@"
