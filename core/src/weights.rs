@@ -301,40 +301,48 @@ mod window {
     }
 }
 
-impl Weights for [f32] {
-    #[inline(always)]
-    fn len(&self) -> u32 {
-        <[f32]>::len(self) as u32
-    }
-    #[inline(always)]
-    fn as_f32_slice(&self) -> Option<&[f32]> {
-        Some(self)
-    }
-    #[inline(always)]
-    fn at(&self, i: u32) -> f32 {
-        let i = i as usize;
-        if i < <[f32]>::len(self) {
-            self[i]
-        } else {
-            0.0
+/// Implements every [`Weights`] method of an `f32` storage indexed in place (`$s[i]`), whose
+/// element count is `$n` (a `usize` expression of `$s`).
+macro_rules! contiguous_weights {
+    ($s:ident, $n:expr) => {
+        #[inline(always)]
+        fn len(&$s) -> u32 {
+            $n as u32
         }
-    }
-    #[cfg(not(target_arch = "spirv"))]
-    #[inline(always)]
-    fn accumulate<const I: usize, const O: usize>(
-        &self,
-        offset: u32,
-        row0: u32,
-        x: &[f32; I],
-        acc: &mut [f32; O],
-    ) {
-        accumulate_slice(self, offset, row0, x, acc);
-    }
-    #[cfg(not(target_arch = "spirv"))]
-    #[inline(always)]
-    fn read<const M: usize>(&self, offset: u32) -> [f32; M] {
-        read_slice(self, offset)
-    }
+        #[inline(always)]
+        fn as_f32_slice(&$s) -> Option<&[f32]> {
+            Some($s)
+        }
+        #[inline(always)]
+        fn at(&$s, i: u32) -> f32 {
+            let i = i as usize;
+            if i < $n {
+                $s[i]
+            } else {
+                0.0
+            }
+        }
+        #[cfg(not(target_arch = "spirv"))]
+        #[inline(always)]
+        fn accumulate<const I: usize, const O: usize>(
+            &$s,
+            offset: u32,
+            row0: u32,
+            x: &[f32; I],
+            acc: &mut [f32; O],
+        ) {
+            accumulate_slice($s, offset, row0, x, acc);
+        }
+        #[cfg(not(target_arch = "spirv"))]
+        #[inline(always)]
+        fn read<const M: usize>(&$s, offset: u32) -> [f32; M] {
+            read_slice($s, offset)
+        }
+    };
+}
+
+impl Weights for [f32] {
+    contiguous_weights!(self, <[f32]>::len(self));
 }
 
 /// Implements every [`Weights`] method by forwarding it to `$inner`, an expression of `$s`
@@ -373,39 +381,7 @@ macro_rules! forward_weights {
 /// Fixed-size arrays (test tables, constants). Indexed directly rather than forwarded to the
 /// slice impl: rust-gpu cannot make a slice of an array.
 impl<const N: usize> Weights for [f32; N] {
-    #[inline(always)]
-    fn len(&self) -> u32 {
-        N as u32
-    }
-    #[inline(always)]
-    fn as_f32_slice(&self) -> Option<&[f32]> {
-        Some(self)
-    }
-    #[inline(always)]
-    fn at(&self, i: u32) -> f32 {
-        let i = i as usize;
-        if i < N {
-            self[i]
-        } else {
-            0.0
-        }
-    }
-    #[cfg(not(target_arch = "spirv"))]
-    #[inline(always)]
-    fn accumulate<const I: usize, const O: usize>(
-        &self,
-        offset: u32,
-        row0: u32,
-        x: &[f32; I],
-        acc: &mut [f32; O],
-    ) {
-        accumulate_slice(self, offset, row0, x, acc);
-    }
-    #[cfg(not(target_arch = "spirv"))]
-    #[inline(always)]
-    fn read<const M: usize>(&self, offset: u32) -> [f32; M] {
-        read_slice(self, offset)
-    }
+    contiguous_weights!(self, N);
 }
 
 /// Host arrays the caller owns (measured materials read from files, test tables).
@@ -493,6 +469,28 @@ impl<'a> Tensor<'a> {
     }
 }
 
+/// By the storage of tensor `$t`: `$aligned` with `$f` the aligned `&[f32]`, or `$bytes` with
+/// `$e` a [`Weights`] view of the little-endian bytes (`&Le<…>`). One dispatch per call.
+macro_rules! by_storage {
+    ($t:expr, |$f:ident| $aligned:expr, |$e:ident| $bytes:expr) => {
+        match $t {
+            Tensor::F32($f) => $aligned,
+            Tensor::F32Bytes(b) => {
+                let $e = &Le::<F32Le>::new(b);
+                $bytes
+            }
+            Tensor::F16Bytes(b) => {
+                let $e = &Le::<F16Le>::new(b);
+                $bytes
+            }
+            Tensor::U16Bytes(b) => {
+                let $e = &Le::<U16Le>::new(b);
+                $bytes
+            }
+        }
+    };
+}
+
 impl Weights for Tensor<'_> {
     #[inline(always)]
     fn len(&self) -> u32 {
@@ -513,16 +511,14 @@ impl Weights for Tensor<'_> {
 
     #[inline(always)]
     fn at(&self, i: u32) -> f32 {
-        let i = i as usize;
-        match self {
-            Tensor::F32(f) => match f.get(i) {
+        by_storage!(
+            self,
+            |f| match f.get(i as usize) {
                 Some(v) => *v,
                 None => 0.0,
             },
-            Tensor::F32Bytes(b) => Le::<F32Le>::new(b).at(i as u32),
-            Tensor::F16Bytes(b) => Le::<F16Le>::new(b).at(i as u32),
-            Tensor::U16Bytes(b) => Le::<U16Le>::new(b).at(i as u32),
-        }
+            |e| e.at(i)
+        )
     }
 
     #[inline(always)]
@@ -534,22 +530,14 @@ impl Weights for Tensor<'_> {
         acc: &mut [f32; O],
     ) {
         // Dispatch on the storage once per block, not once per element.
-        match self {
-            Tensor::F32(f) => f.accumulate(offset, row0, x, acc),
-            Tensor::F32Bytes(b) => accumulate_generic(&Le::<F32Le>::new(b), offset, row0, x, acc),
-            Tensor::F16Bytes(b) => accumulate_generic(&Le::<F16Le>::new(b), offset, row0, x, acc),
-            Tensor::U16Bytes(b) => accumulate_generic(&Le::<U16Le>::new(b), offset, row0, x, acc),
-        }
+        by_storage!(self, |f| f.accumulate(offset, row0, x, acc), |e| {
+            accumulate_generic(e, offset, row0, x, acc)
+        })
     }
 
     #[inline(always)]
     fn read<const N: usize>(&self, offset: u32) -> [f32; N] {
-        match self {
-            Tensor::F32(f) => f.read(offset),
-            Tensor::F32Bytes(b) => read_generic(&Le::<F32Le>::new(b), offset),
-            Tensor::F16Bytes(b) => read_generic(&Le::<F16Le>::new(b), offset),
-            Tensor::U16Bytes(b) => read_generic(&Le::<U16Le>::new(b), offset),
-        }
+        by_storage!(self, |f| f.read(offset), |e| read_generic(e, offset))
     }
 }
 
