@@ -224,6 +224,29 @@ pub struct Table2D<T, M = T, C = T> {
     layout: TableLayout,
 }
 
+/// The checks [`Table2D::lerp`] and [`Table2D::lerp_compact`] share: `n` in `1 ..=`
+/// [`MAX_N`], `a ∈ [0, 1]` (not NaN), and slices `slice0` and `slice1` inside `conditional`
+/// (`N²` entries a slice) and `marginal` (`N` a slice). The later of the two slices, or `None`.
+#[inline(always)]
+fn blend_fits<M: Weights + ?Sized, C: Weights + ?Sized>(
+    marginal: &M,
+    conditional: &C,
+    n: u32,
+    slice0: u32,
+    slice1: u32,
+    a: f32,
+) -> Option<u32> {
+    if n == 0 || n as usize > MAX_N || !(0.0..=1.0).contains(&a) {
+        return None;
+    }
+    let last = if slice0 > slice1 { slice0 } else { slice1 };
+    // Written as divisions so that nothing can overflow.
+    if last >= conditional.len() / (n * n) || last >= marginal.len() / n {
+        return None;
+    }
+    Some(last)
+}
+
 impl<T: Copy, M: Copy, C: Copy> Clone for Table2D<T, M, C> {
     fn clone(&self) -> Self {
         *self
@@ -245,13 +268,7 @@ impl<M: Weights + Copy, C: Weights> Table2D<M, M, C> {
         slice1: u32,
         a: f32,
     ) -> Option<Self> {
-        if n == 0 || n as usize > MAX_N || !(0.0..=1.0).contains(&a) {
-            return None;
-        }
-        let last = if slice0 > slice1 { slice0 } else { slice1 };
-        if last >= conditional.len() / (n * n) || last >= marginal.len() / n {
-            return None;
-        }
+        blend_fits(&marginal, &conditional, n, slice0, slice1, a)?;
         Some(Self::from_parts(
             marginal,
             marginal,
@@ -287,16 +304,9 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
         slice1: u32,
         a: f32,
     ) -> Option<Self> {
-        if n == 0 || n as usize > MAX_N || !(0.0..=1.0).contains(&a) {
-            return None;
-        }
-        let nn = n * n;
-        // Written as divisions so that nothing can overflow.
-        let slices_v = values.len() / nn;
-        let slices_c = conditional.len() / nn;
-        let slices_m = marginal.len() / n;
-        let last = if slice0 > slice1 { slice0 } else { slice1 };
-        if last >= slices_v || last >= slices_c || last >= slices_m {
+        let last = blend_fits(&marginal, &conditional, n, slice0, slice1, a)?;
+        // A division, as in `blend_fits`, so that nothing can overflow.
+        if last >= values.len() / (n * n) {
             return None;
         }
         Some(Self::from_parts(
@@ -324,18 +334,16 @@ impl<T: Weights, M: Weights, C: Weights> Table2D<T, M, C> {
         a: f32,
         layout: TableLayout,
     ) -> Self {
-        let mut t = Table2D {
+        let mut t = Self::from_normalized_parts(
             values,
             marginal,
             conditional,
             n,
-            slice0,
-            slice1,
-            a,
-            total: 0.0,
-            inv_integral: 0.0,
+            (slice0, slice1, a),
+            0.0,
+            0.0,
             layout,
-        };
+        );
         let total = t.marginal_at(n - 1);
         let integral = total * cell_area(n);
         if total > 0.0 && math::is_finite(total) && integral > 0.0 {
