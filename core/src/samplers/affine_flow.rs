@@ -8,14 +8,14 @@ use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
 use crate::math;
-use crate::nn::{self, check_condition, encode_condition, Activation, FEATURE_DIM};
+use crate::nn::{self, Activation};
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
 
 use super::coupling::{all_finite, condition_share, density_from_log, first_layer};
 pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
 
-use super::{LanePrepared, Prepared, Sample, Sampler};
+use super::{LanePrepared, Prepared, Sample};
 
 #[cfg(not(target_arch = "spirv"))]
 mod batch;
@@ -100,29 +100,15 @@ impl AffineFlowLane {
 /// weights handle.
 pub type AffineFlowPrepared<'s, W> = LanePrepared<'s, W, AffineFlowLane>;
 
-impl<W: Weights + Copy> Sampler for AffineFlowSampler<W> {
-    type Prepared<'s>
-        = AffineFlowPrepared<'s, W>
-    where
-        W: 's;
-
-    fn prepare<'s>(
-        &'s self,
-        phi: &[f32; FEATURE_DIM],
-        wi: Vec3,
-    ) -> Option<AffineFlowPrepared<'s, W>> {
-        let wi = check_condition(phi, wi)?;
-        let c = encode_condition(phi, wi);
-        let w = &self.params;
-        let mut share = [[0.0f32; HIDDEN]; AFFINE_LAYERS];
-        let mut l = 0;
-        while l < AFFINE_LAYERS {
-            share[l] = condition_share(w, (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32, &c);
-            l += 1;
-        }
-        Some(LanePrepared::new(self.params, AffineFlowLane::new(share)?))
+super::traits::lane_sampler!(AffineFlowSampler => AffineFlowPrepared, |w, c| {
+    let mut share = [[0.0f32; HIDDEN]; AFFINE_LAYERS];
+    let mut l = 0;
+    while l < AFFINE_LAYERS {
+        share[l] = condition_share(w, (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32, &c);
+        l += 1;
     }
-}
+    AffineFlowLane::new(share)
+});
 
 impl<W: Weights + Copy> AffineFlowPrepared<'_, W> {
     /// Density direction: the latent point `z` of disk point `p` and `ln |det ∂z/∂p|`, or

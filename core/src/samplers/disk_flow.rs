@@ -33,7 +33,7 @@ use glam::{Vec2, Vec3};
 use crate::distrib::spline::Knots;
 use crate::math;
 use crate::math::lane::Lane;
-use crate::nn::{self, check_condition, encode_condition, FEATURE_DIM};
+use crate::nn;
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
 
@@ -41,7 +41,7 @@ use super::coupling::HIDDEN;
 use super::coupling::{all_finite, condition_share, coupling_raw, density_from_log};
 use super::coupling::{COUPLING_L0, COUPLING_L1, COUPLING_L2};
 
-use super::{LanePrepared, Prepared, Sample, Sampler};
+use super::{LanePrepared, Prepared, Sample};
 
 #[cfg(not(target_arch = "spirv"))]
 mod batch;
@@ -173,27 +173,13 @@ impl DiskFlowLane {
 /// weights handle.
 pub type DiskFlowPrepared<'s, W> = LanePrepared<'s, W, DiskFlowLane>;
 
-impl<W: Weights + Copy> Sampler for DiskFlowSampler<W> {
-    type Prepared<'s>
-        = DiskFlowPrepared<'s, W>
-    where
-        W: 's;
-
-    fn prepare<'s>(
-        &'s self,
-        phi: &[f32; FEATURE_DIM],
-        wi: Vec3,
-    ) -> Option<DiskFlowPrepared<'s, W>> {
-        let wi = check_condition(phi, wi)?;
-        let c = encode_condition(phi, wi);
-        let w = &self.params;
-        let share = [
-            condition_share(w, DISK_FLOW_COUPLING0 as u32, &c),
-            condition_share(w, DISK_FLOW_COUPLING1 as u32, &c),
-        ];
-        Some(LanePrepared::new(self.params, DiskFlowLane::new(share)?))
-    }
-}
+super::traits::lane_sampler!(DiskFlowSampler => DiskFlowPrepared, |w, c| {
+    let share = [
+        condition_share(w, DISK_FLOW_COUPLING0 as u32, &c),
+        condition_share(w, DISK_FLOW_COUPLING1 as u32, &c),
+    ];
+    DiskFlowLane::new(share)
+});
 
 impl<W: Weights + Copy> DiskFlowPrepared<'_, W> {
     /// The spline of coupling network `net` (0 or 1) at other coordinate `v`.

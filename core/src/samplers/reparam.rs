@@ -28,13 +28,13 @@ use glam::{Vec2, Vec3};
 use crate::distrib::gaussian;
 use crate::math;
 use crate::math::lane::Lane;
-use crate::nn::{self, check_condition, encode_condition, CONDITION_DIM, FEATURE_DIM};
+use crate::nn::{self, CONDITION_DIM};
 use crate::warp::inside_disk;
 use crate::weights::Weights;
 
 use super::coupling::all_finite;
 
-use super::{LanePrepared, Prepared, Sample, Sampler};
+use super::{LanePrepared, Prepared, Sample};
 
 #[cfg(not(target_arch = "spirv"))]
 mod batch;
@@ -268,23 +268,12 @@ fn density_lane<W: Weights>(w: &W, lane: &ReparamLane, p: Vec2) -> f32 {
 /// weights handle.
 pub type ReparamPrepared<'s, W> = LanePrepared<'s, W, ReparamLane>;
 
-impl<W: Weights + Copy> Sampler for ReparamSampler<W> {
-    type Prepared<'s>
-        = ReparamPrepared<'s, W>
-    where
-        W: 's;
-
-    fn prepare<'s>(&'s self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<ReparamPrepared<'s, W>> {
-        let wi = check_condition(phi, wi)?;
-        let c = encode_condition(phi, wi);
-        let w = &self.params;
-        let lane = ReparamLane::new(
-            share(w, WARP_L0 as u32, &c),
-            share(w, DENSITY_L0 as u32, &c),
-        )?;
-        Some(LanePrepared::new(self.params, lane))
-    }
-}
+super::traits::lane_sampler!(ReparamSampler => ReparamPrepared, |w, c| {
+    ReparamLane::new(
+        share(w, WARP_L0 as u32, &c),
+        share(w, DENSITY_L0 as u32, &c),
+    )
+});
 
 impl<W: Weights + Copy> ReparamPrepared<'_, W> {
     /// The warp at latent point `z` (not necessarily a Box–Muller output) with its Jacobian

@@ -16,16 +16,17 @@
 //! open unit disk are refused (`None`); the density is 0 there, so it integrates over the
 //! disk to the probability that a sample lands inside.
 //!
-//! Per shading point, [`Sampler::prepare`] encodes the condition `c` once, runs the base
-//! network, and precomputes the condition's share of every coupling network's first layer;
-//! per sample only the 9 encoded inputs of the other coordinate and the remaining layers run.
+//! Per shading point, [`Sampler::prepare`](super::Sampler::prepare) encodes the condition `c`
+//! once, runs the base network, and precomputes the condition's share of every coupling
+//! network's first layer; per sample only the 9 encoded inputs of the other coordinate and the
+//! remaining layers run.
 
 use glam::{Vec2, Vec3};
 
 use crate::distrib::gaussian;
 use crate::distrib::spline::Knots;
 use crate::math;
-use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
+use crate::nn::{self, Activation, CONDITION_DIM};
 use crate::warp::{self, inside_disk};
 use crate::weights::Weights;
 
@@ -33,7 +34,7 @@ use super::coupling::{all_finite, condition_share, coupling_raw, density_from_lo
 pub use super::coupling::{encode_other, COUPLING_INPUTS, HIDDEN, OTHER_BANDS, OTHER_DIM};
 use super::coupling::{COUPLING_L0, COUPLING_L1, COUPLING_L2};
 
-use super::{LanePrepared, Prepared, Sample, Sampler};
+use super::{LanePrepared, Prepared, Sample};
 
 #[cfg(not(target_arch = "spirv"))]
 mod batch;
@@ -178,32 +179,15 @@ impl SplineFlowLane {
 /// handle.
 pub type SplineFlowPrepared<'s, W> = LanePrepared<'s, W, SplineFlowLane>;
 
-impl<W: Weights + Copy> Sampler for SplineFlowSampler<W> {
-    type Prepared<'s>
-        = SplineFlowPrepared<'s, W>
-    where
-        W: 's;
-
-    fn prepare<'s>(
-        &'s self,
-        phi: &[f32; FEATURE_DIM],
-        wi: Vec3,
-    ) -> Option<SplineFlowPrepared<'s, W>> {
-        let wi = check_condition(phi, wi)?;
-        let c = encode_condition(phi, wi);
-        let w = &self.params;
-        let h = nn::dense::<W, CONDITION_DIM, HIDDEN>(w, FLOW_BASE_L0 as u32, &c, Activation::Relu);
-        let o = nn::linear::<W, HIDDEN, BASE_OUTPUTS>(w, FLOW_BASE_L1 as u32, &h);
-        let share = [
-            condition_share(w, FLOW_COUPLING0 as u32, &c),
-            condition_share(w, FLOW_COUPLING1 as u32, &c),
-        ];
-        Some(LanePrepared::new(
-            self.params,
-            SplineFlowLane::new(&o, share)?,
-        ))
-    }
-}
+super::traits::lane_sampler!(SplineFlowSampler => SplineFlowPrepared, |w, c| {
+    let h = nn::dense::<W, CONDITION_DIM, HIDDEN>(w, FLOW_BASE_L0 as u32, &c, Activation::Relu);
+    let o = nn::linear::<W, HIDDEN, BASE_OUTPUTS>(w, FLOW_BASE_L1 as u32, &h);
+    let share = [
+        condition_share(w, FLOW_COUPLING0 as u32, &c),
+        condition_share(w, FLOW_COUPLING1 as u32, &c),
+    ];
+    SplineFlowLane::new(&o, share)
+});
 
 impl<W: Weights + Copy> SplineFlowPrepared<'_, W> {
     /// Mean of the base Gaussian.

@@ -275,6 +275,35 @@ macro_rules! flat_params_sampler {
 }
 pub(crate) use flat_params_sampler;
 
+/// [`Sampler`] for `$sampler<W>` (a struct `{ params: W }`) whose prepared state is a
+/// [`LanePrepared`] named `$prepared<'s, W>`: the condition is checked
+/// ([`check_condition`](crate::nn::check_condition)) and encoded into `$c`
+/// ([`encode_condition`](crate::nn::encode_condition)), and `$lane`, an expression of `$w`
+/// (`&W`, the weights) and `$c`, gives the lane, or `None` when it is unusable.
+macro_rules! lane_sampler {
+    ($sampler:ident => $prepared:ident, |$w:ident, $c:ident| $lane:expr) => {
+        impl<W: $crate::Weights + Copy> $crate::samplers::Sampler for $sampler<W> {
+            type Prepared<'s>
+                = $prepared<'s, W>
+            where
+                W: 's;
+
+            fn prepare<'s>(
+                &'s self,
+                phi: &[f32; $crate::nn::FEATURE_DIM],
+                wi: glam::Vec3,
+            ) -> Option<$prepared<'s, W>> {
+                let wi = $crate::nn::check_condition(phi, wi)?;
+                let $c = $crate::nn::encode_condition(phi, wi);
+                let $w = &self.params;
+                let lane = $lane?;
+                Some($crate::samplers::LanePrepared::new(self.params, lane))
+            }
+        }
+    };
+}
+pub(crate) use lane_sampler;
+
 /// The constructors every sampler with one flat parameter array has (`new_unchecked`, `new`,
 /// `params`), for a struct `{ params: W }` with an associated `PARAM_COUNT`.
 macro_rules! params_constructors {
