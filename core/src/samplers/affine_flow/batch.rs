@@ -138,18 +138,17 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         }
     }
 
-    /// The density direction (`to_latent`) at the directions `wo`: disk points, their
-    /// validity and cos θ, the latent points and the log-dets.
+    /// The density direction (`to_latent`) at the directions `wo`: per lane, whether its disk
+    /// point is valid, cos θ, the latent point and the log-det.
     #[inline(always)]
-    fn latent_at_chunk(
-        &self,
-        lanes: &[Option<AffineFlowLane>],
-        wo: Vec3s<'_>,
-        ok: &mut [bool; CHUNK],
-        cos: &mut [f32; CHUNK],
-        zl: &mut [Vec2; CHUNK],
-        ld: &mut [f32; CHUNK],
-    ) {
+    fn latent_at_chunk(&self, lanes: &[Option<AffineFlowLane>], wo: Vec3s<'_>) -> LatentAt {
+        let mut at = LatentAt {
+            ok: [false; CHUNK],
+            cos: [0.0; CHUNK],
+            z: [Vec2::ZERO; CHUNK],
+            log_det: [0.0; CHUNK],
+        };
+        let (ok, cos) = (&mut at.ok, &mut at.cos);
         let m = lanes.len();
         let all = wavefront::identity_index::<CHUNK>();
         let mut p = [Vec2::ZERO; CHUNK];
@@ -164,8 +163,21 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         }
         let mut st0 = [(0.0f32, 0.0f32); CHUNK];
         self.scale_shift_for(0, lanes, &all, m, &v, &mut st0);
-        self.latent_chunk(lanes, &p, &st0, None, zl, ld);
+        self.latent_chunk(lanes, &p, &st0, None, &mut at.z, &mut at.log_det);
+        at
     }
+}
+
+/// What `latent_at_chunk` gives per lane of a chunk.
+struct LatentAt {
+    /// Whether the lane is prepared and its direction's disk point strictly inside the disk.
+    ok: [bool; CHUNK],
+    /// cos θ of the direction.
+    cos: [f32; CHUNK],
+    /// The latent point.
+    z: [Vec2; CHUNK],
+    /// `ln |det ∂z/∂p|`.
+    log_det: [f32; CHUNK],
 }
 
 impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
@@ -274,15 +286,11 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         pdf: &mut [f32],
         _scratch: &mut Self::Scratch,
     ) {
-        let mut ok = [false; CHUNK];
-        let mut cos = [0.0f32; CHUNK];
-        let mut zl = [Vec2::ZERO; CHUNK];
-        let mut ld = [0.0f32; CHUNK];
-        self.latent_at_chunk(lanes, wo, &mut ok, &mut cos, &mut zl, &mut ld);
+        let at = self.latent_at_chunk(lanes, wo);
         for i in 0..lanes.len() {
-            pdf[i] = if ok[i] {
-                let d = density_from_log(AffineFlowPrepared::<W>::log_density(zl[i], ld[i]));
-                warp::disk_to_solid_angle(d, cos[i])
+            pdf[i] = if at.ok[i] {
+                let d = AffineFlowPrepared::<W>::log_density(at.z[i], at.log_det[i]);
+                warp::disk_to_solid_angle(density_from_log(d), at.cos[i])
             } else {
                 0.0
             };
@@ -298,14 +306,10 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         ok_out: &mut [bool],
         _scratch: &mut Self::Scratch,
     ) {
-        let mut ok = [false; CHUNK];
-        let mut cos = [0.0f32; CHUNK];
-        let mut zl = [Vec2::ZERO; CHUNK];
-        let mut ld = [0.0f32; CHUNK];
-        self.latent_at_chunk(lanes, wo, &mut ok, &mut cos, &mut zl, &mut ld);
+        let at = self.latent_at_chunk(lanes, wo);
         for i in 0..lanes.len() {
-            let z = zl[i];
-            let r = if ok[i] && math::is_finite(z.x) && math::is_finite(z.y) {
+            let z = at.z[i];
+            let r = if at.ok[i] && math::is_finite(z.x) && math::is_finite(z.y) {
                 Some(gaussian::invert_box_muller(z))
             } else {
                 None
