@@ -79,12 +79,15 @@ fn pow2(kf: f32) -> f32 {
 }
 
 /// libm `expf`'s `k` (as a float) for `|x| < 2²²·ln 2`: `trunc(x/ln 2 ± 1/2)` for
-/// `|x| > 1.5 ln 2`, ±1 for `0.5 ln 2 < |x| ≤ 1.5 ln 2`, else 0.
+/// `|x| > 1.5 ln 2`, ±1 for `0.5 ln 2 < |x| ≤ 1.5 ln 2`, else 0. With `FROM_1_5`, `expm1f`'s
+/// `k`: the same, but `|x|` equal to the bound 1.5 ln 2 (as an f32) takes the first case.
 #[inline(always)]
-fn expf_k(x: f32, ax: f32) -> f32 {
+fn expf_k<const FROM_1_5: bool>(x: f32, ax: f32) -> f32 {
     let neg = x < 0.0;
     let t = trunc_small(INV_LN2 * x + if neg { -0.5 } else { 0.5 });
-    if ax > f32::from_bits(0x3f85_1592) {
+    let bound = f32::from_bits(0x3f85_1592);
+    let above = if FROM_1_5 { ax >= bound } else { ax > bound };
+    if above {
         t
     } else if ax > f32::from_bits(0x3eb1_7218) {
         if neg {
@@ -126,7 +129,7 @@ fn expf_reduced(x: f32, ax: f32, kf: f32) -> f32 {
 #[must_use]
 pub fn exp_in_range(x: f32) -> f32 {
     let ax = abs(x);
-    let kf = expf_k(x, ax);
+    let kf = expf_k::<false>(x, ax);
     expf_reduced(x, ax, kf) * pow2(kf)
 }
 
@@ -157,7 +160,7 @@ pub fn exp_nonpositive(x: f32) -> f32 {
 #[must_use]
 pub fn exp(x: f32) -> f32 {
     let ax = abs(x);
-    let kf = expf_k(x, ax);
+    let kf = expf_k::<false>(x, ax);
     let y = expf_reduced(x, ax, kf);
     // scalbnf(y, k) for k ∈ [−150, 128]: by 2¹²⁷ first above 127, by 2⁻¹⁰² first below −126.
     let big = kf > 127.0;
@@ -284,20 +287,8 @@ pub fn ln_1p(x: f32) -> f32 {
 #[must_use]
 fn exp_m1_in_range(x: f32) -> f32 {
     let ax = abs(x);
-    let neg = x < 0.0;
     // libm's k: trunc(x/ln 2 ± 1/2) from 1.5 ln 2 on, ±1 above 0.5 ln 2, else 0 (x unreduced).
-    let t = trunc_small(INV_LN2 * x + if neg { -0.5 } else { 0.5 });
-    let kf = if ax >= f32::from_bits(0x3f85_1592) {
-        t
-    } else if ax > f32::from_bits(0x3eb1_7218) {
-        if neg {
-            -1.0
-        } else {
-            1.0
-        }
-    } else {
-        0.0
-    };
+    let kf = expf_k::<true>(x, ax);
     // Where libm returns x the rest runs on 0 (no subnormal intermediates, see `expf_reduced`).
     let tiny = !(ax >= f32::from_bits(0x3300_0000));
     let x1 = if tiny { 0.0 } else { x };
