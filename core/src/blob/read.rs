@@ -53,27 +53,34 @@ impl<'a> Blob<'a> {
     /// and CDFs, a measured material's shape, tables and integrals.
     fn check_tables(&self) -> Result<()> {
         let header = &self.header;
-        if header.kind == SamplerKind::HistogramMixture && self.is_compact() {
-            histogram_mixture::validate_compact_tables(
-                &self.tensor_or_empty(TensorRole::Mass),
-                &self.tensor_or_empty(TensorRole::Marginal),
-                &self.tensor_or_empty(TensorRole::Conditional),
-                header.basis,
-                header.t_levels,
-                header.resolution,
-            )?;
-        } else if header.kind == BlobKind::Measured {
+        if header.kind == BlobKind::Measured {
             self.check_measured()?;
         } else if header.kind == SamplerKind::HistogramMixture {
-            histogram_mixture::validate_tables(
-                &self.tensor_or_empty(TensorRole::Mass),
-                &self.tensor_or_empty(TensorRole::Table),
-                &self.tensor_or_empty(TensorRole::Marginal),
-                &self.tensor_or_empty(TensorRole::Conditional),
-                header.basis,
-                header.t_levels,
-                header.resolution,
-            )?;
+            let mass = self.tensor_or_empty(TensorRole::Mass);
+            let marginal = self.tensor_or_empty(TensorRole::Marginal);
+            let conditional = self.tensor_or_empty(TensorRole::Conditional);
+            let (k, t, n) = (header.basis, header.t_levels, header.resolution);
+            if self.is_compact() {
+                histogram_mixture::validate_compact_tables(
+                    &mass,
+                    &marginal,
+                    &conditional,
+                    k,
+                    t,
+                    n,
+                )?;
+            } else {
+                let table = self.tensor_or_empty(TensorRole::Table);
+                histogram_mixture::validate_tables(
+                    &mass,
+                    &table,
+                    &marginal,
+                    &conditional,
+                    k,
+                    t,
+                    n,
+                )?;
+            }
         }
         Ok(())
     }
