@@ -1121,22 +1121,22 @@ mod tests {
         let theta_i = (0..n_theta)
             .map(|i| 1.5 * (i as f32 / (n_theta - 1) as f32).powi(2))
             .collect();
-        let (vndf, vndf_marginal, vndf_conditional) = build(&r.values(s * 19 * 11), 19, 11, true);
-        let (luminance, luminance_marginal, luminance_conditional) =
-            build(&r.values(s * 9 * 12), 9, 12, true);
-        let tables = MeasuredTables {
+        // (values, marginal, conditional) each.
+        let vndf = build(&r.values(s * 19 * 11), 19, 11, true);
+        let luminance = build(&r.values(s * 9 * 12), 9, 12, true);
+        let tables = MeasuredTables::from_array([
             phi_i,
             theta_i,
-            ndf: r.values(17 * 9),
-            sigma: r.values(13 * 7),
-            vndf,
-            vndf_marginal,
-            vndf_conditional,
-            luminance,
-            luminance_marginal,
-            luminance_conditional,
-            rgb: r.values(s * 3 * 9 * 12).iter().map(|v| v - 0.02).collect(),
-        };
+            r.values(17 * 9),
+            r.values(13 * 7),
+            vndf.0,
+            vndf.1,
+            vndf.2,
+            luminance.0,
+            luminance.1,
+            luminance.2,
+            r.values(s * 3 * 9 * 12).iter().map(|v| v - 0.02).collect(),
+        ]);
         MeasuredMaterial::new(shape, tables, true).unwrap()
     }
 
