@@ -89,20 +89,32 @@ struct Sample<'a, 's, S: ChunkedSampler> {
     out: SamplesMut<'a>,
 }
 
-impl<S: ChunkedSampler> Kernel for Sample<'_, '_, S> {
-    type Output = ();
-    const WIDEST: Isa = S::WIDEST;
-    #[inline(always)]
-    fn run(mut self) {
-        let n = self.lanes.len();
-        let mut scratch = S::Scratch::NEW;
-        for (a, b) in chunks(n, S::CHUNK) {
-            let (lanes, u) = (&self.lanes[a..b], self.u.range(a, b));
-            self.s
-                .sample_chunk(lanes, u, self.out.range(a, b), &mut scratch);
+/// [`Kernel`] for the pass `$kernel` (a struct holding `s: &S` and `lanes`): the lanes in chunks
+/// of `S::CHUNK`, which share one `S::Scratch`. `$chunk` computes chunk `$a .. $b`, with `$k` the
+/// kernel (`&mut`) and `$scratch` the scratch (`&mut`).
+macro_rules! chunk_pass {
+    ($kernel:ident, |$k:ident, $a:ident, $b:ident, $scratch:ident| $chunk:expr) => {
+        impl<S: ChunkedSampler> Kernel for $kernel<'_, '_, S> {
+            type Output = ();
+            const WIDEST: Isa = S::WIDEST;
+            #[inline(always)]
+            fn run(mut self) {
+                let $k = &mut self;
+                let n = $k.lanes.len();
+                let mut scratch = S::Scratch::NEW;
+                let $scratch = &mut scratch;
+                for ($a, $b) in chunks(n, S::CHUNK) {
+                    $chunk;
+                }
+            }
         }
-    }
+    };
 }
+
+chunk_pass!(Sample, |k, a, b, scratch| {
+    let (lanes, u) = (&k.lanes[a..b], k.u.range(a, b));
+    k.s.sample_chunk(lanes, u, k.out.range(a, b), scratch)
+});
 
 struct Pdf<'a, 's, S: ChunkedSampler> {
     s: &'s S,
@@ -111,20 +123,10 @@ struct Pdf<'a, 's, S: ChunkedSampler> {
     pdf: &'a mut [f32],
 }
 
-impl<S: ChunkedSampler> Kernel for Pdf<'_, '_, S> {
-    type Output = ();
-    const WIDEST: Isa = S::WIDEST;
-    #[inline(always)]
-    fn run(self) {
-        let n = self.lanes.len();
-        let mut scratch = S::Scratch::NEW;
-        for (a, b) in chunks(n, S::CHUNK) {
-            let (lanes, wo) = (&self.lanes[a..b], self.wo.range(a, b));
-            self.s
-                .pdf_chunk(lanes, wo, &mut self.pdf[a..b], &mut scratch);
-        }
-    }
-}
+chunk_pass!(Pdf, |k, a, b, scratch| {
+    let (lanes, wo) = (&k.lanes[a..b], k.wo.range(a, b));
+    k.s.pdf_chunk(lanes, wo, &mut k.pdf[a..b], scratch)
+});
 
 struct Invert<'a, 's, S: ChunkedSampler> {
     s: &'s S,
@@ -134,20 +136,11 @@ struct Invert<'a, 's, S: ChunkedSampler> {
     ok: &'a mut [bool],
 }
 
-impl<S: ChunkedSampler> Kernel for Invert<'_, '_, S> {
-    type Output = ();
-    const WIDEST: Isa = S::WIDEST;
-    #[inline(always)]
-    fn run(mut self) {
-        let n = self.lanes.len();
-        let mut scratch = S::Scratch::NEW;
-        for (a, b) in chunks(n, S::CHUNK) {
-            let (lanes, wo) = (&self.lanes[a..b], self.wo.range(a, b));
-            let (u, ok) = (self.u.range(a, b), &mut self.ok[a..b]);
-            self.s.invert_chunk(lanes, wo, u, ok, &mut scratch);
-        }
-    }
-}
+chunk_pass!(Invert, |k, a, b, scratch| {
+    let (lanes, wo) = (&k.lanes[a..b], k.wo.range(a, b));
+    let (u, ok) = (k.u.range(a, b), &mut k.ok[a..b]);
+    k.s.invert_chunk(lanes, wo, u, ok, scratch)
+});
 
 impl<S: ChunkedSampler> BatchSampler for S {
     type Lane = S::Lane;
