@@ -75,15 +75,26 @@ const BRANCH_FREE: bool = cfg!(all(
     not(target_arch = "spirv")
 ));
 
-/// eˣ: libm's `expf`, branch-free where [`BRANCH_FREE`].
-#[inline(always)]
-#[must_use]
-pub fn exp(x: f32) -> f32 {
-    if BRANCH_FREE {
-        branch_free::exp(x)
-    } else {
-        libm::expf(x)
-    }
+/// `fn $name(x: f32) -> f32` (inlined, `#[must_use]`): [`branch_free`]'s `$name` where
+/// [`BRANCH_FREE`], else libm's `$libm`.
+macro_rules! libm_or_branch_free {
+    ($(#[$attr:meta])* $vis:vis fn $name:ident => $libm:ident) => {
+        $(#[$attr])*
+        #[inline(always)]
+        #[must_use]
+        $vis fn $name(x: f32) -> f32 {
+            if BRANCH_FREE {
+                branch_free::$name(x)
+            } else {
+                libm::$libm(x)
+            }
+        }
+    };
+}
+
+libm_or_branch_free! {
+    /// eˣ: libm's `expf`, branch-free where [`BRANCH_FREE`].
+    pub fn exp => expf
 }
 
 /// Lower clamp of [`exp_in_range`]'s argument (e⁻⁸⁷ ≈ 1.6·10⁻³⁸: the result stays a
@@ -107,26 +118,14 @@ pub fn exp_in_range(x: f32) -> f32 {
     }
 }
 
-/// ln x: libm's `logf`, branch-free where [`BRANCH_FREE`].
-#[inline(always)]
-#[must_use]
-pub fn ln(x: f32) -> f32 {
-    if BRANCH_FREE {
-        branch_free::ln(x)
-    } else {
-        libm::logf(x)
-    }
+libm_or_branch_free! {
+    /// ln x: libm's `logf`, branch-free where [`BRANCH_FREE`].
+    pub fn ln => logf
 }
 
-/// ln(1 + x): libm's `log1pf`, branch-free where [`BRANCH_FREE`].
-#[inline(always)]
-#[must_use]
-pub fn ln_1p(x: f32) -> f32 {
-    if BRANCH_FREE {
-        branch_free::ln_1p(x)
-    } else {
-        libm::log1pf(x)
-    }
+libm_or_branch_free! {
+    /// ln(1 + x): libm's `log1pf`, branch-free where [`BRANCH_FREE`].
+    pub fn ln_1p => log1pf
 }
 
 /// (sin x, cos x): libm's `sincosf`, through [`sin_cos_fast`] where it applies.
@@ -205,15 +204,9 @@ pub fn round(x: f32) -> f32 {
     libm::rintf(x)
 }
 
-/// tanh x: libm's `tanhf`, branch-free where [`BRANCH_FREE`].
-#[inline(always)]
-#[must_use]
-pub fn tanh(x: f32) -> f32 {
-    if BRANCH_FREE {
-        branch_free::tanh(x)
-    } else {
-        libm::tanhf(x)
-    }
+libm_or_branch_free! {
+    /// tanh x: libm's `tanhf`, branch-free where [`BRANCH_FREE`].
+    pub fn tanh => tanhf
 }
 
 /// |x|.
@@ -223,15 +216,9 @@ pub fn abs(x: f32) -> f32 {
     libm::fabsf(x)
 }
 
-/// ⌊x⌋.
-#[inline(always)]
-#[must_use]
-pub fn floor(x: f32) -> f32 {
-    if BRANCH_FREE {
-        branch_free::floor(x)
-    } else {
-        libm::floorf(x)
-    }
+libm_or_branch_free! {
+    /// ⌊x⌋.
+    pub fn floor => floorf
 }
 
 /// Softplus ln(1 + eˣ), computed without overflow for large x: `x` above 20, else
@@ -263,18 +250,12 @@ pub fn sigmoid(x: f32) -> f32 {
     }
 }
 
-/// [`exp_in_range`] for `x ∈ [EXP_IN_RANGE_MIN, 0]` only (bit for bit libm's `expf` there),
-/// with the work for positive arguments and the clamp left out. Other arguments give
-/// meaningless (but panic-free) results: callers select them away, as
-/// [`crate::distrib::gaussian::softmax`] does for inputs far below the maximum.
-#[inline(always)]
-#[must_use]
-pub(crate) fn exp_nonpositive(x: f32) -> f32 {
-    if BRANCH_FREE {
-        branch_free::exp_nonpositive(x)
-    } else {
-        libm::expf(x)
-    }
+libm_or_branch_free! {
+    /// [`exp_in_range`] for `x ∈ [EXP_IN_RANGE_MIN, 0]` only (bit for bit libm's `expf` there),
+    /// with the work for positive arguments and the clamp left out. Other arguments give
+    /// meaningless (but panic-free) results: callers select them away, as
+    /// [`crate::distrib::gaussian::softmax`] does for inputs far below the maximum.
+    pub(crate) fn exp_nonpositive => expf
 }
 
 /// [`sigmoid`] through [`exp_in_range`]: bit for bit [`sigmoid`] for `x ≥ EXP_IN_RANGE_MIN`
