@@ -65,6 +65,18 @@ pub(crate) trait Lane:
     }
 }
 
+/// The [`Lane`] methods `$name(self) -> f32` of `f32`: the scalar functions of the same name.
+macro_rules! scalar_fns {
+    ($($name:ident),*) => {
+        $(
+            #[inline(always)]
+            fn $name(self) -> f32 {
+                $name(self)
+            }
+        )*
+    };
+}
+
 impl Lane for f32 {
     type Mask = bool;
     type Index = usize;
@@ -101,30 +113,7 @@ impl Lane for f32 {
     fn clamp_to(self, lo: f32, hi: f32) -> f32 {
         clamp(self, lo, hi)
     }
-    #[inline(always)]
-    fn exp(self) -> f32 {
-        exp(self)
-    }
-    #[inline(always)]
-    fn exp_nonpositive(self) -> f32 {
-        exp_nonpositive(self)
-    }
-    #[inline(always)]
-    fn sigmoid(self) -> f32 {
-        sigmoid(self)
-    }
-    #[inline(always)]
-    fn ln(self) -> f32 {
-        ln(self)
-    }
-    #[inline(always)]
-    fn softplus(self) -> f32 {
-        softplus(self)
-    }
-    #[inline(always)]
-    fn safe_sqrt(self) -> f32 {
-        safe_sqrt(self)
-    }
+    scalar_fns!(exp, exp_nonpositive, sigmoid, ln, softplus, safe_sqrt);
     #[inline(always)]
     fn index(k: usize) -> usize {
         k

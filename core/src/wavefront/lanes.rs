@@ -22,6 +22,32 @@ fn each<T: Copy + Default>(f: impl Fn(usize) -> T) -> [T; 8] {
     r
 }
 
+/// `$f` (a scalar `f32` function's path) of each lane of the `V8` `$v`, in one loop over the
+/// lanes, which vectorises where `$f` does. A macro, so that `$f` is called directly in the
+/// dispatched kernel (no `Fn` shim compiled without its instruction set).
+macro_rules! map {
+    ($v:expr, $f:path) => {{
+        let mut r = $v.0;
+        for x in &mut r {
+            *x = $f(*x);
+        }
+        V8(r)
+    }};
+}
+
+/// The [`Lane`] methods `$name(self) -> V8` that apply the scalar function `$f` lane by lane
+/// ([`map!`]).
+macro_rules! lane_maps {
+    ($($name:ident => $f:path,)*) => {
+        $(
+            #[inline(always)]
+            fn $name(self) -> V8 {
+                map!(self, $f)
+            }
+        )*
+    };
+}
+
 /// Eight `f32` lanes.
 #[derive(Copy, Clone, Debug, PartialEq)]
 #[repr(C, align(32))]
@@ -148,54 +174,14 @@ impl Lane for V8 {
     fn clamp_to(self, lo: V8, hi: V8) -> V8 {
         V8(each(|l| self.0[l].max(lo.0[l]).min(hi.0[l])))
     }
-    #[inline(always)]
-    fn exp(self) -> V8 {
-        let mut r = self.0;
-        for v in &mut r {
-            *v = approx::exp(*v);
-        }
-        V8(r)
-    }
-    #[inline(always)]
-    fn exp_nonpositive(self) -> V8 {
-        let mut r = self.0;
-        for v in &mut r {
-            *v = approx::exp_nonpositive(*v);
-        }
-        V8(r)
-    }
-    #[inline(always)]
-    fn sigmoid(self) -> V8 {
-        let mut r = self.0;
-        for v in &mut r {
-            *v = approx::sigmoid(*v);
-        }
-        V8(r)
-    }
-    #[inline(always)]
-    fn ln(self) -> V8 {
-        let mut r = self.0;
-        for v in &mut r {
-            *v = approx::ln(*v);
-        }
-        V8(r)
-    }
-    #[inline(always)]
-    fn softplus(self) -> V8 {
-        let mut r = self.0;
-        for v in &mut r {
-            *v = approx::softplus(*v);
-        }
-        V8(r)
-    }
-    #[inline(always)]
-    fn safe_sqrt(self) -> V8 {
-        let mut r = self.0;
-        for v in &mut r {
-            *v = math::safe_sqrt(*v);
-        }
-        V8(r)
-    }
+    lane_maps!(
+        exp => approx::exp,
+        exp_nonpositive => approx::exp_nonpositive,
+        sigmoid => approx::sigmoid,
+        ln => approx::ln,
+        softplus => approx::softplus,
+        safe_sqrt => math::safe_sqrt,
+    );
     #[inline(always)]
     fn index(k: usize) -> V8 {
         V8::splat(k as f32)
