@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use neusample::wavefront::Isa;
 use neusample_precompute::jobs::bench::{self, BenchConfig};
 
 use crate::output::print_json;
@@ -36,6 +37,11 @@ pub struct BenchArgs {
     /// eval, pdf and sample.
     #[arg(long, value_name = "SECONDS")]
     profile_seconds: Option<f64>,
+    /// Run the dispatched figures with this instruction set (`x86-64-v3`, `x86-64-v4`,
+    /// `aarch64-neon`, `portable`) instead of the best this CPU has, e.g. to compare AVX2
+    /// with AVX-512 on one machine.
+    #[arg(long, value_parser = parse_isa)]
+    isa: Option<Isa>,
     /// Machine-readable output (`BenchReport` in `precompute/src/jobs/bench.rs`).
     #[arg(long)]
     json: bool,
@@ -54,6 +60,7 @@ impl From<&BenchArgs> for BenchConfig {
             c.measured = Some(m.clone());
         }
         c.methods.clone_from(&a.methods);
+        c.isa = a.isa;
         if a.quick {
             c.lanes_per_pass = 1 << 11;
             c.passes = 3;
@@ -80,4 +87,15 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         print!("{}", bench::text(&report));
         Ok(())
     }
+}
+
+/// An instruction set by its [`Isa::name`].
+fn parse_isa(s: &str) -> Result<Isa, String> {
+    (Isa::ALL.into_iter().find(|i| i.name() == s)).ok_or_else(|| {
+        let names: Vec<_> = Isa::ALL.iter().map(|i| i.name()).collect();
+        format!(
+            "unknown instruction set `{s}` (one of: {})",
+            names.join(", ")
+        )
+    })
 }

@@ -49,6 +49,8 @@ pub struct BenchConfig {
     pub methods: Vec<String>,
     /// A measured material (RGL `.bsdf`) whose eval and own sampler are measured too.
     pub measured: Option<PathBuf>,
+    /// The instruction set of the dispatched figures; `None`: the best this CPU has.
+    pub isa: Option<Isa>,
 }
 
 impl BenchConfig {
@@ -63,6 +65,7 @@ impl BenchConfig {
             passes: 7,
             methods: Vec::new(),
             measured: Some(root.join("measured/chm_mint_rgb.bsdf")),
+            isa: None,
         }
     }
 }
@@ -451,6 +454,7 @@ fn read_conditions(blobs: &Path) -> Result<Vec<([f32; 8], Vec3)>> {
 struct BatchedAll<'r> {
     rows: &'r Rows,
     passes: usize,
+    isa: Option<Isa>,
 }
 
 impl SamplerVisitor for BatchedAll<'_> {
@@ -464,7 +468,7 @@ impl SamplerVisitor for BatchedAll<'_> {
             .map(|&n| {
                 wavefront::prefer_isa(Some(Isa::Portable));
                 let portable = batched_split(&s, self.rows, n, self.passes);
-                wavefront::prefer_isa(None);
+                wavefront::prefer_isa(self.isa);
                 let dispatched = batched_split(&s, self.rows, n, self.passes);
                 Batched {
                     n,
@@ -539,9 +543,22 @@ fn peak_gmacs_x86_v3(passes: usize) -> Option<f64> {
     }
 }
 
+/// Makes the batched kernels run with `isa` (the best available for `None`); an error names
+/// an instruction set this CPU lacks.
+fn use_isa(isa: Option<Isa>) -> Result<()> {
+    if let Some(i) = isa {
+        if !i.is_available() {
+            bail!("this CPU cannot run the instruction set {}", i.name());
+        }
+    }
+    wavefront::prefer_isa(isa);
+    Ok(())
+}
+
 /// Runs the benchmark.
 pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
     check_methods(cfg)?;
+    use_isa(cfg.isa)?;
     let inp = Inputs::cycling(&read_conditions(&cfg.blobs)?, cfg.lanes_per_pass.max(1));
     let rows = Rows::new(&inp);
     let passes = cfg.passes;
@@ -552,7 +569,7 @@ pub fn run(cfg: &BenchConfig) -> Result<BenchReport> {
         .neural_material()
         .with_context(|| cfg.material.display().to_string())?;
 
-    let neural_material = material_cost(&m, &inp, &rows, passes);
+    let neural_material = material_cost(&m, &inp, &rows, passes, cfg.isa);
     let at = |v: &[(usize, f64)], n: usize| v.iter().find(|x| x.0 == n).map_or(0.0, |x| x.1);
     let eval_batch = &neural_material.eval_batch_ns;
     let decoder_gmacs = DECODER_MACS / at(eval_batch, 1024);
@@ -591,6 +608,7 @@ fn material_cost(
     inp: &Inputs,
     rows: &Rows,
     passes: usize,
+    isa: Option<Isa>,
 ) -> MaterialCost {
     let features_ns = time_per(passes, inp.uvs.len(), || {
         for uv in &inp.uvs {
@@ -613,7 +631,7 @@ fn material_cost(
     for &n in &BATCH_SIZES {
         wavefront::prefer_isa(Some(Isa::Portable));
         eval_portable.push((n, eval_batch_ns(m, rows, n, passes)));
-        wavefront::prefer_isa(None);
+        wavefront::prefer_isa(isa);
         eval_batch.push((n, eval_batch_ns(m, rows, n, passes)));
     }
     MaterialCost {
@@ -668,7 +686,11 @@ fn sampler_costs(
         }
         for (name, s) in variants {
             let scalar = scalar_split(&s, inp, passes);
-            let batched = s.visit(BatchedAll { rows, passes });
+            let batched = s.visit(BatchedAll {
+                rows,
+                passes,
+                isa: cfg.isa,
+            });
             let b64 = batched
                 .iter()
                 .find(|b| b.n == 64)
@@ -804,6 +826,7 @@ pub fn profile(cfg: &BenchConfig, seconds: f64) -> Result<Vec<(String, usize)>> 
     if cfg.methods.is_empty() {
         bail!("a profile needs --methods");
     }
+    use_isa(cfg.isa)?;
     let samplers = BenchConfig {
         methods: (cfg.methods.iter())
             .filter(|m| *m != PROFILE_MATERIAL && *m != PROFILE_MEASURED)
