@@ -4,7 +4,7 @@
 //! Lanes run in chunks of [`CHUNK`] through the scalar path's arithmetic, operation for
 //! operation, written as loops over the chunk so that they vectorise: the transcendental
 //! functions are `math`'s branch-free ones (libm's numbers), table reads are gathers (one
-//! instruction per chunk with AVX-512, two with AVX2, [`Gather16`]; a load per lane on the
+//! instruction per chunk with AVX-512, two with AVX2, [`Gather`]; a load per lane on the
 //! portable path of aarch64 and wasm), and the two binary searches of sampling take a fixed
 //! number of steps with the scalar search's probes. The results are therefore the scalar
 //! path's **bit for bit**. Tables that are not plain f32 slices (f16 or unaligned blob
@@ -17,7 +17,7 @@ use crate::distrib::marginal2d::{invert_segment, lerp, patch, sample_segment, Sl
 use crate::error::Result;
 use crate::math;
 use crate::wavefront::check_len;
-use crate::wavefront::simd::{dispatch_wide, Gather16, Kernel};
+use crate::wavefront::simd::{dispatch_gathers, Gather, GatherKernel};
 use crate::wavefront::{chunks, RgbMut, SamplesMut, Vec2s, Vec3s};
 use crate::weights::Weights;
 
@@ -27,7 +27,7 @@ use super::{
 };
 
 /// Lanes per chunk: one AVX-512 register (two AVX2 ones), so that a table read is one
-/// gather instruction, or two ([`Gather16`]).
+/// gather instruction, or two ([`Gather`]).
 const CHUNK: usize = 16;
 
 /// Node grids with up to this many nodes are searched by counting (which vectorises); longer
@@ -169,7 +169,7 @@ impl<W: Weights> MeasuredMaterial<W> {
                 if s.n_phi > 1 { s.n_theta } else { 0 },
                 if s.n_theta > 1 { 1 } else { 0 },
             ],
-            g16: Gather16::new(),
+            g: (),
         };
         if let Some(op) = run_chunks(ctx, op) {
             self.per_lane(op);
@@ -218,12 +218,12 @@ impl<W: Weights> MeasuredMaterial<W> {
 /// that it is compiled once, in this crate, whatever table type the material holds,
 /// instead of in every crate that calls a batched method.
 #[inline(never)]
-fn run_chunks<'a>(c: Ctx<'a>, op: Op<'a>) -> Option<Op<'a>> {
+fn run_chunks<'a>(c: Ctx<'a, ()>, op: Op<'a>) -> Option<Op<'a>> {
     // Slices blend along φi only with more than one φi node.
     if c.s.n_phi > 1 {
-        dispatch_wide(Job::<true> { c, op }).err().map(|j| j.op)
+        dispatch_gathers(Job::<true> { c, op }).err().map(|j| j.op)
     } else {
-        dispatch_wide(Job::<false> { c, op }).err().map(|j| j.op)
+        dispatch_gathers(Job::<false> { c, op }).err().map(|j| j.op)
     }
 }
 
@@ -264,9 +264,10 @@ struct Flat<'a> {
     rgb: &'a [f32],
 }
 
-/// What the chunks read: the tables and the material's constants.
+/// What the chunks read: the tables and the material's constants, and how (`G`: a
+/// [`Gather`] in the chunks, `()` before the instruction set is chosen).
 #[derive(Copy, Clone)]
-struct Ctx<'a> {
+struct Ctx<'a, G> {
     f: Flat<'a>,
     s: MeasuredShape,
     jacobian: bool,
@@ -276,15 +277,25 @@ struct Ctx<'a> {
     counted: bool,
     /// The slice strides of [`SliceBlend`].
     stride: [u32; 2],
-    /// Table reads as gathers, where AVX2 or AVX-512 is in use.
-    g16: Option<Gather16>,
+    /// The table reads.
+    g: G,
 }
 
-/// Element `i` of `t` (not empty), the last one past the end: a load without a branch that
-/// depends on the data (indices are in range for validated tables).
-#[inline(always)]
-fn at(t: &[f32], i: u32) -> f32 {
-    t[(i as usize).min(t.len() - 1)]
+impl<'a> Ctx<'a, ()> {
+    /// These constants with the table reads `g`.
+    #[inline(always)]
+    fn with<G: Gather>(self, g: G) -> Ctx<'a, G> {
+        Ctx {
+            f: self.f,
+            s: self.s,
+            jacobian: self.jacobian,
+            reduction: self.reduction,
+            isotropic: self.isotropic,
+            counted: self.counted,
+            stride: self.stride,
+            g,
+        }
+    }
 }
 
 /// One value per lane of a chunk.
@@ -365,29 +376,20 @@ struct Dist<'a> {
 
 /// Every step below is `Marginal2D`'s on each lane of a chunk: the same operations in the
 /// same order, written as loops over the lanes (table reads are gathers).
-impl Ctx<'_> {
-    /// [`at`] on every lane: one gather instruction with AVX-512, two with AVX2, else a
-    /// load per lane.
+impl<G: Gather> Ctx<'_, G> {
+    /// Element `i` of `t` on every lane, the last one for an index past the end
+    /// ([`Gather::read`]).
     #[inline(always)]
     fn gather(&self, t: &[f32], i: &Idx) -> Lanes {
-        match self.g16 {
-            Some(g) => g.read(t, i),
-            None => per_lane!(0.0, |l| at(t, i[l])),
-        }
+        self.g.read(t, i)
     }
 
-    /// [`at`] of `i` and of `i + 1` on every lane: adjacent elements, read together where
-    /// [`Gather16`] exists, which clamps `i` to the table's length − 2 (no change for the
-    /// in-range indices of validated tables).
+    /// Elements `i` and `i + 1` of `t` on every lane: adjacent elements, read together
+    /// ([`Gather::read_pair`]; the gathers clamp `i` to the table's length − 2, no change
+    /// for the in-range indices of validated tables).
     #[inline(always)]
     fn gather_pair(&self, t: &[f32], i: &Idx) -> (Lanes, Lanes) {
-        match self.g16 {
-            Some(g) => g.read_pair(t, i),
-            None => (
-                per_lane!(0.0, |l| at(t, i[l])),
-                per_lane!(0.0, |l| at(t, i[l] + 1)),
-            ),
-        }
+        self.g.read_pair(t, i)
     }
 
     /// `SliceBlend::lookup`: the blended value of `t` at element `i` of each lane's first
@@ -581,7 +583,7 @@ fn load3(v: &Vec3s<'_>, a: usize, m: usize) -> [Lanes; 3] {
 /// weights across it, counting the interior nodes below `p` (ascending nodes: the binary
 /// search's answer).
 #[inline(always)]
-fn locate(c: &Ctx<'_>, nodes: &[f32], p: &Lanes, idx: &mut Idx, w: &mut [Lanes; 2]) {
+fn locate<G: Gather>(c: &Ctx<'_, G>, nodes: &[f32], p: &Lanes, idx: &mut Idx, w: &mut [Lanes; 2]) {
     *idx = [0; CHUNK];
     *w = [[1.0; CHUNK], [0.0; CHUNK]];
     let n = nodes.len();
@@ -626,18 +628,18 @@ macro_rules! search {
 
 /// A dispatched batched call.
 struct Job<'a, const A: bool> {
-    c: Ctx<'a>,
+    c: Ctx<'a, ()>,
     op: Op<'a>,
 }
 
-impl<const A: bool> Kernel for Job<'_, A> {
+impl<const A: bool> GatherKernel for Job<'_, A> {
     type Output = ();
 
     #[inline(always)]
-    fn run(self) {
+    fn run<G: Gather>(self, g: G) {
         // No closures here: a closure is a function of its own, compiled without the
-        // instruction set `dispatch` chose unless it is inlined.
-        let c = &self.c;
+        // instruction set `dispatch_gathers` chose unless it is inlined.
+        let c = &self.c.with(g);
         match self.op {
             Op::Eval { wi, wo, mut out } => {
                 for (a, b) in chunks(wi.len(), CHUNK) {
@@ -663,7 +665,7 @@ impl<const A: bool> Kernel for Job<'_, A> {
     }
 }
 
-impl Ctx<'_> {
+impl<G: Gather> Ctx<'_, G> {
     /// `eval_batch` of lanes `a .. a + m`.
     #[inline(always)]
     fn eval_chunk<const A: bool>(

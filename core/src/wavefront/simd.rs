@@ -150,18 +150,6 @@ pub(crate) fn dispatch<K: Kernel>(k: K) -> K::Output {
     k.run()
 }
 
-/// [`dispatch`] without x86's baseline copy: on x86, `k` runs only with AVX2 or AVX-512 and
-/// comes back as `Err(k)`, not run, on a CPU without them or when [`Isa::Portable`] is
-/// chosen, so that the kernel is never compiled for SSE2 (its caller has a scalar path for
-/// those machines). Elsewhere (aarch64, wasm) it runs as compiled for the target.
-#[inline(always)]
-pub(crate) fn dispatch_wide<K: Kernel>(k: K) -> Result<K::Output, K> {
-    #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
-    return x86_wide(k);
-    #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
-    Ok(k.run())
-}
-
 /// `k` compiled for AVX-512 or AVX2 where [`current`] is one of them (and not above
 /// [`Kernel::WIDEST`]); `Err(k)` otherwise.
 #[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
@@ -185,204 +173,283 @@ fn x86_wide<K: Kernel>(k: K) -> Result<K::Output, K> {
     }
 }
 
-/// Proof that the batched kernels run with AVX2 or AVX-512 now ([`current`] is
-/// [`Isa::X86V3`] or [`Isa::X86V4`] and the CPU has it), so that a table read of sixteen
-/// lanes is gather instructions: one with AVX-512, two of eight lanes with AVX2. LLVM does
-/// not form gathers on its own here: rustc compiles for the generic x86-64 CPU, whose cost
-/// model prices them high, and the reads stay scalar loads and inserts.
-#[derive(Copy, Clone)]
-pub(crate) struct Gather16 {
+/// Table reads of sixteen lanes, as an instruction set does them: gathers with AVX-512
+/// ([`Avx512`]) or AVX2 ([`Avx2`]), a load per lane elsewhere ([`Loads`]). LLVM does not
+/// form gathers on its own here: rustc compiles for the generic x86-64 CPU, whose cost model
+/// prices them high, and the reads stay scalar loads and inserts. A [`GatherKernel`] gets
+/// the reads as a type, so that each compiled copy of it reads one way, without a branch.
+pub(crate) trait Gather: Copy {
+    /// `t[min(i[l], t.len() − 1)]` on each lane: a branch-free read of a table whose
+    /// indices are in range. A [`Loads`] read needs a non-empty `t`; the gathers read zeros
+    /// from an empty one.
+    fn read(self, t: &[f32], i: &[u32; 16]) -> [f32; 16];
+
+    /// Two adjacent elements per lane (a bilinear cell's row, a node interval): `t[j]` and
+    /// `t[j + 1]`. The gathers read them as one 64-bit element, which moves half the
+    /// elements of two 32-bit reads, at `j = min(i[l], t.len() − 2)` (for a `t` of fewer
+    /// than two elements, [`Self::read`] of `i` and `i + 1`); [`Loads`] reads
+    /// [`Self::read`] of `i` and of `i + 1`. The two agree on in-range indices.
+    fn read_pair(self, t: &[f32], i: &[u32; 16]) -> ([f32; 16], [f32; 16]);
+}
+
+/// A batched computation that reads tables: [`dispatch_gathers`] runs it compiled for the
+/// instruction set in use, with that set's [`Gather`]. Its `run` (and what it calls) must be
+/// `#[inline(always)]`, as [`Kernel::run`].
+pub(crate) trait GatherKernel {
+    /// What the computation returns.
+    type Output;
+    /// The computation, its table reads done by `g`.
+    fn run<G: Gather>(self, g: G) -> Self::Output;
+}
+
+/// Runs `k` with AVX-512 or AVX2 gathers where [`current`] is one of them; on x86 otherwise
+/// (a CPU without AVX2, or [`Isa::Portable`] chosen) `k` comes back as `Err(k)`, not run,
+/// so that it is never compiled for SSE2 (its caller has a scalar path for those machines).
+/// Elsewhere (aarch64, wasm) it runs as compiled for the target, with [`Loads`].
+#[inline(always)]
+pub(crate) fn dispatch_gathers<K: GatherKernel>(k: K) -> Result<K::Output, K> {
     #[cfg(target_arch = "x86_64")]
-    isa: GatherIsa,
+    return match current() {
+        Isa::X86V4 => match pulp::x86::V4::try_new() {
+            Some(v4) => Ok(v4.vectorize(WithReads(k, Avx512(v4)))),
+            None => Err(k),
+        },
+        Isa::X86V3 => match pulp::x86::V3::try_new() {
+            Some(v3) => Ok(v3.vectorize(WithReads(k, Avx2(v3)))),
+            None => Err(k),
+        },
+        _ => Err(k),
+    };
+    // 32-bit x86: the wide copies, reading with loads.
+    #[cfg(target_arch = "x86")]
+    return x86_wide(WithReads(k, Loads)).map_err(|w| w.0);
+    #[cfg(not(any(target_arch = "x86", target_arch = "x86_64")))]
+    Ok(k.run(Loads))
 }
 
-/// The instruction set a [`Gather16`] proves.
-#[cfg(target_arch = "x86_64")]
-#[derive(Copy, Clone)]
-enum GatherIsa {
-    V3(pulp::x86::V3),
-    V4(pulp::x86::V4),
-}
+/// A [`GatherKernel`] with its reads, as `pulp` (or [`Kernel`]) takes it.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+struct WithReads<K, G>(K, G);
 
-impl Gather16 {
-    /// The proof, where AVX2 or AVX-512 is in use; `None` elsewhere (the portable path,
-    /// other architectures).
-    #[inline]
-    pub(crate) fn new() -> Option<Self> {
-        Self::for_isa(current())
-    }
-
-    /// The proof for `isa`, where it is AVX2 or AVX-512 and the CPU has it.
-    #[inline]
-    fn for_isa(isa: Isa) -> Option<Self> {
-        #[cfg(target_arch = "x86_64")]
-        match isa {
-            Isa::X86V4 => {
-                return pulp::x86::V4::try_new().map(|v4| Gather16 {
-                    isa: GatherIsa::V4(v4),
-                })
-            }
-            Isa::X86V3 => {
-                return pulp::x86::V3::try_new().map(|v3| Gather16 {
-                    isa: GatherIsa::V3(v3),
-                })
-            }
-            _ => {}
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = isa;
-        None
-    }
-
-    /// `t[min(i[l], t.len() − 1)]` on each of sixteen lanes (zeros for an empty `t`): a
-    /// branch-free read of a table whose indices are in range.
+#[cfg(any(target_arch = "x86", target_arch = "x86_64"))]
+impl<K: GatherKernel, G: Gather> pulp::NullaryFnOnce for WithReads<K, G> {
+    type Output = K::Output;
     #[inline(always)]
-    #[allow(unsafe_code)]
-    pub(crate) fn read(self, t: &[f32], i: &[u32; 16]) -> [f32; 16] {
+    fn call(self) -> K::Output {
+        self.0.run(self.1)
+    }
+}
+
+#[cfg(target_arch = "x86")]
+impl<K: GatherKernel, G: Gather> Kernel for WithReads<K, G> {
+    type Output = K::Output;
+    #[inline(always)]
+    fn run(self) -> K::Output {
+        self.0.run(self.1)
+    }
+}
+
+/// Table reads as a load per lane (the targets without gather instructions).
+#[derive(Copy, Clone)]
+#[cfg_attr(all(target_arch = "x86_64", not(test)), allow(dead_code))]
+pub(crate) struct Loads;
+
+impl Gather for Loads {
+    #[inline(always)]
+    fn read(self, t: &[f32], i: &[u32; 16]) -> [f32; 16] {
+        let last = t.len() - 1;
         let mut out = [0.0f32; 16];
-        if t.is_empty() {
-            return out;
-        }
-        #[cfg(target_arch = "x86_64")]
-        {
-            use core::arch::x86_64::{
-                _mm256_i32gather_ps, _mm256_loadu_si256, _mm256_min_epu32, _mm256_set1_epi32,
-                _mm256_storeu_ps, _mm512_i32gather_ps, _mm512_loadu_si512, _mm512_min_epu32,
-                _mm512_set1_epi32, _mm512_storeu_ps,
-            };
-            // The gathers sign-extend their 32-bit offsets: clamp below 2³¹ too.
-            let last = (t.len() - 1).min(i32::MAX as usize) as i32;
-            match self.isa {
-                // SAFETY: `GatherIsa::V4` exists only where `V4::try_new` succeeded, so the
-                // CPU has AVX-512F. The unaligned load and store move exactly the 64 bytes
-                // of `i` and `out`. Every offset is clamped to `last`, which is below
-                // `t.len()` and 2³¹, so the gather reads elements of `t` only.
-                GatherIsa::V4(_) => unsafe {
-                    let idx = _mm512_min_epu32(
-                        _mm512_loadu_si512(i.as_ptr().cast()),
-                        _mm512_set1_epi32(last),
-                    );
-                    _mm512_storeu_ps(
-                        out.as_mut_ptr(),
-                        _mm512_i32gather_ps::<4>(idx, t.as_ptr().cast()),
-                    );
-                },
-                // SAFETY: `GatherIsa::V3` exists only where `V3::try_new` succeeded, so the
-                // CPU has AVX2. Each half's unaligned load and store move exactly 32 bytes
-                // of `i` and `out` (lanes 0..8, then 8..16). Every offset is clamped to
-                // `last`, which is below `t.len()` and 2³¹, so the gathers read elements of
-                // `t` only.
-                GatherIsa::V3(_) => unsafe {
-                    let last = _mm256_set1_epi32(last);
-                    for h in [0, 8] {
-                        let idx =
-                            _mm256_min_epu32(_mm256_loadu_si256(i.as_ptr().add(h).cast()), last);
-                        _mm256_storeu_ps(
-                            out.as_mut_ptr().add(h),
-                            _mm256_i32gather_ps::<4>(t.as_ptr().cast(), idx),
-                        );
-                    }
-                },
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
         for l in 0..16 {
-            out[l] = t[(i[l] as usize).min(t.len() - 1)];
+            out[l] = t[(i[l] as usize).min(last)];
         }
         out
     }
 
-    /// `(t[j], t[j + 1])` with `j = min(i[l], t.len() − 2)` on each of sixteen lanes: two
-    /// adjacent elements per lane (a bilinear cell's row, a node interval), read as 64-bit
-    /// gathers, which move half the elements of two 32-bit ones. For a `t` of fewer than two
-    /// elements, [`Self::read`] of `i` and `i + 1`.
+    #[inline(always)]
+    fn read_pair(self, t: &[f32], i: &[u32; 16]) -> ([f32; 16], [f32; 16]) {
+        let next = core::array::from_fn(|l| i[l].saturating_add(1));
+        (self.read(t, i), self.read(t, &next))
+    }
+}
+
+/// AVX-512 gathers: one instruction per sixteen lanes (two of 64-bit pairs for
+/// [`Gather::read_pair`]). Holds the proof that the CPU has AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[derive(Copy, Clone)]
+pub(crate) struct Avx512(pulp::x86::V4);
+
+/// AVX2 gathers: two instructions per sixteen lanes (four of 64-bit pairs for
+/// [`Gather::read_pair`]). Holds the proof that the CPU has AVX2.
+#[cfg(target_arch = "x86_64")]
+#[derive(Copy, Clone)]
+pub(crate) struct Avx2(pulp::x86::V3);
+
+/// `read_pair` for a table of fewer than two elements: `read` of `i` and `i + 1`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn short_pair<G: Gather>(g: G, t: &[f32], i: &[u32; 16]) -> ([f32; 16], [f32; 16]) {
+    let next = core::array::from_fn(|l| i[l].saturating_add(1));
+    (g.read(t, i), g.read(t, &next))
+}
+
+/// The last offset a 32-bit read may take (gathers sign-extend offsets: below 2³¹ too),
+/// and the last a 64-bit pair may start at; `t` has at least two elements for the latter.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn last_offsets(t: &[f32]) -> (i32, i32) {
+    let last = (t.len().saturating_sub(1)).min(i32::MAX as usize) as i32;
+    let pair = (t.len().saturating_sub(2)).min(i32::MAX as usize - 1) as i32;
+    (last, pair)
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Gather for Avx512 {
     #[inline(always)]
     #[allow(unsafe_code)]
-    pub(crate) fn read_pair(self, t: &[f32], i: &[u32; 16]) -> ([f32; 16], [f32; 16]) {
+    fn read(self, t: &[f32], i: &[u32; 16]) -> [f32; 16] {
+        use core::arch::x86_64::{
+            _mm512_i32gather_ps, _mm512_loadu_si512, _mm512_min_epu32, _mm512_set1_epi32,
+            _mm512_storeu_ps,
+        };
+        let mut out = [0.0f32; 16];
+        if t.is_empty() {
+            return out;
+        }
+        let (last, _) = last_offsets(t);
+        // SAFETY: an `Avx512` exists only where `V4::try_new` succeeded, so the CPU has
+        // AVX-512F. The unaligned load and store move exactly the 64 bytes of `i` and `out`.
+        // Every offset is clamped to `last`, which is below `t.len()` and 2³¹, so the gather
+        // reads elements of `t` only.
+        unsafe {
+            let idx = _mm512_min_epu32(
+                _mm512_loadu_si512(i.as_ptr().cast()),
+                _mm512_set1_epi32(last),
+            );
+            _mm512_storeu_ps(
+                out.as_mut_ptr(),
+                _mm512_i32gather_ps::<4>(idx, t.as_ptr().cast()),
+            );
+        }
+        out
+    }
+
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    fn read_pair(self, t: &[f32], i: &[u32; 16]) -> ([f32; 16], [f32; 16]) {
+        use core::arch::x86_64::{
+            _mm512_castsi512_ps, _mm512_castsi512_si256, _mm512_extracti64x4_epi64,
+            _mm512_i32gather_epi64, _mm512_loadu_si512, _mm512_min_epu32, _mm512_permutex2var_ps,
+            _mm512_set1_epi32, _mm512_setr_epi32, _mm512_storeu_ps,
+        };
         if t.len() < 2 {
-            let next = core::array::from_fn(|l| i[l].saturating_add(1));
-            return (self.read(t, i), self.read(t, &next));
+            return short_pair(self, t, i);
         }
-        // A pair starts at most at len − 2; offsets below 2³¹ (gathers sign-extend them).
-        let last = (t.len() - 2).min(i32::MAX as usize - 1) as u32;
+        let (_, last) = last_offsets(t);
         let (mut a, mut b) = ([0.0f32; 16], [0.0f32; 16]);
-        #[cfg(target_arch = "x86_64")]
-        match self.isa {
-            // SAFETY: `GatherIsa::V4` exists only where `V4::try_new` succeeded, so the CPU
-            // has AVX-512F. The unaligned load and stores move exactly the 64 bytes of `i`,
-            // `a` and `b`. Every offset is clamped to `last` ≤ `t.len()` − 2, so each 8-byte
-            // read (scale 4: offsets count f32s) covers elements `j` and `j + 1` of `t` only;
-            // gathers need no alignment.
-            GatherIsa::V4(_) => unsafe {
-                use core::arch::x86_64::{
-                    _mm512_castsi512_ps, _mm512_castsi512_si256, _mm512_extracti64x4_epi64,
-                    _mm512_i32gather_epi64, _mm512_loadu_si512, _mm512_min_epu32,
-                    _mm512_permutex2var_ps, _mm512_set1_epi32, _mm512_setr_epi32, _mm512_storeu_ps,
-                };
-                let base = t.as_ptr().cast::<i64>();
-                let idx = _mm512_min_epu32(
-                    _mm512_loadu_si512(i.as_ptr().cast()),
-                    _mm512_set1_epi32(last as i32),
-                );
-                // Lanes 0..8 and 8..16 as (a, b) pairs: [a0 b0 a1 b1 … a7 b7], then the
-                // even and odd elements of the two picked out.
-                let g0 = _mm512_castsi512_ps(_mm512_i32gather_epi64::<4>(
-                    _mm512_castsi512_si256(idx),
-                    base,
-                ));
-                let g1 = _mm512_castsi512_ps(_mm512_i32gather_epi64::<4>(
-                    _mm512_extracti64x4_epi64::<1>(idx),
-                    base,
-                ));
-                let even =
-                    _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
-                let odd =
-                    _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
-                _mm512_storeu_ps(a.as_mut_ptr(), _mm512_permutex2var_ps(g0, even, g1));
-                _mm512_storeu_ps(b.as_mut_ptr(), _mm512_permutex2var_ps(g0, odd, g1));
-            },
-            // SAFETY: `GatherIsa::V3` exists only where `V3::try_new` succeeded, so the CPU
-            // has AVX2. Each half's unaligned load and stores move exactly 32 bytes of `i`,
-            // `a` and `b` (lanes 0..8, then 8..16). Every offset is clamped to `last` ≤
-            // `t.len()` − 2, so each 8-byte read (scale 4: offsets count f32s) covers elements
-            // `j` and `j + 1` of `t` only; gathers need no alignment.
-            GatherIsa::V3(_) => unsafe {
-                use core::arch::x86_64::{
-                    _mm256_castpd_ps, _mm256_castps_pd, _mm256_castsi256_ps,
-                    _mm256_castsi256_si128, _mm256_extracti128_si256, _mm256_i32gather_epi64,
-                    _mm256_loadu_si256, _mm256_min_epu32, _mm256_permute4x64_pd, _mm256_set1_epi32,
-                    _mm256_shuffle_ps, _mm256_storeu_ps,
-                };
-                let base = t.as_ptr().cast::<i64>();
-                let last = _mm256_set1_epi32(last as i32);
-                for h in [0, 8] {
-                    let idx = _mm256_min_epu32(_mm256_loadu_si256(i.as_ptr().add(h).cast()), last);
-                    // Lanes h..h+4 and h+4..h+8 as (a, b) pairs.
-                    let g0 = _mm256_castsi256_ps(_mm256_i32gather_epi64::<4>(
-                        base,
-                        _mm256_castsi256_si128(idx),
-                    ));
-                    let g1 = _mm256_castsi256_ps(_mm256_i32gather_epi64::<4>(
-                        base,
-                        _mm256_extracti128_si256::<1>(idx),
-                    ));
-                    // Per 128-bit half [x0 x1 x4 x5 | x2 x3 x6 x7], then the 64-bit quarters
-                    // reordered to x0..x7.
-                    let even = _mm256_castps_pd(_mm256_shuffle_ps::<0b10_00_10_00>(g0, g1));
-                    let odd = _mm256_castps_pd(_mm256_shuffle_ps::<0b11_01_11_01>(g0, g1));
-                    let (even, odd) = (
-                        _mm256_permute4x64_pd::<0b11_01_10_00>(even),
-                        _mm256_permute4x64_pd::<0b11_01_10_00>(odd),
-                    );
-                    _mm256_storeu_ps(a.as_mut_ptr().add(h), _mm256_castpd_ps(even));
-                    _mm256_storeu_ps(b.as_mut_ptr().add(h), _mm256_castpd_ps(odd));
-                }
-            },
+        // SAFETY: an `Avx512` exists only where `V4::try_new` succeeded, so the CPU has
+        // AVX-512F. The unaligned load and stores move exactly the 64 bytes of `i`, `a` and
+        // `b`. Every offset is clamped to `last` ≤ `t.len()` − 2, so each 8-byte read (scale
+        // 4: offsets count f32s) covers elements `j` and `j + 1` of `t` only; gathers need no
+        // alignment.
+        unsafe {
+            let base = t.as_ptr().cast::<i64>();
+            let idx = _mm512_min_epu32(
+                _mm512_loadu_si512(i.as_ptr().cast()),
+                _mm512_set1_epi32(last),
+            );
+            // Lanes 0..8 and 8..16 as (a, b) pairs: [a0 b0 a1 b1 … a7 b7], then the even and
+            // odd elements of the two picked out.
+            let g0 = _mm512_castsi512_ps(_mm512_i32gather_epi64::<4>(
+                _mm512_castsi512_si256(idx),
+                base,
+            ));
+            let g1 = _mm512_castsi512_ps(_mm512_i32gather_epi64::<4>(
+                _mm512_extracti64x4_epi64::<1>(idx),
+                base,
+            ));
+            let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+            let odd = _mm512_setr_epi32(1, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31);
+            _mm512_storeu_ps(a.as_mut_ptr(), _mm512_permutex2var_ps(g0, even, g1));
+            _mm512_storeu_ps(b.as_mut_ptr(), _mm512_permutex2var_ps(g0, odd, g1));
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        for l in 0..16 {
-            let j = i[l].min(last) as usize;
-            (a[l], b[l]) = (t[j], t[j + 1]);
+        (a, b)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Gather for Avx2 {
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    fn read(self, t: &[f32], i: &[u32; 16]) -> [f32; 16] {
+        use core::arch::x86_64::{
+            _mm256_i32gather_ps, _mm256_loadu_si256, _mm256_min_epu32, _mm256_set1_epi32,
+            _mm256_storeu_ps,
+        };
+        let mut out = [0.0f32; 16];
+        if t.is_empty() {
+            return out;
+        }
+        let (last, _) = last_offsets(t);
+        // SAFETY: an `Avx2` exists only where `V3::try_new` succeeded, so the CPU has AVX2.
+        // Each half's unaligned load and store move exactly 32 bytes of `i` and `out` (lanes
+        // 0..8, then 8..16). Every offset is clamped to `last`, which is below `t.len()` and
+        // 2³¹, so the gathers read elements of `t` only.
+        unsafe {
+            let last = _mm256_set1_epi32(last);
+            for h in [0, 8] {
+                let idx = _mm256_min_epu32(_mm256_loadu_si256(i.as_ptr().add(h).cast()), last);
+                _mm256_storeu_ps(
+                    out.as_mut_ptr().add(h),
+                    _mm256_i32gather_ps::<4>(t.as_ptr().cast(), idx),
+                );
+            }
+        }
+        out
+    }
+
+    #[inline(always)]
+    #[allow(unsafe_code)]
+    fn read_pair(self, t: &[f32], i: &[u32; 16]) -> ([f32; 16], [f32; 16]) {
+        use core::arch::x86_64::{
+            _mm256_castpd_ps, _mm256_castps_pd, _mm256_castsi256_ps, _mm256_castsi256_si128,
+            _mm256_extracti128_si256, _mm256_i32gather_epi64, _mm256_loadu_si256, _mm256_min_epu32,
+            _mm256_permute4x64_pd, _mm256_set1_epi32, _mm256_shuffle_ps, _mm256_storeu_ps,
+        };
+        if t.len() < 2 {
+            return short_pair(self, t, i);
+        }
+        let (_, last) = last_offsets(t);
+        let (mut a, mut b) = ([0.0f32; 16], [0.0f32; 16]);
+        // SAFETY: an `Avx2` exists only where `V3::try_new` succeeded, so the CPU has AVX2.
+        // Each half's unaligned load and stores move exactly 32 bytes of `i`, `a` and `b`
+        // (lanes 0..8, then 8..16). Every offset is clamped to `last` ≤ `t.len()` − 2, so
+        // each 8-byte read (scale 4: offsets count f32s) covers elements `j` and `j + 1` of
+        // `t` only; gathers need no alignment.
+        unsafe {
+            let base = t.as_ptr().cast::<i64>();
+            let last = _mm256_set1_epi32(last);
+            for h in [0, 8] {
+                let idx = _mm256_min_epu32(_mm256_loadu_si256(i.as_ptr().add(h).cast()), last);
+                // Lanes h..h+4 and h+4..h+8 as (a, b) pairs.
+                let g0 = _mm256_castsi256_ps(_mm256_i32gather_epi64::<4>(
+                    base,
+                    _mm256_castsi256_si128(idx),
+                ));
+                let g1 = _mm256_castsi256_ps(_mm256_i32gather_epi64::<4>(
+                    base,
+                    _mm256_extracti128_si256::<1>(idx),
+                ));
+                // Per 128-bit half [x0 x1 x4 x5 | x2 x3 x6 x7], then the 64-bit quarters
+                // reordered to x0..x7.
+                let even = _mm256_castps_pd(_mm256_shuffle_ps::<0b10_00_10_00>(g0, g1));
+                let odd = _mm256_castps_pd(_mm256_shuffle_ps::<0b11_01_11_01>(g0, g1));
+                let (even, odd) = (
+                    _mm256_permute4x64_pd::<0b11_01_10_00>(even),
+                    _mm256_permute4x64_pd::<0b11_01_10_00>(odd),
+                );
+                _mm256_storeu_ps(a.as_mut_ptr().add(h), _mm256_castpd_ps(even));
+                _mm256_storeu_ps(b.as_mut_ptr().add(h), _mm256_castpd_ps(odd));
+            }
         }
         (a, b)
     }
@@ -390,13 +457,12 @@ impl Gather16 {
 
 #[cfg(test)]
 mod tests {
-    use super::{Gather16, Isa};
+    use super::{Gather, Loads};
 
-    /// Every gathering instruction set this CPU has reads what indexing reads: in-range
-    /// indices, indices past the end (clamped), 2³¹ and above (the gathers' sign), and
-    /// tables of zero, one and two elements.
-    #[test]
-    fn gathers_read_what_indexing_reads() {
+    /// `g` reads what indexing reads: in-range indices, indices past the end (clamped), 2³¹
+    /// and above (the gathers' sign), and tables of `lens` elements; `clamps_pairs`: a pair
+    /// starts at most at `len − 2`.
+    fn reads_what_indexing_reads<G: Gather>(g: G, name: &str, lens: &[usize], clamps_pairs: bool) {
         let mut state = 0x9e37_79b9_u32;
         let mut next = move || {
             state ^= state << 13;
@@ -405,47 +471,60 @@ mod tests {
             state
         };
         let table: [f32; 1000] = core::array::from_fn(|k| k as f32 * 0.5 - 3.0);
-        for isa in [Isa::X86V3, Isa::X86V4] {
-            let Some(g) = Gather16::for_isa(isa) else {
-                continue;
-            };
-            for len in [0usize, 1, 2, 3, 5, 16, 37, 1000] {
-                let t = &table[..len];
-                for round in 0..64 {
-                    let i: [u32; 16] = core::array::from_fn(|l| match (round + l) % 5 {
-                        0 => next(),
-                        1 => u32::MAX - (next() % 4),
-                        2 => (1 << 31) + next() % 4,
-                        _ => next() % (len as u32 + 3),
-                    });
-                    let read = g.read(t, &i);
-                    let (a, b) = g.read_pair(t, &i);
-                    for l in 0..16 {
-                        let want = if len == 0 {
+        for &len in lens {
+            let t = &table[..len];
+            for round in 0..64 {
+                let i: [u32; 16] = core::array::from_fn(|l| match (round + l) % 5 {
+                    0 => next(),
+                    1 => u32::MAX - (next() % 4),
+                    2 => (1 << 31) + next() % 4,
+                    _ => next() % (len as u32 + 3),
+                });
+                let read = g.read(t, &i);
+                let (a, b) = g.read_pair(t, &i);
+                for l in 0..16 {
+                    let at = |k: u32| {
+                        if len == 0 {
                             0.0
                         } else {
-                            t[(i[l] as usize).min(len - 1)]
-                        };
-                        assert_eq!(
-                            read[l].to_bits(),
-                            want.to_bits(),
-                            "{isa:?} read {len} {i:?}"
-                        );
-                        let (wa, wb) = match len {
-                            0 => (0.0, 0.0),
-                            1 => (t[0], t[0]),
-                            _ => {
-                                let j = (i[l] as usize).min(len - 2);
-                                (t[j], t[j + 1])
-                            }
-                        };
-                        assert_eq!(
-                            (a[l].to_bits(), b[l].to_bits()),
-                            (wa.to_bits(), wb.to_bits()),
-                            "{isa:?} read_pair {len} lane {l} of {i:?}"
-                        );
-                    }
+                            t[(k as usize).min(len - 1)]
+                        }
+                    };
+                    assert_eq!(
+                        read[l].to_bits(),
+                        at(i[l]).to_bits(),
+                        "{name} read {len} {i:?}"
+                    );
+                    // Gathers clamp a pair's start to len − 2; loads read i and i + 1.
+                    let (wa, wb) = if clamps_pairs && len >= 2 {
+                        let j = (i[l] as usize).min(len - 2);
+                        (t[j], t[j + 1])
+                    } else {
+                        (at(i[l]), at(i[l].saturating_add(1)))
+                    };
+                    assert_eq!(
+                        (a[l].to_bits(), b[l].to_bits()),
+                        (wa.to_bits(), wb.to_bits()),
+                        "{name} read_pair {len} lane {l} of {i:?}"
+                    );
                 }
+            }
+        }
+    }
+
+    /// Every gathering instruction set this CPU has, and the loads, read what indexing
+    /// reads (the loads need a non-empty table).
+    #[test]
+    fn gathers_read_what_indexing_reads() {
+        let lens = [0usize, 1, 2, 3, 5, 16, 37, 1000];
+        reads_what_indexing_reads(Loads, "loads", &lens[1..], false);
+        #[cfg(target_arch = "x86_64")]
+        {
+            if let Some(v4) = pulp::x86::V4::try_new() {
+                reads_what_indexing_reads(super::Avx512(v4), "avx512", &lens, true);
+            }
+            if let Some(v3) = pulp::x86::V3::try_new() {
+                reads_what_indexing_reads(super::Avx2(v3), "avx2", &lens, true);
             }
         }
     }
