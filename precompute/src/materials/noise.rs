@@ -76,15 +76,24 @@ pub fn gradient(uv: Vec2, freq: u32, seed: u32) -> f32 {
     a + (b - a) * sy
 }
 
-/// Fractal sum of [`gradient`] octaves, normalised by the total amplitude.
-#[must_use]
-pub fn fbm(uv: Vec2, freq: u32, octaves: u32, gain: f32, seed: u32) -> f32 {
+/// Sums `octaves` octaves of [`gradient`] noise, each passed through
+/// `shape`, doubling the frequency and scaling the amplitude by `gain`
+/// per octave; normalised by the total amplitude.
+fn octave_sum(
+    uv: Vec2,
+    freq: u32,
+    octaves: u32,
+    gain: f32,
+    seed: u32,
+    shape: impl Fn(f32) -> f32,
+) -> f32 {
     let mut sum = 0.0;
     let mut amp = 1.0;
     let mut norm = 0.0;
     let mut f = freq.max(1);
     for o in 0..octaves.max(1) {
-        sum += amp * gradient(uv, f, seed.wrapping_add(o.wrapping_mul(0x51ed_270b)));
+        let n = gradient(uv, f, seed.wrapping_add(o.wrapping_mul(0x51ed_270b)));
+        sum += amp * shape(n);
         norm += amp;
         amp *= gain;
         f = f.saturating_mul(2);
@@ -92,20 +101,16 @@ pub fn fbm(uv: Vec2, freq: u32, octaves: u32, gain: f32, seed: u32) -> f32 {
     sum / norm
 }
 
+/// Fractal sum of [`gradient`] octaves, normalised by the total amplitude.
+#[must_use]
+pub fn fbm(uv: Vec2, freq: u32, octaves: u32, gain: f32, seed: u32) -> f32 {
+    octave_sum(uv, freq, octaves, gain, seed, |n| n)
+}
+
 /// `|fbm|`-style turbulence (sum of absolute octaves), in about `[0, 0.7]`.
 #[must_use]
 pub fn turbulence(uv: Vec2, freq: u32, octaves: u32, gain: f32, seed: u32) -> f32 {
-    let mut sum = 0.0;
-    let mut amp = 1.0;
-    let mut norm = 0.0;
-    let mut f = freq.max(1);
-    for o in 0..octaves.max(1) {
-        sum += amp * gradient(uv, f, seed.wrapping_add(o.wrapping_mul(0x51ed_270b))).abs();
-        norm += amp;
-        amp *= gain;
-        f = f.saturating_mul(2);
-    }
-    sum / norm
+    octave_sum(uv, freq, octaves, gain, seed, f32::abs)
 }
 
 /// Gradient `(∂/∂u, ∂/∂v)` of a scalar texture by central differences with step `h`
