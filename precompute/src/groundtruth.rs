@@ -155,6 +155,17 @@ pub struct TargetPdf {
     degenerate: bool,
 }
 
+/// Marginal and conditional running sums of a `res × res` table of cell
+/// values (row-major), as [`neusample::distrib::table2d::running_sums`]
+/// fills them.
+#[must_use]
+pub fn running_sums(values: &[f32], res: usize) -> (Vec<f32>, Vec<f32>) {
+    let mut marginal = vec![0f32; res];
+    let mut conditional = vec![0f32; res * res];
+    neusample::distrib::table2d::running_sums(values, res as u32, &mut marginal, &mut conditional);
+    (marginal, conditional)
+}
+
 /// The sum of `Y(f(φ, wi, ω(p)))` over the `s × s` stratified points `p` of cell
 /// `(row, col)` of an `res × res` grid over `[−1, 1]²` (module docs), skipping the points
 /// whose `|p|²` fails `keep` (and values that are not positive and finite). The caller divides
@@ -362,14 +373,7 @@ impl TargetPdf {
             .iter()
             .map(|&v| (f64::from(v) * scale) as f32)
             .collect();
-        let mut marginal = vec![0f32; res];
-        let mut conditional = vec![0f32; res * res];
-        neusample::distrib::table2d::running_sums(
-            &density,
-            res as u32,
-            &mut marginal,
-            &mut conditional,
-        );
+        let (marginal, conditional) = running_sums(&density, res);
         TargetPdf {
             res,
             density,

@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3};
 use neusample::distrib::table2d::MAX_N;
 use neusample::{warp, Prepared, Sample, Sampler, Table2D, FEATURE_DIM, ONE_MINUS_EPSILON};
 
-use crate::groundtruth::cell_luminance_sum;
+use crate::groundtruth::{cell_luminance_sum, running_sums};
 use crate::materials::Material;
 
 /// The "tabulated" near-optimal sampler (paper Fig. 10): at each shading point, the ground
@@ -108,14 +108,7 @@ impl Sampler for OracleSampler<'_> {
             values.iter_mut().for_each(|v| *v = 0.0);
             values[0] = 1.0;
         }
-        let mut marginal = vec![0f32; res];
-        let mut conditional = vec![0f32; res * res];
-        neusample::distrib::table2d::running_sums(
-            &values,
-            res as u32,
-            &mut marginal,
-            &mut conditional,
-        );
+        let (marginal, conditional) = running_sums(&values, res);
         Some(OraclePrepared {
             values,
             marginal,
