@@ -29,6 +29,14 @@ fn check(what: &'static str, found: usize, expected: usize) -> Result<()> {
     }
 }
 
+/// `lanes` in chunks of at most [`GROUP`], each with its start and end index in `lanes`.
+fn groups<T>(lanes: &[T]) -> impl Iterator<Item = (usize, usize, &[T])> {
+    lanes.chunks(GROUP).enumerate().map(|(a, group)| {
+        let s = a * GROUP;
+        (s, s + group.len(), group)
+    })
+}
+
 /// The incident directions of at most [`GROUP`] lanes as three arrays (refused lanes: the
 /// zero vector, which the measured material refuses).
 struct Gathered {
@@ -104,22 +112,21 @@ impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
         check("mis_pdf", out.mis_pdf.len(), n)?;
         let SamplesMut { wo, pdf, mis_pdf } = out;
         let Vec3sMut { x, y, z } = wo;
-        for (a, group) in lanes.chunks(GROUP).enumerate() {
-            let (s, m) = (a * GROUP, group.len());
+        for (s, e, group) in groups(lanes) {
             self.0.sample_directions_batch(
                 Gathered::new(group).view(),
                 Vec2s {
-                    x: &u.x[s..s + m],
-                    y: &u.y[s..s + m],
+                    x: &u.x[s..e],
+                    y: &u.y[s..e],
                 },
                 SamplesMut {
                     wo: Vec3sMut {
-                        x: &mut x[s..s + m],
-                        y: &mut y[s..s + m],
-                        z: &mut z[s..s + m],
+                        x: &mut x[s..e],
+                        y: &mut y[s..e],
+                        z: &mut z[s..e],
                     },
-                    pdf: &mut pdf[s..s + m],
-                    mis_pdf: &mut mis_pdf[s..s + m],
+                    pdf: &mut pdf[s..e],
+                    mis_pdf: &mut mis_pdf[s..e],
                 },
             )?;
         }
@@ -130,16 +137,15 @@ impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
         let n = lanes.len();
         check("wo", wo.len(), n)?;
         check("pdf", pdf.len(), n)?;
-        for (a, group) in lanes.chunks(GROUP).enumerate() {
-            let (s, m) = (a * GROUP, group.len());
+        for (s, e, group) in groups(lanes) {
             self.0.pdf_batch(
                 Gathered::new(group).view(),
                 Vec3s {
-                    x: &wo.x[s..s + m],
-                    y: &wo.y[s..s + m],
-                    z: &wo.z[s..s + m],
+                    x: &wo.x[s..e],
+                    y: &wo.y[s..e],
+                    z: &wo.z[s..e],
                 },
-                &mut pdf[s..s + m],
+                &mut pdf[s..e],
             )?;
         }
         Ok(())
