@@ -17,7 +17,7 @@ use neusample::{SamplerKind, FEATURE_DIM};
 
 use super::config::{Common, MaxLikelihood};
 use super::data::{encoded_condition_f64, Batch, Pool};
-use super::trainer::{fit_max_likelihood, Fitted, Run, Trained, Trainer};
+use super::trainer::{train_max_likelihood, ExportParams, Fitted, Run, Trained, Trainer};
 use crate::nn::{mlp_f64, softmax_f64, tensor2, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -46,6 +46,14 @@ pub fn cell_index(p: Vec2) -> usize {
 pub struct DirectHistogram {
     /// `30 → 64 → 64 → 256`.
     pub net: Mlp,
+}
+
+impl ExportParams for DirectHistogram {
+    fn export_params(&self) -> Vec<f32> {
+        let mut params = Vec::new();
+        self.net.export(&mut params);
+        params
+    }
 }
 
 /// Per-point log density `[b, s]` of the network `net` at the batch points.
@@ -114,13 +122,9 @@ pub fn train(
     let model = DirectHistogram {
         net: Mlp::new(&SIZES, 0.1, &mut rng, &device),
     };
-    let (model, history) =
-        fit_max_likelihood(model, "direct-histogram", pool, common, cfg, |m, b| {
-            log_pdf(&m.net, b)
-        })?;
-    let mut params = Vec::new();
-    model.net.export(&mut params);
-    Ok((params, history))
+    train_max_likelihood(model, "direct-histogram", pool, common, cfg, |m, b| {
+        log_pdf(&m.net, b)
+    })
 }
 
 /// Density (projected-disk area measure) of a trained direct histogram at `p`, in f64 from

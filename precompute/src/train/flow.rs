@@ -31,7 +31,7 @@ use neusample::{SamplerKind, FEATURE_DIM};
 use super::config::{Common, MaxLikelihood};
 use super::data::{encoded_condition_f64, fit, Batch, PointKind, Pool};
 use super::spline::{rq_forward, rq_forward_f64, rq_forward_free, rq_forward_free_f64};
-use super::trainer::{fit_max_likelihood, Fitted, Run, Trained, Trainer};
+use super::trainer::{train_max_likelihood, ExportParams, Fitted, Run, Trained, Trainer};
 use crate::nn::{self, encode, encode_f64, mlp_f64, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -126,6 +126,16 @@ impl SplineFlow {
     }
 }
 
+impl ExportParams for SplineFlow {
+    fn export_params(&self) -> Vec<f32> {
+        let mut params = Vec::with_capacity(FLOW_COUPLING1 + SPLINE_NET_LEN);
+        self.base.export(&mut params);
+        self.c0.export(&mut params);
+        self.c1.export(&mut params);
+        params
+    }
+}
+
 /// The disk flow (`core/ARCHITECTURES.md` §9): uniform base on the disk, two spline couplings
 /// on chords.
 #[derive(Module, Debug)]
@@ -169,11 +179,30 @@ impl DiskFlow {
     }
 }
 
+impl ExportParams for DiskFlow {
+    fn export_params(&self) -> Vec<f32> {
+        let mut params = Vec::with_capacity(2 * DISK_NET_LEN);
+        self.c0.export(&mut params);
+        self.c1.export(&mut params);
+        params
+    }
+}
+
 /// The affine-coupling flow.
 #[derive(Module, Debug)]
 pub struct AffineFlow {
     /// Coupling networks, layer 0..3.
     pub nets: Vec<Mlp>,
+}
+
+impl ExportParams for AffineFlow {
+    fn export_params(&self) -> Vec<f32> {
+        let mut params = Vec::with_capacity(AFFINE_LAYERS * AFFINE_NET_LEN);
+        for net in &self.nets {
+            net.export(&mut params);
+        }
+        params
+    }
 }
 
 impl AffineFlow {
@@ -302,15 +331,9 @@ pub fn train_spline(
         c0: Mlp::new(&SPLINE_NET_SIZES, 0.1, &mut rng, &device),
         c1: Mlp::new(&SPLINE_NET_SIZES, 0.1, &mut rng, &device),
     };
-    let (model, history) =
-        fit_max_likelihood(model, "flow", pool, common, cfg, |m: &SplineFlow, b| {
-            m.log_pdf(b)
-        })?;
-    let mut params = Vec::with_capacity(FLOW_COUPLING1 + SPLINE_NET_LEN);
-    model.base.export(&mut params);
-    model.c0.export(&mut params);
-    model.c1.export(&mut params);
-    Ok((params, history))
+    train_max_likelihood(model, "flow", pool, common, cfg, |m: &SplineFlow, b| {
+        m.log_pdf(b)
+    })
 }
 
 /// A disk-flow coupling network whose knot derivatives start at 1 (`min_d + softplus(raw)` with
@@ -337,14 +360,9 @@ pub fn train_disk(
         c0: disk_coupling_net(&mut rng, &device),
         c1: disk_coupling_net(&mut rng, &device),
     };
-    let (model, history) =
-        fit_max_likelihood(model, "disk-flow", pool, common, cfg, |m: &DiskFlow, b| {
-            m.log_pdf(b)
-        })?;
-    let mut params = Vec::with_capacity(2 * DISK_NET_LEN);
-    model.c0.export(&mut params);
-    model.c1.export(&mut params);
-    Ok((params, history))
+    train_max_likelihood(model, "disk-flow", pool, common, cfg, |m: &DiskFlow, b| {
+        m.log_pdf(b)
+    })
 }
 
 /// Trains the affine-coupling flow; returns `(params, loss history)`.
@@ -370,11 +388,7 @@ pub fn train_affine(
         (cfg.batch_conditions, cfg.samples_per_condition),
         |m: &AffineFlow, batch: &Batch| m.log_pdf(batch).mean().neg(),
     )?;
-    let mut params = Vec::with_capacity(AFFINE_LAYERS * AFFINE_NET_LEN);
-    for net in &model.nets {
-        net.export(&mut params);
-    }
-    Ok((params, history))
+    Ok((model.export_params(), history))
 }
 
 fn coupling_f64(

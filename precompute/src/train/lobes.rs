@@ -20,7 +20,7 @@ use neusample::{SamplerKind, FEATURE_DIM};
 
 use super::config::{Common, MaxLikelihood};
 use super::data::{encoded_condition_f64, Batch, Pool};
-use super::trainer::{fit_max_likelihood, Fitted, Run, Trained, Trainer};
+use super::trainer::{train_max_likelihood, ExportParams, Fitted, Run, Trained, Trainer};
 use crate::nn::{self, log_sum_exp_last, mlp_f64, softmax_f64, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 use anyhow::Result;
@@ -38,6 +38,14 @@ pub const ANALYTIC_SIZES: [usize; 3] = [CONDITION_DIM, 32, 11];
 pub struct LobeModel {
     /// The condition network.
     pub net: Mlp,
+}
+
+impl ExportParams for LobeModel {
+    fn export_params(&self) -> Vec<f32> {
+        let mut params = Vec::new();
+        self.net.export(&mut params);
+        params
+    }
 }
 
 /// ln N(p; μ, diag(e^{2 ls_x}, e^{2 ls_y})) with broadcasting (`[b, s]` points against
@@ -159,17 +167,14 @@ pub fn train(
         net: Mlp::new_with_output_bias(sizes, 0.1, bias, &mut rng, &device),
     };
     let name = if analytic { "analytic" } else { "baseline" };
-    let (model, history) = fit_max_likelihood(model, name, pool, common, cfg, |m, batch| {
+    train_max_likelihood(model, name, pool, common, cfg, |m, batch| {
         let o = m.net.forward(batch.cond.clone(), Activation::Relu);
         if analytic {
             analytic_log_pdf(o, batch)
         } else {
             baseline_log_pdf(o, batch)
         }
-    })?;
-    let mut params = Vec::new();
-    model.net.export(&mut params);
-    Ok((params, history))
+    })
 }
 
 /// Per-point log density `[b, s]` of the training graph for exported parameters `params`

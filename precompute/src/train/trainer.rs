@@ -141,6 +141,12 @@ pub(crate) trait Trainer: Sync {
     }
 }
 
+/// A trained model's flat parameters, in the order its sampler reads them.
+pub(crate) trait ExportParams {
+    /// The parameters, flattened.
+    fn export_params(&self) -> Vec<f32>;
+}
+
 /// Maximum likelihood of samples of p* over `cfg.schedule`, then, when `cfg.chi2_weight > 0`,
 /// the fine-tuning phase of [`objective::nll_and_chi2`] (`cfg.chi2_fraction` of the steps,
 /// a fifth of the learning rate, regression batches of `samples_per_condition` samples of
@@ -187,4 +193,18 @@ pub(crate) fn fit_max_likelihood<M: Module>(
     )?;
     history.extend(more);
     Ok((model, history))
+}
+
+/// [`fit_max_likelihood`], then the fitted model's [`ExportParams::export_params`];
+/// returns `(params, loss history)`.
+pub(crate) fn train_max_likelihood<M: Module + ExportParams>(
+    model: M,
+    name: &str,
+    pool: &mut Pool<'_>,
+    common: &Common,
+    cfg: &MaxLikelihood,
+    log_pdf: impl Fn(&M, &Batch) -> Tensor<2>,
+) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+    let (model, history) = fit_max_likelihood(model, name, pool, common, cfg, log_pdf)?;
+    Ok((model.export_params(), history))
 }
