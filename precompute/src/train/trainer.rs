@@ -150,15 +150,16 @@ pub(crate) trait ExportParams {
 /// Maximum likelihood of samples of p* over `cfg.schedule`, then, when `cfg.chi2_weight > 0`,
 /// the fine-tuning phase of [`objective::nll_and_chi2`] (`cfg.chi2_fraction` of the steps,
 /// a fifth of the learning rate, regression batches of `samples_per_condition` samples of
-/// p* and as many uniform points, its own batch seeds). The loss history holds both phases.
-pub(crate) fn fit_max_likelihood<M: Module>(
+/// p* and as many uniform points, its own batch seeds). Returns the fitted model's
+/// [`ExportParams::export_params`] and the loss history of both phases.
+pub(crate) fn train_max_likelihood<M: Module + ExportParams>(
     model: M,
     name: &str,
     pool: &mut Pool<'_>,
     common: &Common,
     cfg: &MaxLikelihood,
     log_pdf: impl Fn(&M, &Batch) -> Tensor<2>,
-) -> anyhow::Result<(M, Vec<f32>)> {
+) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
     let (model, mut history) = fit(
         model,
         name,
@@ -171,7 +172,7 @@ pub(crate) fn fit_max_likelihood<M: Module>(
     )?;
     let steps = (cfg.schedule.steps as f64 * cfg.chi2_fraction).round() as usize;
     if !(cfg.chi2_weight > 0.0) || steps == 0 {
-        return Ok((model, history));
+        return Ok((model.export_params(), history));
     }
     let tune = Schedule {
         steps,
@@ -192,19 +193,5 @@ pub(crate) fn fit_max_likelihood<M: Module>(
         |m: &M, batch: &Batch| objective::nll_and_chi2(log_pdf(m, batch), batch, cfg.chi2_weight),
     )?;
     history.extend(more);
-    Ok((model, history))
-}
-
-/// [`fit_max_likelihood`], then the fitted model's [`ExportParams::export_params`];
-/// returns `(params, loss history)`.
-pub(crate) fn train_max_likelihood<M: Module + ExportParams>(
-    model: M,
-    name: &str,
-    pool: &mut Pool<'_>,
-    common: &Common,
-    cfg: &MaxLikelihood,
-    log_pdf: impl Fn(&M, &Batch) -> Tensor<2>,
-) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
-    let (model, history) = fit_max_likelihood(model, name, pool, common, cfg, log_pdf)?;
     Ok((model.export_params(), history))
 }
