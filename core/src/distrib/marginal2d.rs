@@ -263,9 +263,9 @@ impl<W: Weights> Marginal2D<W> {
 pub(crate) fn patch(width: u32, height: u32, pos: Vec2) -> (u32, u32, Vec2) {
     let x = math::clamp(pos.x, 0.0, 1.0) * (width - 1) as f32;
     let y = math::clamp(pos.y, 0.0, 1.0) * (height - 1) as f32;
-    // NaN clamps to NaN and converts to 0.
-    let c = (x as u32).min(width - 2);
-    let r = (y as u32).min(height - 2);
+    // NaN clamps to 0. x < width ≤ 2³¹ (w·h values, h ≥ 2, counted in u32), y likewise.
+    let c = math::trunc_index(x).min(width - 2);
+    let r = math::trunc_index(y).min(height - 2);
     (c, r, Vec2::new(x - c as f32, y - r as f32))
 }
 

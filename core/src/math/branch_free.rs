@@ -436,71 +436,6 @@ pub fn sin_cos_fast(x: f32) -> (f32, f32) {
     }
 }
 
-// FreeBSD e_asinf.c: R(x²)'s coefficients. Not on SPIR-V, which has no f64 (see `single`).
-#[cfg(not(target_arch = "spirv"))]
-const ASIN_PS0: f32 = f32::from_bits(0x3e2a_aa75);
-#[cfg(not(target_arch = "spirv"))]
-const ASIN_PS1: f32 = f32::from_bits(0xbd2f_13ba);
-#[cfg(not(target_arch = "spirv"))]
-const ASIN_PS2: f32 = f32::from_bits(0xbc0d_d36b);
-#[cfg(not(target_arch = "spirv"))]
-const ASIN_QS1: f32 = f32::from_bits(0xbf34_e5ae);
-#[cfg(not(target_arch = "spirv"))]
-const PIO2_F64: f64 = core::f64::consts::FRAC_PI_2;
-
-/// √x in double precision (an LLVM intrinsic with `std`, so loops of it vectorise).
-#[cfg(not(target_arch = "spirv"))]
-#[inline(always)]
-fn sqrt_f64(x: f64) -> f64 {
-    #[cfg(feature = "std")]
-    {
-        x.sqrt()
-    }
-    #[cfg(not(feature = "std"))]
-    {
-        libm::sqrt(x)
-    }
-}
-
-/// libm's `R(z)` of `asinf`.
-#[cfg(not(target_arch = "spirv"))]
-#[inline(always)]
-fn asin_r(z: f32) -> f32 {
-    let p = z * (ASIN_PS0 + z * (ASIN_PS1 + z * ASIN_PS2));
-    let q = 1.0 + z * ASIN_QS1;
-    p / q
-}
-
-/// asin x: libm's `asinf` (FreeBSD e_asinf.c) bit for bit, for every `x`.
-#[cfg(not(target_arch = "spirv"))]
-#[inline(always)]
-#[must_use]
-pub fn asin(x: f32) -> f32 {
-    let hx = x.to_bits();
-    let ix = hx & 0x7fff_ffff;
-    // R's argument: x² for |x| < 0.5, (1 − |x|)/2 above (one R per lane, not both).
-    let z = (1.0 - abs(x)) * 0.5;
-    let r = asin_r(if ix < 0x3f00_0000 { x * x } else { z });
-    // |x| < 0.5 (and x itself below 2⁻¹², where x·R(x²) vanishes against x).
-    let small = x + x * r;
-    let small = if ix < 0x3980_0000 { x } else { small };
-    // 0.5 ≤ |x| < 1.
-    let s = sqrt_f64(z as f64);
-    let big = (PIO2_F64 - 2.0 * (s + s * (r as f64))) as f32;
-    let big = if hx >> 31 != 0 { -big } else { big };
-    // |x| = 1: ±π/2 (libm adds 2⁻¹²⁰ for inexactness, which rounds away).
-    let one = ((x as f64) * PIO2_F64 + f64::from_bits(0x3870_0000_0000_0000)) as f32;
-    if ix < 0x3f00_0000 {
-        small
-    } else if ix < 0x3f80_0000 {
-        big
-    } else if ix == 0x3f80_0000 {
-        one
-    } else {
-        f32::NAN
-    }
-}
-
 // FreeBSD s_atanf.c: atan of the reduction points (high and low parts) and the polynomial.
 const ATAN_HI: [f32; 4] = [
     f32::from_bits(0x3eed_6338),
@@ -951,12 +886,6 @@ pub(super) mod tests {
             domain,
             &edges,
         );
-    }
-
-    #[test]
-    fn asin_is_libm_asinf() {
-        let edges = [0.5, 1.0, f32::from_bits(0x3980_0000)];
-        check("asin", 1, one(asin), one(libm::asinf), all, &edges);
     }
 
     #[test]

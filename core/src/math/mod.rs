@@ -7,19 +7,18 @@
 //!
 //! On SIMD CPU targets ([`BRANCH_FREE`]; not SPIR-V, where the compiler maps libm's calls to
 //! GLSL.std.450 instructions) the hot path's functions (`exp`, `ln`, `ln_1p`, `sin_cos`,
-//! `tanh`, `asin`, `atan2`, `floor` and those built on them) run [`branch_free`] rewrites
-//! that give libm's results bit for bit without branches or calls, so that a loop of them over
-//! lanes vectorises and a batched path gives exactly the scalar path's numbers. Elsewhere they
-//! call libm: the same numbers in less code. On SPIR-V `asin` is fdlibm's single-precision
-//! `asinf` (module `single`): the GPU's own is too coarse.
+//! `tanh`, `atan2`, `floor` and those built on them) run [`branch_free`] rewrites that give
+//! libm's results bit for bit without branches or calls, so that a loop of them over lanes
+//! vectorises and a batched path gives exactly the scalar path's numbers. Elsewhere they call
+//! libm: the same numbers in less code. The measured material's angles ([`poly`]) are Cephes'
+//! polynomials in f32 on every target, as Dr.Jit computes Mitsuba's.
 
 // The batched path's fast approximations (not on GPUs, which have no batched path).
 #[cfg(not(target_arch = "spirv"))]
 pub(crate) mod approx;
 mod branch_free;
 pub(crate) mod lane;
-#[cfg(any(test, target_arch = "spirv"))]
-mod single;
+pub(crate) mod poly;
 
 pub use branch_free::SIN_COS_FAST_MAX;
 
@@ -176,27 +175,6 @@ pub fn atan2(y: f32, x: f32) -> f32 {
     }
 }
 
-/// asin x in [−π/2, π/2] (NaN outside [−1, 1]).
-#[inline(always)]
-#[must_use]
-pub fn asin(x: f32) -> f32 {
-    // rust-gpu: GLSL.std.450 `Asin`, as Mesa lowers it, is a coarse cubic for |x| ≥ ½,
-    // which the measured material's sharp tables amplify; fdlibm's single-precision asinf
-    // instead (libm's own takes one branch in f64, which SPIR-V lacks).
-    #[cfg(target_arch = "spirv")]
-    {
-        single::asinf(x)
-    }
-    #[cfg(not(target_arch = "spirv"))]
-    {
-        if BRANCH_FREE {
-            branch_free::asin(x)
-        } else {
-            libm::asinf(x)
-        }
-    }
-}
-
 /// x rounded to the nearest integer, ties to even.
 #[inline(always)]
 #[must_use]
@@ -281,13 +259,11 @@ pub fn sigmoid_in_range(x: f32) -> f32 {
 #[inline(always)]
 #[must_use]
 pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
-    // Written so that NaN fails the first comparison and ends at `lo`.
+    // Two independent selects (nested branches stay branches in unrolled lane loops); NaN
+    // fails both comparisons and ends at `lo`.
+    let below_hi = if x <= hi { x } else { hi };
     if x >= lo {
-        if x <= hi {
-            x
-        } else {
-            hi
-        }
+        below_hi
     } else {
         lo
     }
@@ -347,12 +323,37 @@ pub fn clamp_logit(x: f32) -> f32 {
     clamp(x, -LOGIT_BOUND, LOGIT_BOUND)
 }
 
-/// Clamp a float to an index in `[0, n − 1]` (NaN → 0). `n` must be ≥ 1.
+/// Clamp a float to an index in `[0, n − 1]` (NaN → 0). `n` must be in `1 ..= 2³¹`.
 #[inline(always)]
 #[must_use]
 pub fn clamp_index(x: f32, n: u32) -> u32 {
     let hi = (n - 1) as f32;
-    clamp(x, 0.0, hi) as u32
+    trunc_index(clamp(x, 0.0, hi))
+}
+
+/// `x` truncated toward zero, for `x` in `[0, 2³¹)` (`x as u32` there), with float and
+/// integer operations only: Rust's saturating conversions become a scalar loop in an x86
+/// vector loop before AVX-512, these become a few vector instructions.
+#[inline(always)]
+#[must_use]
+pub fn trunc_index(x: f32) -> u32 {
+    /// 2²³: below it, `x + 2²³` holds `x` rounded to an integer in its mantissa.
+    const TWO_23: f32 = 8_388_608.0;
+    let r = x + TWO_23;
+    let near = r.to_bits().wrapping_sub(TWO_23.to_bits());
+    let small = if r - TWO_23 > x {
+        near.wrapping_sub(1)
+    } else {
+        near
+    };
+    // From 2²³ up, `x` is an integer: its significand shifted by its exponent.
+    let b = x.to_bits();
+    let big = ((b & 0x007f_ffff) | 0x0080_0000) << ((b >> 23).wrapping_sub(150) & 31);
+    if x < TWO_23 {
+        small
+    } else {
+        big
+    }
 }
 
 #[cfg(test)]
@@ -376,6 +377,22 @@ mod tests {
         f(hi);
         f(0.0);
         f(-0.0);
+    }
+
+    /// `trunc_index` is `x as u32` on every 7th f32 of [0, 2³¹) and around the powers of 2.
+    #[test]
+    fn trunc_index_is_the_conversion() {
+        let mut check = |x: f32| assert_eq!(trunc_index(x), x as u32, "x = {x:e}");
+        sweep(0.0, 2_147_483_520.0, 7, &mut check);
+        for k in 0..31 {
+            let p = (1u32 << k) as f32;
+            for d in -3i32..=3 {
+                let x = f32::from_bits(p.to_bits().wrapping_add_signed(d));
+                if x < 2_147_483_648.0 {
+                    check(x);
+                }
+            }
+        }
     }
 
     #[test]

@@ -23,7 +23,7 @@ use crate::weights::Weights;
 
 use super::{
     azimuth, elevation, fold_sign, jacobian, normalize_lane, phi2u, theta2u, u2phi, u2theta,
-    MeasuredMaterial, MeasuredShape,
+    wrap_unit, MeasuredMaterial, MeasuredShape,
 };
 
 /// Lanes per chunk: one AVX-512 register (two AVX2 ones), so that a table read is one
@@ -584,23 +584,27 @@ fn load3(v: &Vec3s<'_>, a: usize, m: usize) -> [Lanes; 3] {
 /// search's answer).
 #[inline(always)]
 fn locate<G: Gather>(c: &Ctx<'_, G>, nodes: &[f32], p: &Lanes, idx: &mut Idx, w: &mut [Lanes; 2]) {
-    *idx = [0; CHUNK];
-    *w = [[1.0; CHUNK], [0.0; CHUNK]];
     let n = nodes.len();
     if n < 2 {
+        *idx = [0; CHUNK];
+        *w = [[1.0; CHUNK], [0.0; CHUNK]];
         return;
     }
+    // In locals, written out once: loops over arrays behind `&mut` stay scalar.
+    let mut i: Idx = [0; CHUNK];
     for &node in &nodes[1..n - 1] {
         for l in 0..CHUNK {
-            idx[l] += u32::from(node < p[l]);
+            i[l] += u32::from(node < p[l]);
         }
     }
-    let (p0, p1) = c.gather_pair(nodes, idx);
-    for l in 0..CHUNK {
-        let t = math::clamp((p[l] - p0[l]) / (p1[l] - p0[l]), 0.0, 1.0);
-        w[0][l] = 1.0 - t;
-        w[1][l] = t;
-    }
+    let (p0, p1) = c.gather_pair(nodes, &i);
+    let t = per_lane!(0.0, |l| math::clamp(
+        (p[l] - p0[l]) / (p1[l] - p0[l]),
+        0.0,
+        1.0
+    ));
+    *w = [per_lane!(0.0, |l| 1.0 - t[l]), t];
+    *idx = i;
 }
 
 /// `search` (the first index in `0 ..= last` where `below` is false) on every lane: the
@@ -858,8 +862,7 @@ impl<G: Gather> Ctx<'_, G> {
             } else {
                 phi_m
             };
-            let uy = phi2u(rel);
-            let uy = uy - math::floor(uy);
+            let uy = wrap_unit(phi2u(rel));
             [h.m[0][l], h.m[1][l], h.m[2][l]] = [m.x, m.y, m.z];
             [h.u_m[0][l], h.u_m[1][l]] = [theta2u(theta_m), uy];
             h.ok[l] = ok & ok_m;

@@ -429,11 +429,10 @@ fn normalize_lane(d: Vec3) -> (Vec3, bool) {
     (d * (1.0 / math::sqrt(len2)), ok)
 }
 
-/// The azimuth of `d` in (−π, π], 0 on the pole (where `atan2` is undefined on GPUs and
-/// depends on the zeros' signs elsewhere).
+/// The azimuth of `d` in [−π, π], 0 on the pole (where `atan2` is undefined).
 #[inline]
 fn azimuth(d: Vec3) -> f32 {
-    let phi = math::atan2(d.y, d.x);
+    let phi = math::poly::atan2(d.y, d.x);
     if d.x == 0.0 && d.y == 0.0 {
         0.0
     } else {
@@ -446,7 +445,7 @@ fn azimuth(d: Vec3) -> f32 {
 fn elevation(d: Vec3) -> f32 {
     let dz = d.z - 1.0;
     let dist = math::sqrt(d.x * d.x + d.y * d.y + dz * dz);
-    2.0 * math::asin(math::clamp(0.5 * dist, -1.0, 1.0))
+    2.0 * math::poly::asin(math::clamp(0.5 * dist, -1.0, 1.0))
 }
 
 #[inline]
@@ -457,6 +456,19 @@ fn theta2u(theta: f32) -> f32 {
 #[inline]
 fn phi2u(phi: f32) -> f32 {
     (phi + PI) * math::INV_TWO_PI
+}
+
+/// `u − ⌊u⌋` for `u` in [−1, 2) (the coordinate of an azimuth difference), by selects: the
+/// same bits as through `floor`.
+#[inline(always)]
+fn wrap_unit(u: f32) -> f32 {
+    if u < 0.0 {
+        u + 1.0
+    } else if u >= 1.0 {
+        u - 1.0
+    } else {
+        u
+    }
 }
 
 #[inline]
@@ -621,8 +633,7 @@ impl Incident {
         let theta_m = elevation(m);
         let phi_m = azimuth(m);
         let rel = if isotropic { phi_m - self.phi_i } else { phi_m };
-        let mut uy = phi2u(rel);
-        uy -= math::floor(uy);
+        let uy = wrap_unit(phi2u(rel));
         Some((wo, m, Vec2::new(theta2u(theta_m), uy)))
     }
 
