@@ -337,6 +337,21 @@ pub fn clamp_index(x: f32, n: u32) -> u32 {
 #[inline(always)]
 #[must_use]
 pub fn trunc_index(x: f32) -> u32 {
+    // GPUs convert natively, and their compilers may fold `(x + 2²³) − 2²³` into `x`.
+    #[cfg(target_arch = "spirv")]
+    {
+        x as u32
+    }
+    #[cfg(not(target_arch = "spirv"))]
+    {
+        trunc_index_bits(x)
+    }
+}
+
+/// [`trunc_index`] by float and integer operations.
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+fn trunc_index_bits(x: f32) -> u32 {
     /// 2²³: below it, `x + 2²³` holds `x` rounded to an integer in its mantissa.
     const TWO_23: f32 = 8_388_608.0;
     let r = x + TWO_23;

@@ -84,9 +84,9 @@
 //! bit for bit on the CPU): the sample's position inside the cell, and with it the density
 //! where a corner value is 0, is ill-conditioned there; `wo` is compared as everywhere.
 //!
-//! On SPIR-V core's `asin` (the polar angles) is fdlibm's single-precision `asinf`, within
-//! one ulp of the CPU's libm: Mesa's own `Asin` is a coarse cubic above ½, which the mint's
-//! tables amplify far beyond these tolerances (figures: `docs/measured/README.md`).
+//! The measured material's angles are core's f32 polynomials (`math::poly`), the same
+//! operations on the CPU and on SPIR-V: Mesa's own `Asin` is a coarse cubic above ½, which
+//! the mint's tables amplify far beyond these tolerances (figures: `docs/measured/README.md`).
 
 mod measured;
 mod neural;
