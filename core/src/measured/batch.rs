@@ -590,7 +590,7 @@ fn locate<G: Gather>(c: &Ctx<'_, G>, nodes: &[f32], p: &Lanes, idx: &mut Idx, w:
         *w = [[1.0; CHUNK], [0.0; CHUNK]];
         return;
     }
-    // In locals, written out once: loops over arrays behind `&mut` stay scalar.
+    // Counted and weighted in locals, written out once.
     let mut i: Idx = [0; CHUNK];
     for &node in &nodes[1..n - 1] {
         for l in 0..CHUNK {
