@@ -178,6 +178,37 @@ pub(crate) fn sigmoid(x: f32) -> f32 {
     }
 }
 
+/// [`sigmoid`] of the first `N` elements of `x` (fewer if `x` is shorter), bit for bit, one step at a time across the whole
+/// row: the elements' dependency chains then interleave instead of running one vector after
+/// another (a sigmoid is some thirty dependent operations).
+#[inline(always)]
+pub(crate) fn sigmoid_row<const N: usize>(x: &[f32], out: &mut [f32; N]) {
+    let mut t = [0.0f32; N];
+    for (t, x) in t.iter_mut().zip(x) {
+        let neg_abs = f32::from_bits(x.to_bits() | 0x8000_0000);
+        *t = if neg_abs < -87.0 { -87.0 } else { neg_abs };
+    }
+    let mut n = [0.0f32; N];
+    for (n, t) in n.iter_mut().zip(&t) {
+        *n = round_small(*t * LOG2E);
+    }
+    let mut r = [0.0f32; N];
+    for ((r, t), n) in r.iter_mut().zip(&t).zip(&n) {
+        *r = (*t - *n * LN2_HI) - *n * LN2_LO;
+    }
+    let mut p = [EXP_P[0]; N];
+    for c in &EXP_P[1..] {
+        for (p, r) in p.iter_mut().zip(&r) {
+            *p = *p * *r + *c;
+        }
+    }
+    for (((o, x), (p, r)), n) in out.iter_mut().zip(x).zip(p.iter().zip(&r)).zip(&n) {
+        let e = ((*p * (*r * *r) + *r) + 1.0) * pow2(*n);
+        let q = 1.0 / (1.0 + e);
+        *o = if *x >= 0.0 { q } else { e * q };
+    }
+}
+
 /// (sin πx, cos πx) within 3·10⁻⁷ for `|x| < 2²²`. Beyond, `x` is within 1 of an integer
 /// and the result is that of `x − round(x)`'s sign-less reduction; NaN and ±∞ give NaN.
 #[inline(always)]
@@ -331,6 +362,24 @@ mod tests {
         assert_eq!(sigmoid(f32::INFINITY), 1.0);
         assert!(sigmoid(f32::NEG_INFINITY) < 2e-38);
         assert!(sigmoid(f32::NAN).is_nan());
+    }
+
+    #[test]
+    fn sigmoid_row_is_sigmoid_bit_for_bit() {
+        let mut xs = vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.0, -0.0];
+        sweep(f32::MIN, f32::MAX, 4_099, |x| xs.push(x));
+        assert!(xs.len() > 1_000_000);
+        let mut out = [0.0f32; 32];
+        for row in xs.chunks(32) {
+            sigmoid_row(row, &mut out);
+            for (x, got) in row.iter().zip(&out) {
+                let want = sigmoid(*x);
+                assert!(
+                    got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                    "sigmoid_row({x:e}) = {got:e}, sigmoid = {want:e}"
+                );
+            }
+        }
     }
 
     #[test]

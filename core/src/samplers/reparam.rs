@@ -134,7 +134,8 @@ pub(crate) fn warp_sample(point: Vec2, cos: f32, q: f32) -> Option<Sample> {
     Sample::from_disk(point, q)
 }
 
-/// The pdf network's log-density to density step, shared by both paths.
+/// The pdf network's log-density to density step (the scalar path's; the batched path
+/// takes the fast `exp` of the same clamp).
 #[inline(always)]
 pub(crate) fn density_from_output(o: f32) -> f32 {
     math::exp(math::clamp(o, LOG_DENSITY_MIN, LOG_DENSITY_MAX))

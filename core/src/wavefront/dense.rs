@@ -11,7 +11,7 @@
 //! within the rounding of the products (the tolerance is in the `wavefront` docs); each is
 //! deterministic.
 
-use super::lanes::V8;
+use super::lanes::{Lanes, V8};
 #[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
 use super::simd::{self, Isa};
 use crate::nn::Activation;
@@ -379,7 +379,7 @@ fn portable<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>
                             *e = a.act.apply(*e);
                         }
                     }
-                    V8(r).store(&mut y[j0 + t][b0 + 8 * h..]);
+                    Lanes(r).store(&mut y[j0 + t][b0 + 8 * h..]);
                 }
             }
             b0 += TB;

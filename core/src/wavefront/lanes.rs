@@ -1,6 +1,8 @@
-//! [`V8`]: eight `f32` lanes with element-wise operations written as plain loops over a
-//! fixed array, which LLVM turns into one 256-bit operation under AVX2 or AVX-512, two
-//! 128-bit ones under SSE2 or NEON, and scalar code elsewhere. Only separate multiplies and
+//! [`Lanes`] (and [`V8`], eight of them): `f32` lanes with element-wise operations written as
+//! plain loops over a fixed array, which LLVM turns into one 256-bit operation per eight
+//! lanes under AVX2 or AVX-512, two 128-bit ones under SSE2 or NEON, and scalar code
+//! elsewhere. More than eight lanes run each step on several independent vectors side by
+//! side, which hides the latency of long dependency chains (the transcendental functions). Only separate multiplies and
 //! adds (no fused multiply-add): every instruction set gives the same bits here (the dense
 //! layers are where the paths differ). The transcendental functions are the fast
 //! approximations of `math::approx` (bounded error, not libm's bits).
@@ -11,18 +13,18 @@ use crate::math;
 use crate::math::approx;
 use crate::math::lane::Lane;
 
-/// `[f(0), …, f(7)]` as a plain loop (`core::array::from_fn`'s machinery is not always
+/// `[f(0), …, f(N − 1)]` as a plain loop (`core::array::from_fn`'s machinery is not always
 /// inlined into the dispatched kernels, and a call there runs without their instruction set).
 #[inline(always)]
-fn each<T: Copy + Default>(f: impl Fn(usize) -> T) -> [T; 8] {
-    let mut r = [T::default(); 8];
+fn each<T: Copy + Default, const N: usize>(f: impl Fn(usize) -> T) -> [T; N] {
+    let mut r = [T::default(); N];
     for (l, v) in r.iter_mut().enumerate() {
         *v = f(l);
     }
     r
 }
 
-/// `$f` (a scalar `f32` function's path) of each lane of the `V8` `$v`, in one loop over the
+/// `$f` (a scalar `f32` function's path) of each lane of the [`Lanes`] `$v`, in one loop over the
 /// lanes, which vectorises where `$f` does. A macro, so that `$f` is called directly in the
 /// dispatched kernel (no `Fn` shim compiled without its instruction set).
 macro_rules! map {
@@ -31,40 +33,43 @@ macro_rules! map {
         for x in &mut r {
             *x = $f(*x);
         }
-        V8(r)
+        Lanes(r)
     }};
 }
 
-/// The [`Lane`] methods `$name(self) -> V8` that apply the scalar function `$f` lane by lane
+/// The [`Lane`] methods `$name(self) -> Lanes<N>` that apply the scalar function `$f` lane by lane
 /// ([`map!`]).
 macro_rules! lane_maps {
     ($($name:ident => $f:path,)*) => {
         $(
             #[inline(always)]
-            fn $name(self) -> V8 {
+            fn $name(self) -> Lanes<N> {
                 map!(self, $f)
             }
         )*
     };
 }
 
-/// Eight `f32` lanes.
+/// `N` `f32` lanes.
 #[derive(Copy, Clone, Debug, PartialEq)]
 #[repr(C, align(32))]
-pub(crate) struct V8(pub(crate) [f32; 8]);
+pub(crate) struct Lanes<const N: usize>(pub(crate) [f32; N]);
 
-impl V8 {
+/// Eight `f32` lanes: one 256-bit vector.
+pub(crate) type V8 = Lanes<8>;
+
+impl<const N: usize> Lanes<N> {
     /// Every lane `x`.
     #[inline(always)]
-    pub(crate) const fn splat(x: f32) -> V8 {
-        V8([x; 8])
+    pub(crate) const fn splat(x: f32) -> Self {
+        Lanes([x; N])
     }
 
-    /// Lanes `s[0..8]` (missing elements read 0).
+    /// Lanes `s[0..N]` (missing elements read 0).
     #[inline(always)]
-    pub(crate) fn load(s: &[f32]) -> V8 {
-        let mut r = [0.0f32; 8];
-        match s.get(..8) {
+    pub(crate) fn load(s: &[f32]) -> Self {
+        let mut r = [0.0f32; N];
+        match s.get(..N) {
             Some(h) => r.copy_from_slice(h),
             None => {
                 for (d, v) in r.iter_mut().zip(s) {
@@ -72,13 +77,13 @@ impl V8 {
                 }
             }
         }
-        V8(r)
+        Lanes(r)
     }
 
-    /// Writes the lanes to `s[0..8]` (as many as fit).
+    /// Writes the lanes to `s[0..N]` (as many as fit).
     #[inline(always)]
     pub(crate) fn store(self, s: &mut [f32]) {
-        match s.get_mut(..8) {
+        match s.get_mut(..N) {
             Some(h) => h.copy_from_slice(&self.0),
             None => {
                 for (d, v) in s.iter_mut().zip(self.0) {
@@ -89,90 +94,90 @@ impl V8 {
     }
 }
 
-impl Add for V8 {
-    type Output = V8;
+impl<const N: usize> Add for Lanes<N> {
+    type Output = Self;
     #[inline(always)]
-    fn add(self, b: V8) -> V8 {
-        let mut r = [0.0f32; 8];
-        for l in 0..8 {
+    fn add(self, b: Self) -> Self {
+        let mut r = [0.0f32; N];
+        for l in 0..N {
             r[l] = self.0[l] + b.0[l];
         }
-        V8(r)
+        Lanes(r)
     }
 }
 
-impl Mul for V8 {
-    type Output = V8;
+impl<const N: usize> Mul for Lanes<N> {
+    type Output = Self;
     #[inline(always)]
-    fn mul(self, b: V8) -> V8 {
-        let mut r = [0.0f32; 8];
-        for l in 0..8 {
+    fn mul(self, b: Self) -> Self {
+        let mut r = [0.0f32; N];
+        for l in 0..N {
             r[l] = self.0[l] * b.0[l];
         }
-        V8(r)
+        Lanes(r)
     }
 }
 
-impl core::ops::Sub for V8 {
-    type Output = V8;
+impl<const N: usize> core::ops::Sub for Lanes<N> {
+    type Output = Self;
     #[inline(always)]
-    fn sub(self, b: V8) -> V8 {
-        V8(each(|l| self.0[l] - b.0[l]))
+    fn sub(self, b: Self) -> Self {
+        Lanes(each(|l| self.0[l] - b.0[l]))
     }
 }
 
-impl core::ops::Div for V8 {
-    type Output = V8;
+impl<const N: usize> core::ops::Div for Lanes<N> {
+    type Output = Self;
     #[inline(always)]
-    fn div(self, b: V8) -> V8 {
-        V8(each(|l| self.0[l] / b.0[l]))
+    fn div(self, b: Self) -> Self {
+        Lanes(each(|l| self.0[l] / b.0[l]))
     }
 }
 
-impl core::ops::Neg for V8 {
-    type Output = V8;
+impl<const N: usize> core::ops::Neg for Lanes<N> {
+    type Output = Self;
     #[inline(always)]
-    fn neg(self) -> V8 {
-        V8(each(|l| -self.0[l]))
+    fn neg(self) -> Self {
+        Lanes(each(|l| -self.0[l]))
     }
 }
 
-impl Lane for V8 {
-    type Mask = [bool; 8];
+impl<const N: usize> Lane for Lanes<N> {
+    type Mask = [bool; N];
     /// Indices as floats (small integers, exact): masks and selects on floats vectorise,
     /// mixing them with integer lanes does not.
-    type Index = V8;
+    type Index = Self;
 
     #[inline(always)]
-    fn splat(x: f32) -> V8 {
-        V8([x; 8])
+    fn splat(x: f32) -> Self {
+        Lanes([x; N])
     }
     #[inline(always)]
-    fn ge(self, b: V8) -> [bool; 8] {
+    fn ge(self, b: Self) -> [bool; N] {
         each(|l| self.0[l] >= b.0[l])
     }
     #[inline(always)]
-    fn le(self, b: V8) -> [bool; 8] {
+    fn le(self, b: Self) -> [bool; N] {
         each(|l| self.0[l] <= b.0[l])
     }
     #[inline(always)]
-    fn gt(self, b: V8) -> [bool; 8] {
+    fn gt(self, b: Self) -> [bool; N] {
         each(|l| self.0[l] > b.0[l])
     }
     #[inline(always)]
-    fn and(a: [bool; 8], b: [bool; 8]) -> [bool; 8] {
+    fn and(a: [bool; N], b: [bool; N]) -> [bool; N] {
         each(|l| a[l] & b[l])
     }
     #[inline(always)]
-    fn select(m: [bool; 8], a: V8, b: V8) -> V8 {
-        V8(each(|l| if m[l] { a.0[l] } else { b.0[l] }))
+    fn select(m: [bool; N], a: Self, b: Self) -> Self {
+        Lanes(each(|l| if m[l] { a.0[l] } else { b.0[l] }))
     }
     /// `max` then `min` (IEEE maxNum/minNum: a NaN operand gives the other one, so NaN →
     /// `lo` as in [`math::clamp`]), which vectorises where the comparisons of
     /// [`math::clamp`] stay scalar branches; the sign of a zero result may differ.
     #[inline(always)]
-    fn clamp_to(self, lo: V8, hi: V8) -> V8 {
-        V8(each(|l| self.0[l].max(lo.0[l]).min(hi.0[l])))
+    fn clamp_to(self, lo: Self, hi: Self) -> Self {
+        Lanes(each(|l| self.0[l].max(lo.0[l]).min(hi.0[l])))
     }
     lane_maps!(
         exp => approx::exp,
@@ -183,28 +188,28 @@ impl Lane for V8 {
         safe_sqrt => math::safe_sqrt,
     );
     #[inline(always)]
-    fn index(k: usize) -> V8 {
-        V8::splat(k as f32)
+    fn index(k: usize) -> Self {
+        Lanes::splat(k as f32)
     }
     #[inline(always)]
-    fn select_index(m: [bool; 8], k: usize, i: V8) -> V8 {
-        <V8 as Lane>::select(m, V8::splat(k as f32), i)
+    fn select_index(m: [bool; N], k: usize, i: Self) -> Self {
+        <Self as Lane>::select(m, Lanes::splat(k as f32), i)
     }
     /// A scan over the `K` entries with selects (no per-lane loads): the compares of one
     /// index are shared by the gathers of several arrays once inlined.
     #[inline(always)]
-    fn gather<const K: usize>(a: &[V8; K], i: V8, plus: usize, fallback: f32) -> V8 {
-        let mut r = V8::splat(fallback);
+    fn gather<const K: usize>(a: &[Self; K], i: Self, plus: usize, fallback: f32) -> Self {
+        let mut r = Lanes::splat(fallback);
         let mut j = plus;
         while j < K {
             let hit = each(|l| i.0[l] == (j - plus) as f32);
-            r = <V8 as Lane>::select(hit, a[j], r);
+            r = <Self as Lane>::select(hit, a[j], r);
             j += 1;
         }
         r
     }
     #[inline(always)]
-    fn interior<const K: usize>(i: V8, plus: usize) -> [bool; 8] {
+    fn interior<const K: usize>(i: Self, plus: usize) -> [bool; N] {
         each(|l| {
             let j = i.0[l] + plus as f32;
             j > 0.0 && j < K as f32

@@ -9,16 +9,16 @@
 use glam::Vec2;
 
 use super::{
-    density_from_output, finish_warp, sample_density, silu_from_sigmoid, warp_sample, ReparamLane,
-    ReparamSampler, DENSITY_L0, DENSITY_L1, REPARAM_HIDDEN, REPARAM_INPUTS, WARP_L0, WARP_L1,
-    WARP_L2, WARP_OUTPUTS,
+    finish_warp, sample_density, silu_from_sigmoid, warp_sample, ReparamLane, ReparamSampler,
+    DENSITY_L0, DENSITY_L1, LOG_DENSITY_MAX, LOG_DENSITY_MIN, REPARAM_HIDDEN, REPARAM_INPUTS,
+    WARP_L0, WARP_L1, WARP_L2, WARP_OUTPUTS,
 };
 use crate::math;
 use crate::math::approx;
 use crate::nn::{Activation, CONDITION_DIM};
 use crate::warp::{self, inside_disk};
 use crate::wavefront::chunked::ChunkedSampler;
-use crate::wavefront::lanes::{self, V8};
+use crate::wavefront::lanes::{self, Lanes};
 use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
@@ -27,15 +27,10 @@ const CHUNK: usize = 32;
 /// A chunk's value lanes followed by its two tangent blocks (∂/∂z.x, ∂/∂z.y).
 const STACK: usize = 3 * CHUNK;
 const H: usize = REPARAM_HIDDEN;
+/// Lanes of the warp's last step side by side.
+const G: usize = 32;
 
 type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
-
-/// `(silu(a), silu'(a))` with the fast sigmoid, per lane so that loops over a chunk's rows
-/// run at the full vector width.
-#[inline(always)]
-fn silu_fast(a: f32) -> (f32, f32) {
-    silu_from_sigmoid(a, approx::sigmoid(a))
-}
 
 /// `acc[j]` = the layer's bias on the value lanes and 0 on the tangent lanes.
 #[inline(always)]
@@ -105,7 +100,7 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         scratch: &mut Self::Scratch,
     ) {
         let m = lanes.len();
-        let groups = m.div_ceil(8);
+        let groups = m.div_ceil(G);
         let w = &self.params;
         // Refused lanes keep u = 0 (z = 0) and are dropped at the end.
         let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
@@ -130,11 +125,13 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         let r0: [f32; H] = w.read(l0 + (CONDITION_DIM * H) as u32);
         let r1: [f32; H] = w.read(l0 + ((CONDITION_DIM + 1) * H) as u32);
         let mut x = [[0.0f32; STACK]; H];
+        let mut s = [0.0f32; CHUNK];
         for (xj, (aj, (r0j, r1j))) in x.iter_mut().zip(a.iter().zip(r0.into_iter().zip(r1))) {
+            approx::sigmoid_row(aj, &mut s);
             let (y, t) = xj.split_at_mut(CHUNK);
             let (t0, t1) = t.split_at_mut(CHUNK);
-            for (((y, t0), t1), a) in y.iter_mut().zip(t0).zip(t1).zip(&aj[..m]) {
-                let (v, d) = silu_fast(*a);
+            for ((((y, t0), t1), a), s) in y.iter_mut().zip(t0).zip(t1).zip(&aj[..m]).zip(&s) {
+                let (v, d) = silu_from_sigmoid(*a, *s);
                 (*y, *t0, *t1) = (v, d * r0j, d * r1j);
             }
         }
@@ -147,28 +144,36 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
             let (t0, t1) = t.split_at_mut(CHUNK);
             let (a, da) = aj.split_at(CHUNK);
             let (da0, da1) = da.split_at(CHUNK);
-            let lanes = y.iter_mut().zip(t0).zip(t1).zip(&a[..m]).zip(da0).zip(da1);
-            for (((((y, t0), t1), a), da0), da1) in lanes {
-                let (v, d) = silu_fast(*a);
+            approx::sigmoid_row(a, &mut s);
+            let lanes = y
+                .iter_mut()
+                .zip(t0)
+                .zip(t1)
+                .zip(&a[..m])
+                .zip(da0)
+                .zip(da1)
+                .zip(&s);
+            for ((((((y, t0), t1), a), da0), da1), s) in lanes {
+                let (v, d) = silu_from_sigmoid(*a, *s);
                 (*y, *t0, *t1) = (v, d * da0, d * da1);
             }
         }
         let l2 = WARP_L2 as u32;
         let mut o = stacked_bias::<W, H, WARP_OUTPUTS>(w, l2);
         dense::accumulate::<W, H, WARP_OUTPUTS, STACK>(w, l2, 0, &x, &mut o, active);
-        // Each lane's direction and density, eight lanes at a time.
+        // Each lane's direction and density, G lanes side by side.
         let mut v: Soa<3> = [[0.0; CHUNK]; 3];
         let mut q = [0.0f32; CHUNK];
         for g in 0..groups {
             let block = |base: usize| {
-                let at = |k: usize| V8::load(&o[k][base + 8 * g..]);
+                let at = |k: usize| Lanes::<G>::load(&o[k][base + G * g..]);
                 [at(0), at(1), at(2)]
             };
             let (dir, det) = finish_warp(block(0), block(CHUNK), block(2 * CHUNK));
-            let z = |k: usize| V8::load(&zs[k][8 * g..]);
-            sample_density(z(0), z(1), det).store(&mut q[8 * g..]);
+            let z = |k: usize| Lanes::<G>::load(&zs[k][G * g..]);
+            sample_density(z(0), z(1), det).store(&mut q[G * g..]);
             for (row, d) in v.iter_mut().zip(dir) {
-                d.store(&mut row[8 * g..]);
+                d.store(&mut row[G * g..]);
             }
         }
         for i in 0..m {
@@ -221,9 +226,14 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         dense::activate(Activation::Relu, &mut g, m);
         let mut o: Soa<1> = [[0.0; CHUNK]; 1];
         dense::dense::<W, H, 1, CHUNK>(w, DENSITY_L1 as u32, &g, Activation::Identity, &mut o, m);
+        // The scalar path's `density_from_output` with the fast `exp`, over the whole row.
+        let mut density = [0.0f32; CHUNK];
+        for (d, o) in density.iter_mut().zip(&o[0]) {
+            *d = approx::exp(math::clamp(*o, LOG_DENSITY_MIN, LOG_DENSITY_MAX));
+        }
         for i in 0..m {
             pdf[i] = if ok[i] {
-                warp::disk_to_solid_angle(density_from_output(o[0][i]), cos[i])
+                warp::disk_to_solid_angle(density[i], cos[i])
             } else {
                 0.0
             };
