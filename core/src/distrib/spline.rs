@@ -213,10 +213,10 @@ impl<const K: usize> Knots<K> {
 }
 
 #[cfg(not(target_arch = "spirv"))]
-impl<const K: usize> Knots<K, crate::wavefront::lanes::V8> {
-    /// All-zero knots of eight lanes, for buffers that are filled before use.
+impl<const K: usize, const N: usize> Knots<K, crate::wavefront::lanes::Lanes<N>> {
+    /// All-zero knots of `N` lanes, for buffers that are filled before use.
     pub(crate) const ZERO_LANES: Self = {
-        let z = crate::wavefront::lanes::V8::splat(0.0);
+        let z = crate::wavefront::lanes::Lanes::splat(0.0);
         Knots {
             x: [z; K],
             y: [z; K],

@@ -8,7 +8,7 @@ use crate::weights::Weights;
 #[cfg(not(target_arch = "spirv"))]
 use {
     crate::distrib::spline::Knots,
-    crate::wavefront::lanes::V8,
+    crate::wavefront::lanes::Lanes,
     crate::wavefront::simd::{dispatch, Isa, Kernel},
     crate::wavefront::Soa,
     core::marker::PhantomData,
@@ -16,6 +16,15 @@ use {
 
 #[cfg(not(target_arch = "spirv"))]
 pub(crate) mod flow;
+
+/// Lanes whose splines the batched path evaluates side by side: more than one vector's worth,
+/// so that the long dependency chains of the softmaxes and the spline steps of several
+/// vectors interleave.
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) const GROUP: usize = 16;
+/// A group of [`GROUP`] lanes.
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) type Group = Lanes<GROUP>;
 
 /// Frequency bands of the encoding of the coupling layers' "other coordinate" (release: 4).
 pub const OTHER_BANDS: usize = 4;
@@ -138,8 +147,8 @@ pub struct CouplingBuffers<const RAW: usize, const CHUNK: usize> {
     v: [f32; CHUNK],
     /// The raw spline parameters.
     raw: Soa<RAW, CHUNK>,
-    /// The raw spline parameters of one group of eight lanes.
-    group: [V8; RAW],
+    /// The raw spline parameters of one group of [`GROUP`] lanes.
+    group: [Group; RAW],
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -152,18 +161,18 @@ impl<const RAW: usize, const CHUNK: usize> CouplingBuffers<RAW, CHUNK> {
             e: [[0.0; CHUNK]; OTHER_DIM],
             v: [0.0; CHUNK],
             raw: [[0.0; CHUNK]; RAW],
-            group: [V8::splat(0.0); RAW],
+            group: [Group::splat(0.0); RAW],
         }
     };
 }
 
 /// A flow's [`ChunkScratch`](crate::wavefront::chunked::ChunkScratch): the couplings'
-/// buffers and two sets of splines of `K` bins (one group of eight lanes each).
+/// buffers and two sets of splines of `K` bins (one per group of [`GROUP`] lanes).
 #[cfg(not(target_arch = "spirv"))]
 pub struct FlowScratch<const K: usize, const RAW: usize, const CHUNK: usize, const GROUPS: usize> {
     pub(crate) b: CouplingBuffers<RAW, CHUNK>,
-    pub(crate) k0: [Knots<K, V8>; GROUPS],
-    pub(crate) k1: [Knots<K, V8>; GROUPS],
+    pub(crate) k0: [Knots<K, Group>; GROUPS],
+    pub(crate) k1: [Knots<K, Group>; GROUPS],
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -227,9 +236,9 @@ pub(crate) struct CouplingLanes<'a, S, const CHUNK: usize> {
 /// The splines of coupling network `net` (0 or 1, at `offset`) for the lanes `at`: the
 /// lanes' shares and coordinates gathered into `b` (no copy of a lane state), then
 /// [`coupling_raw_chunk`], then group `g` of `knots` from the raw parameters of coupling
-/// lanes `8g .. 8g + 8`, with the ends `E` ([`BoundedEnds`] on `[−tail_bound, tail_bound]`,
+/// lanes `GROUP·g ..` `GROUP·(g + 1)`, with the ends `E` ([`BoundedEnds`] on `[−tail_bound, tail_bound]`,
 /// or [`FreeEnds`]). Its own kernel, compiled once per instruction set (up to AVX2: the
-/// splines run in eight-lane groups) and called from the flows' sample, pdf and invert
+/// splines run in groups of [`GROUP`] lanes) and called from the flows' sample, pdf and invert
 /// rather than inlined at each of their uses.
 #[cfg(not(target_arch = "spirv"))]
 #[allow(clippy::too_many_arguments)]
@@ -248,7 +257,7 @@ pub(crate) fn coupling_splines_chunk<
     at: CouplingLanes<'_, S, CHUNK>,
     tail_bound: f32,
     b: &mut CouplingBuffers<RAW, CHUNK>,
-    knots: &mut [Knots<K, V8>],
+    knots: &mut [Knots<K, Group>],
 ) {
     dispatch(SplinesJob::<E, W, S, K, RAW, CHUNK> {
         ends: PhantomData,
@@ -265,9 +274,9 @@ pub(crate) fn coupling_splines_chunk<
 /// How [`coupling_splines_chunk`] turns a group's raw parameters into splines.
 #[cfg(not(target_arch = "spirv"))]
 pub(crate) trait SplineEnds<const K: usize, const RAW: usize> {
-    /// Sets `knots` to the splines of eight lanes (`bound`: the half-width of their
+    /// Sets `knots` to the splines of a group's lanes (`bound`: the half-width of their
     /// interval, if bounded).
-    fn set_knots(knots: &mut Knots<K, V8>, raw: &[V8; RAW], bound: f32);
+    fn set_knots(knots: &mut Knots<K, Group>, raw: &[Group; RAW], bound: f32);
 }
 
 /// Splines on `[−bound, bound]` with identity tails (`RAW = 3K − 1`).
@@ -281,7 +290,7 @@ pub(crate) struct FreeEnds;
 #[cfg(not(target_arch = "spirv"))]
 impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for BoundedEnds {
     #[inline(always)]
-    fn set_knots(knots: &mut Knots<K, V8>, raw: &[V8; RAW], bound: f32) {
+    fn set_knots(knots: &mut Knots<K, Group>, raw: &[Group; RAW], bound: f32) {
         knots.set_raw_lanes(raw, bound);
     }
 }
@@ -289,7 +298,7 @@ impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for BoundedEnds {
 #[cfg(not(target_arch = "spirv"))]
 impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for FreeEnds {
     #[inline(always)]
-    fn set_knots(knots: &mut Knots<K, V8>, raw: &[V8; RAW], _bound: f32) {
+    fn set_knots(knots: &mut Knots<K, Group>, raw: &[Group; RAW], _bound: f32) {
         knots.set_raw_free_lanes(raw);
     }
 }
@@ -304,7 +313,7 @@ struct SplinesJob<'a, E, W, S, const K: usize, const RAW: usize, const CHUNK: us
     at: CouplingLanes<'a, S, CHUNK>,
     tail_bound: f32,
     b: &'a mut CouplingBuffers<RAW, CHUNK>,
-    knots: &'a mut [Knots<K, V8>],
+    knots: &'a mut [Knots<K, Group>],
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -347,9 +356,9 @@ impl<
             b.v[k] = at.v.get(i).copied().unwrap_or(0.0);
         }
         coupling_raw_chunk(w, offset, m, b);
-        for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(8)) {
+        for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(GROUP)) {
             for (rj, row) in b.group.iter_mut().zip(b.raw.iter()) {
-                *rj = V8::load(&row[8 * g..]);
+                *rj = Group::load(&row[GROUP * g..]);
             }
             E::set_knots(kn, &b.group, tail_bound);
         }

@@ -12,24 +12,23 @@
 use glam::Vec2;
 
 use super::{
-    coupling_splines_chunk, CouplingBuffers, CouplingLanes, CouplingShares, FlowScratch,
-    SplineEnds, COUPLING_INPUTS, HIDDEN,
+    coupling_splines_chunk, CouplingBuffers, CouplingLanes, CouplingShares, FlowScratch, Group,
+    SplineEnds, COUPLING_INPUTS, GROUP, HIDDEN,
 };
 use crate::distrib::spline::Knots;
 use crate::nn::CONDITION_DIM;
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::lanes::V8;
 use crate::wavefront::{self, dense, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk: activations, splines and lane states of a chunk stay in L1.
 pub(crate) const CHUNK: usize = 32;
-/// Groups of eight lanes per chunk (the splines are evaluated eight lanes at a time).
-pub(crate) const GROUPS: usize = CHUNK / 8;
+/// Groups of lanes per chunk (the splines are evaluated a group at a time).
+pub(crate) const GROUPS: usize = CHUNK / GROUP;
 
-/// The splines of a chunk's lanes, one group of eight lanes each.
-type Splines<const K: usize> = [Knots<K, V8>; GROUPS];
+/// The splines of a chunk's lanes, one per group.
+type Splines<const K: usize> = [Knots<K, Group>; GROUPS];
 
 /// One value per lane of a chunk.
 pub(crate) type Rows = [f32; CHUNK];
@@ -70,19 +69,19 @@ pub(crate) trait CouplingFlow<const K: usize, const RAW: usize> {
     ) -> (Rows, Rows, [bool; CHUNK]);
 
     /// Coupling 0 inverted: the disk point's `x` from the base point's `(x, y)`.
-    fn inverse0(k: &Knots<K, V8>, bx: V8, by: V8) -> V8;
+    fn inverse0(k: &Knots<K, Group>, bx: Group, by: Group) -> Group;
 
     /// Coupling 1 inverted: the disk point's `y` from the base point's `y` and the disk
     /// point's `x`.
-    fn inverse1(k: &Knots<K, V8>, by: V8, x: V8) -> V8;
+    fn inverse1(k: &Knots<K, Group>, by: Group, x: Group) -> Group;
 
     /// Coupling 1 forward at the disk point `(x, y)`: the base point's `y`, the coupling's
     /// log-derivative and what coupling 0 needs of it (the disk flow's half chord).
-    fn forward1(k: &Knots<K, V8>, y: V8, x: V8) -> (V8, V8, V8);
+    fn forward1(k: &Knots<K, Group>, y: Group, x: Group) -> (Group, Group, Group);
 
     /// Coupling 0 forward at the disk point's `x` with [`Self::forward1`]'s third value: the
     /// base point's `x` and the coupling's log-derivative.
-    fn forward0(k: &Knots<K, V8>, x: V8, c: V8) -> (V8, V8);
+    fn forward0(k: &Knots<K, Group>, x: Group, c: Group) -> (Group, Group);
 
     /// The densities on the disk (area measure) of lanes whose base points are `(bx, by)`,
     /// with the couplings' log-derivatives `ld0 + ld1`.
@@ -153,7 +152,7 @@ pub(crate) fn sample_chunk<const K: usize, const RAW: usize, F: CouplingFlow<K, 
     scratch: &mut FlowScratch<K, RAW, CHUNK, GROUPS>,
 ) {
     let m = lanes.len();
-    let groups = m.div_ceil(8);
+    let groups = m.div_ceil(GROUP);
     let all = wavefront::identity_index::<CHUNK>();
     // Refused lanes keep the base point 0 and are dropped at the end.
     let base = F::base(lanes);
@@ -164,28 +163,32 @@ pub(crate) fn sample_chunk<const K: usize, const RAW: usize, F: CouplingFlow<K, 
     let mut px = [0.0f32; CHUNK];
     let mut py = [0.0f32; CHUNK];
     for g in 0..groups {
-        let (b_x, b_y) = (V8::load(&bx[8 * g..]), V8::load(&by[8 * g..]));
-        F::inverse0(&k0[g], b_x, b_y).store(&mut px[8 * g..]);
+        let (b_x, b_y) = (Group::load(&bx[GROUP * g..]), Group::load(&by[GROUP * g..]));
+        F::inverse0(&k0[g], b_x, b_y).store(&mut px[GROUP * g..]);
     }
     splines(f, 1, at(&all, m, &px), b, k1);
     let mut yb = [0.0f32; CHUNK];
     let mut cb = [0.0f32; CHUNK];
     let mut ld1 = [0.0f32; CHUNK];
     for g in 0..groups {
-        let x = V8::load(&px[8 * g..]);
-        let y = F::inverse1(&k1[g], V8::load(&by[8 * g..]), x);
-        y.store(&mut py[8 * g..]);
+        let x = Group::load(&px[GROUP * g..]);
+        let y = F::inverse1(&k1[g], Group::load(&by[GROUP * g..]), x);
+        y.store(&mut py[GROUP * g..]);
         let (a, d, c) = F::forward1(&k1[g], y, x);
-        a.store(&mut yb[8 * g..]);
-        d.store(&mut ld1[8 * g..]);
-        c.store(&mut cb[8 * g..]);
+        a.store(&mut yb[GROUP * g..]);
+        d.store(&mut ld1[GROUP * g..]);
+        c.store(&mut cb[GROUP * g..]);
     }
     let mut xb = [0.0f32; CHUNK];
     let mut ld0 = [0.0f32; CHUNK];
     for g in 0..groups {
-        let (a, d) = F::forward0(&k0[g], V8::load(&px[8 * g..]), V8::load(&cb[8 * g..]));
-        a.store(&mut xb[8 * g..]);
-        d.store(&mut ld0[8 * g..]);
+        let (a, d) = F::forward0(
+            &k0[g],
+            Group::load(&px[GROUP * g..]),
+            Group::load(&cb[GROUP * g..]),
+        );
+        a.store(&mut xb[GROUP * g..]);
+        d.store(&mut ld0[GROUP * g..]);
     }
     let mut again = [0usize; CHUNK];
     let mut n_again = 0;
@@ -203,10 +206,14 @@ pub(crate) fn sample_chunk<const K: usize, const RAW: usize, F: CouplingFlow<K, 
             x[k] = px[again[k]];
             c[k] = cb[again[k]];
         }
-        for g in 0..n_again.div_ceil(8) {
-            let (a, d) = F::forward0(&k0[g], V8::load(&x[8 * g..]), V8::load(&c[8 * g..]));
-            for i in 0..8 {
-                if let Some(&l) = again[..n_again].get(8 * g + i) {
+        for g in 0..n_again.div_ceil(GROUP) {
+            let (a, d) = F::forward0(
+                &k0[g],
+                Group::load(&x[GROUP * g..]),
+                Group::load(&c[GROUP * g..]),
+            );
+            for i in 0..GROUP {
+                if let Some(&l) = again[..n_again].get(GROUP * g + i) {
                     xb[l] = a.0[i];
                     ld0[l] = d.0[i];
                 }
@@ -252,7 +259,7 @@ fn to_base<const K: usize, const RAW: usize, F: CouplingFlow<K, RAW>>(
     scratch: &mut FlowScratch<K, RAW, CHUNK, GROUPS>,
 ) -> (Rows, Rows, Rows) {
     let m = lanes.len();
-    let groups = m.div_ceil(8);
+    let groups = m.div_ceil(GROUP);
     let all = wavefront::identity_index::<CHUNK>();
     let (b, k) = (&mut scratch.b, &mut scratch.k0);
     let at = |v| CouplingLanes {
@@ -266,19 +273,23 @@ fn to_base<const K: usize, const RAW: usize, F: CouplingFlow<K, RAW>>(
     let mut cb = [0.0f32; CHUNK];
     let mut ld1 = [0.0f32; CHUNK];
     for g in 0..groups {
-        let (x, y) = (V8::load(&px[8 * g..]), V8::load(&py[8 * g..]));
+        let (x, y) = (Group::load(&px[GROUP * g..]), Group::load(&py[GROUP * g..]));
         let (a, d, c) = F::forward1(&k[g], y, x);
-        a.store(&mut yb[8 * g..]);
-        d.store(&mut ld1[8 * g..]);
-        c.store(&mut cb[8 * g..]);
+        a.store(&mut yb[GROUP * g..]);
+        d.store(&mut ld1[GROUP * g..]);
+        c.store(&mut cb[GROUP * g..]);
     }
     splines(f, 0, at(&yb), b, k);
     let mut xb = [0.0f32; CHUNK];
     let mut ld = [0.0f32; CHUNK];
     for g in 0..groups {
-        let (a, d) = F::forward0(&k[g], V8::load(&px[8 * g..]), V8::load(&cb[8 * g..]));
-        a.store(&mut xb[8 * g..]);
-        (d + V8::load(&ld1[8 * g..])).store(&mut ld[8 * g..]);
+        let (a, d) = F::forward0(
+            &k[g],
+            Group::load(&px[GROUP * g..]),
+            Group::load(&cb[GROUP * g..]),
+        );
+        a.store(&mut xb[GROUP * g..]);
+        (d + Group::load(&ld1[GROUP * g..])).store(&mut ld[GROUP * g..]);
     }
     (xb, yb, ld)
 }
@@ -345,7 +356,7 @@ macro_rules! coupling_flow_chunks {
                 { $crate::samplers::coupling::flow::GROUPS },
             >;
             const CHUNK: usize = $crate::samplers::coupling::flow::CHUNK;
-            // The splines run in eight-lane groups.
+            // The splines run in groups of 16 lanes.
             const WIDEST: $crate::wavefront::simd::Isa = $crate::wavefront::simd::Isa::X86V3;
 
             #[inline(always)]

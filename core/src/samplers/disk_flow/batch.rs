@@ -14,9 +14,9 @@ use crate::math;
 use crate::samplers::coupling::flow::{
     coupling_flow_chunks, coupling_shares, lane_shares, CouplingFlow, Rows, CHUNK,
 };
+use crate::samplers::coupling::Group;
 use crate::samplers::coupling::{density_from_log, CouplingShares, FreeEnds, HIDDEN};
 use crate::warp;
-use crate::wavefront::lanes::V8;
 use crate::wavefront::{self, Features, Vec2s, Vec3s};
 use crate::weights::Weights;
 
@@ -80,23 +80,23 @@ impl<W: Weights + Copy> CouplingFlow<DISK_FLOW_BINS, DISK_SPLINE_RAW_LEN> for Di
     }
 
     #[inline(always)]
-    fn inverse0(k: &Knots<DISK_FLOW_BINS, V8>, bx: V8, by: V8) -> V8 {
+    fn inverse0(k: &Knots<DISK_FLOW_BINS, Group>, bx: Group, by: Group) -> Group {
         chord_inverse(k, bx, by)
     }
 
     #[inline(always)]
-    fn inverse1(k: &Knots<DISK_FLOW_BINS, V8>, by: V8, x: V8) -> V8 {
+    fn inverse1(k: &Knots<DISK_FLOW_BINS, Group>, by: Group, x: Group) -> Group {
         chord_inverse(k, by, x)
     }
 
     #[inline(always)]
-    fn forward1(k: &Knots<DISK_FLOW_BINS, V8>, y: V8, x: V8) -> (V8, V8, V8) {
+    fn forward1(k: &Knots<DISK_FLOW_BINS, Group>, y: Group, x: Group) -> (Group, Group, Group) {
         chord_forward_next(k, y, x)
     }
 
     /// `C·S₀(x / C)` on the half chord `c` that [`Self::forward1`] returned.
     #[inline(always)]
-    fn forward0(k: &Knots<DISK_FLOW_BINS, V8>, x: V8, c: V8) -> (V8, V8) {
+    fn forward0(k: &Knots<DISK_FLOW_BINS, Group>, x: Group, c: Group) -> (Group, Group) {
         let (s0, d) = k.forward_lanes(in_chord_lanes(x, c));
         (c * s0, d)
     }

@@ -15,8 +15,9 @@ use crate::nn::{Activation, CONDITION_DIM};
 use crate::samplers::coupling::flow::{
     coupling_flow_chunks, coupling_shares, lane_shares, CouplingFlow, Rows, CHUNK,
 };
+use crate::samplers::coupling::Group;
 use crate::samplers::coupling::{BoundedEnds, CouplingShares, HIDDEN};
-use crate::wavefront::lanes::{self, V8};
+use crate::wavefront::lanes;
 use crate::wavefront::{self, dense, Features, Vec2s, Vec3s};
 use crate::weights::Weights;
 
@@ -167,23 +168,23 @@ impl<W: Weights + Copy> CouplingFlow<SPLINE_BINS, SPLINE_RAW_LEN> for SplineFlow
     }
 
     #[inline(always)]
-    fn inverse0(k: &Knots<SPLINE_BINS, V8>, bx: V8, _by: V8) -> V8 {
+    fn inverse0(k: &Knots<SPLINE_BINS, Group>, bx: Group, _by: Group) -> Group {
         k.inverse_with::<false>(bx).0
     }
 
     #[inline(always)]
-    fn inverse1(k: &Knots<SPLINE_BINS, V8>, by: V8, _x: V8) -> V8 {
+    fn inverse1(k: &Knots<SPLINE_BINS, Group>, by: Group, _x: Group) -> Group {
         k.inverse_with::<false>(by).0
     }
 
     #[inline(always)]
-    fn forward1(k: &Knots<SPLINE_BINS, V8>, y: V8, _x: V8) -> (V8, V8, V8) {
+    fn forward1(k: &Knots<SPLINE_BINS, Group>, y: Group, _x: Group) -> (Group, Group, Group) {
         let (a, d) = k.forward_lanes(y);
-        (a, d, V8::splat(0.0))
+        (a, d, Group::splat(0.0))
     }
 
     #[inline(always)]
-    fn forward0(k: &Knots<SPLINE_BINS, V8>, x: V8, _c: V8) -> (V8, V8) {
+    fn forward0(k: &Knots<SPLINE_BINS, Group>, x: Group, _c: Group) -> (Group, Group) {
         k.forward_lanes(x)
     }
 
