@@ -106,4 +106,5 @@ crate::wavefront::mlp_lane_sampler!(
     hidden: HIDDEN,
     outputs: ANALYTIC_OUTPUTS,
     layers: [ANALYTIC_L0, ANALYTIC_L1],
+    chunks: [crate::samplers::lobes::batch::lobe_chunks],
 );

@@ -182,4 +182,5 @@ crate::wavefront::mlp_lane_sampler!(
     hidden: DIRECT_HIDDEN,
     outputs: DIRECT_CELLS,
     layers: [DIRECT_L0, DIRECT_L1, DIRECT_L2],
+    chunks: [crate::wavefront::per_lane_chunks],
 );

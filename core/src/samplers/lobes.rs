@@ -48,6 +48,9 @@ pub(super) const HIDDEN: usize = 32;
 #[cfg(not(target_arch = "spirv"))]
 pub(super) const CHUNK: usize = 32;
 
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) mod batch;
+
 /// A predicted mean coordinate, clamped to [`MEAN_BOUND`].
 #[inline(always)]
 pub(super) fn mean(x: f32) -> f32 {

@@ -263,14 +263,16 @@ pub(crate) use per_lane_chunks;
 /// The [`ChunkedSampler`] of a sampler whose prepare is one ReLU
 /// MLP of the encoded condition (`relu_mlp` over `layers`, `hidden` wide, `outputs` out)
 /// followed by a per-lane constructor `from` of its scalar [`Prepared`](crate::Prepared) state, in chunks of
-/// `chunk` lanes; sample, pdf and invert run [`per_lane_chunks`].
+/// `chunk` lanes; sample, pdf and invert are the macro `chunks` ([`per_lane_chunks`]: the
+/// scalar code lane by lane).
 macro_rules! mlp_lane_sampler {
     (
         $sampler:ident => $prepared:ident :: $from:ident,
         chunk: $chunk:expr,
         hidden: $hidden:expr,
         outputs: $outputs:expr,
-        layers: [$($layer:expr),+ $(,)?] $(,)?
+        layers: [$($layer:expr),+ $(,)?],
+        chunks: [$($chunks:tt)+] $(,)?
     ) => {
         impl<W: $crate::weights::Weights> $crate::wavefront::chunked::ChunkedSampler
             for $sampler<W>
@@ -302,7 +304,7 @@ macro_rules! mlp_lane_sampler {
                 lanes_from_outputs(&o, &valid, lanes, $prepared::$from);
             }
 
-            $crate::wavefront::per_lane_chunks!($prepared);
+            $($chunks)+!($prepared);
         }
     };
 }

@@ -20,11 +20,13 @@
 //! - Results agree with the scalar path's within a tolerance, not bit for bit: on x86-64 the
 //!   networks run with fused multiply-adds (AVX-512 or AVX2 + FMA, chosen at run time;
 //!   [`current_isa`]), and on aarch64 with NEON's, one rounding per step where the scalar
-//!   path has two. Densities at the
+//!   path has two; and the samplers' element-wise steps (`exp`, sigmoids, Box–Muller, …)
+//!   use fast branch-free approximations where the scalar path calls libm. Densities at the
 //!   same direction agree within 5·10⁻⁴ relative and sampled directions within 10⁻³ (tested
 //!   on every committed fixture blob with adversarial lanes; away from `u = 1`, where the
 //!   sampling maps are steep enough that rounding moves the sample further). The portable
-//!   path ([`prefer_isa`]`(Some(Isa::Portable))`) is the scalar path's arithmetic.
+//!   path ([`prefer_isa`]`(Some(Isa::Portable))`) runs the networks without fused
+//!   multiply-adds, as the scalar path does.
 //! - Inside one instruction set the results are exact and deterministic: a sample's pdf is
 //!   [`BatchSampler::pdf_batch`] at its direction bit for bit (as for the scalar API, for
 //!   MIS), fused calls equal unfused ones, and a lane's result depends neither on N nor on
