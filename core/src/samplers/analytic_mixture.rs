@@ -101,10 +101,37 @@ impl<W: Weights> Sampler for AnalyticMixtureSampler<W> {
 
 #[cfg(not(target_arch = "spirv"))]
 crate::wavefront::mlp_lane_sampler!(
-    AnalyticMixtureSampler => AnalyticMixturePrepared::from_outputs,
+    AnalyticMixtureSampler => AnalyticMixturePrepared,
     chunk: crate::samplers::lobes::CHUNK,
     hidden: HIDDEN,
     outputs: ANALYTIC_OUTPUTS,
     layers: [ANALYTIC_L0, ANALYTIC_L1],
     chunks: [crate::samplers::lobes::batch::lobe_chunks],
 );
+
+/// [`AnalyticMixturePrepared::from_outputs`] over a chunk's rows, with the fast `exp`.
+#[cfg(not(target_arch = "spirv"))]
+impl crate::wavefront::FromOutputs<ANALYTIC_OUTPUTS> for AnalyticMixturePrepared {
+    #[inline(always)]
+    fn lanes<const B: usize>(
+        o: &crate::wavefront::Soa<ANALYTIC_OUTPUTS, B>,
+        valid: &[bool; B],
+        lanes: &mut [Option<Self>],
+    ) {
+        use super::lobes::batch::{mean_row, sigma_row, weight_rows};
+        let w = weight_rows([&o[8], &o[9], &o[10]]);
+        let mu = [&o[0], &o[1], &o[2], &o[3]].map(mean_row);
+        let s = [&o[4], &o[5], &o[6], &o[7]].map(sigma_row);
+        for (l, lane) in lanes.iter_mut().enumerate().take(B) {
+            *lane = valid[l].then(|| {
+                let lobe = |g: usize| {
+                    (
+                        Vec2::new(mu[2 * g][l], mu[2 * g + 1][l]),
+                        Vec2::new(s[2 * g][l], s[2 * g + 1][l]),
+                    )
+                };
+                LobeMixture::new([w[0][l], w[1][l], w[2][l]], [lobe(0), lobe(1)])
+            });
+        }
+    }
+}

@@ -177,10 +177,22 @@ impl Prepared for DirectHistogramPrepared {
 // Chunks of 16 lanes: the 256 logits of 16 lanes take 16 KiB.
 #[cfg(not(target_arch = "spirv"))]
 crate::wavefront::mlp_lane_sampler!(
-    DirectHistogramSampler => DirectHistogramPrepared::from_logits,
+    DirectHistogramSampler => DirectHistogramPrepared,
     chunk: 16,
     hidden: DIRECT_HIDDEN,
     outputs: DIRECT_CELLS,
     layers: [DIRECT_L0, DIRECT_L1, DIRECT_L2],
     chunks: [crate::wavefront::per_lane_chunks],
 );
+
+#[cfg(not(target_arch = "spirv"))]
+impl crate::wavefront::FromOutputs<DIRECT_CELLS> for DirectHistogramPrepared {
+    #[inline(always)]
+    fn lanes<const B: usize>(
+        o: &crate::wavefront::Soa<DIRECT_CELLS, B>,
+        valid: &[bool; B],
+        lanes: &mut [Option<Self>],
+    ) {
+        crate::wavefront::lanes_from_outputs(o, valid, lanes, DirectHistogramPrepared::from_logits);
+    }
+}

@@ -96,10 +96,32 @@ impl<W: Weights> Sampler for ImprovedBaselineSampler<W> {
 
 #[cfg(not(target_arch = "spirv"))]
 crate::wavefront::mlp_lane_sampler!(
-    ImprovedBaselineSampler => ImprovedBaselinePrepared::from_outputs,
+    ImprovedBaselineSampler => ImprovedBaselinePrepared,
     chunk: crate::samplers::lobes::CHUNK,
     hidden: HIDDEN,
     outputs: BASELINE_OUTPUTS,
     layers: [BASELINE_L0, BASELINE_L1, BASELINE_L2, BASELINE_L3],
     chunks: [crate::samplers::lobes::batch::lobe_chunks],
 );
+
+/// [`ImprovedBaselinePrepared::from_outputs`] over a chunk's rows, with the fast `exp`.
+#[cfg(not(target_arch = "spirv"))]
+impl crate::wavefront::FromOutputs<BASELINE_OUTPUTS> for ImprovedBaselinePrepared {
+    #[inline(always)]
+    fn lanes<const B: usize>(
+        o: &crate::wavefront::Soa<BASELINE_OUTPUTS, B>,
+        valid: &[bool; B],
+        lanes: &mut [Option<Self>],
+    ) {
+        use super::lobes::batch::{mean_row, sigma_row, weight_rows};
+        let w = weight_rows([&o[3], &o[4]]);
+        let mu = [&o[0], &o[1]].map(mean_row);
+        let s = sigma_row(&o[2]);
+        for (l, lane) in lanes.iter_mut().enumerate().take(B) {
+            *lane = valid[l].then(|| {
+                let mean = Vec2::new(mu[0][l], mu[1][l]);
+                LobeMixture::new([w[0][l], w[1][l]], [(mean, Vec2::splat(s[l]))])
+            });
+        }
+    }
+}

@@ -262,12 +262,13 @@ pub(crate) use per_lane_chunks;
 
 /// The [`ChunkedSampler`] of a sampler whose prepare is one ReLU
 /// MLP of the encoded condition (`relu_mlp` over `layers`, `hidden` wide, `outputs` out)
-/// followed by a per-lane constructor `from` of its scalar [`Prepared`](crate::Prepared) state, in chunks of
+/// followed by its scalar [`Prepared`](crate::Prepared) state's
+/// [`FromOutputs`](super::FromOutputs), in chunks of
 /// `chunk` lanes; sample, pdf and invert are the macro `chunks` ([`per_lane_chunks`]: the
 /// scalar code lane by lane).
 macro_rules! mlp_lane_sampler {
     (
-        $sampler:ident => $prepared:ident :: $from:ident,
+        $sampler:ident => $prepared:ident,
         chunk: $chunk:expr,
         hidden: $hidden:expr,
         outputs: $outputs:expr,
@@ -288,7 +289,7 @@ macro_rules! mlp_lane_sampler {
                 wi: $crate::wavefront::Vec3s<'_>,
                 lanes: &mut [Self::Lane],
             ) {
-                use $crate::wavefront::{dense, encoded_conditions, lanes_from_outputs, Soa};
+                use $crate::wavefront::{dense, encoded_conditions, FromOutputs, Soa};
                 const CHUNK: usize = $chunk;
                 let m = lanes.len();
                 let (c, valid) = encoded_conditions::<CHUNK>(&phi, &wi);
@@ -301,7 +302,7 @@ macro_rules! mlp_lane_sampler {
                     &mut o,
                     m,
                 );
-                lanes_from_outputs(&o, &valid, lanes, $prepared::$from);
+                <$prepared as FromOutputs<{ $outputs }>>::lanes(&o, &valid, lanes);
             }
 
             $($chunks)+!($prepared);

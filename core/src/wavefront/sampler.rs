@@ -179,6 +179,13 @@ pub(crate) fn column<const N: usize, const B: usize>(soa: &Soa<N, B>, l: usize) 
     c
 }
 
+/// A lane state built from a network's `N` outputs per lane (the samplers of
+/// [`mlp_lane_sampler`](super::chunked::mlp_lane_sampler)).
+pub(crate) trait FromOutputs<const N: usize>: Sized {
+    /// The lanes of a chunk from its output rows (`None` where not `valid`).
+    fn lanes<const B: usize>(o: &Soa<N, B>, valid: &[bool; B], lanes: &mut [Option<Self>]);
+}
+
 /// The first `lanes.len()` lanes of a chunk from its network outputs `o`: `f` of the lane's
 /// column where its condition is valid, refused (`None`) elsewhere.
 #[inline(always)]

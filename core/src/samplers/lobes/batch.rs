@@ -12,7 +12,7 @@ use crate::distrib::gaussian;
 use crate::math::{self, approx, finite_density};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
-use crate::wavefront::lanes;
+use crate::wavefront::lanes::{self, Lanes};
 use crate::wavefront::{SamplesMut, Vec2s, Vec3s};
 
 type Row = [f32; CHUNK];
@@ -76,6 +76,44 @@ impl<const K: usize, const G: usize> Rows<K, G> {
             };
         }
     }
+}
+
+/// The softmax of `K` rows of logits (each clamped as `math::clamp_logit`), lane by lane, with
+/// the fast `exp` (`gaussian::softmax_lanes` over the whole row).
+#[inline(always)]
+pub(crate) fn weight_rows<const K: usize, const B: usize>(logits: [&[f32; B]; K]) -> [[f32; B]; K] {
+    let mut x = [Lanes::<B>::splat(0.0); K];
+    for (x, row) in x.iter_mut().zip(logits) {
+        for (v, a) in x.0.iter_mut().zip(row) {
+            *v = math::clamp_logit(*a);
+        }
+    }
+    gaussian::softmax_lanes(&mut x);
+    x.map(|r| r.0)
+}
+
+/// `gaussian::sigma_from_log` of every lane, with the fast `exp`.
+#[inline(always)]
+pub(crate) fn sigma_row<const B: usize>(log_sigma: &[f32; B]) -> [f32; B] {
+    let mut r = [0.0f32; B];
+    for (r, x) in r.iter_mut().zip(log_sigma) {
+        *r = approx::exp(math::clamp(
+            *x,
+            gaussian::LOG_SIGMA_MIN,
+            gaussian::LOG_SIGMA_MAX,
+        ));
+    }
+    r
+}
+
+/// [`mean`](super::mean) of every lane.
+#[inline(always)]
+pub(crate) fn mean_row<const B: usize>(x: &[f32; B]) -> [f32; B] {
+    let mut r = [0.0f32; B];
+    for (r, x) in r.iter_mut().zip(x) {
+        *r = super::mean(*x);
+    }
+    r
 }
 
 /// `sample_chunk` of a lobe mixture: each lane's component and its point (module docs),
