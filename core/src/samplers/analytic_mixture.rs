@@ -106,7 +106,6 @@ crate::wavefront::mlp_lane_sampler!(
     hidden: HIDDEN,
     outputs: ANALYTIC_OUTPUTS,
     layers: [ANALYTIC_L0, ANALYTIC_L1],
-    chunks: [crate::samplers::lobes::batch::lobe_chunks],
 );
 
 /// [`AnalyticMixturePrepared::from_outputs`] over a chunk's rows, with the fast `exp`.

@@ -76,3 +76,6 @@ impl crate::wavefront::chunked::ChunkedSampler for CosineSampler {
 
     crate::wavefront::per_lane_chunks!(CosinePrepared);
 }
+
+#[cfg(not(target_arch = "spirv"))]
+impl crate::wavefront::chunked::LaneChunks for CosinePrepared {}

@@ -182,8 +182,10 @@ crate::wavefront::mlp_lane_sampler!(
     hidden: DIRECT_HIDDEN,
     outputs: DIRECT_CELLS,
     layers: [DIRECT_L0, DIRECT_L1, DIRECT_L2],
-    chunks: [crate::wavefront::per_lane_chunks],
 );
+
+#[cfg(not(target_arch = "spirv"))]
+impl crate::wavefront::chunked::LaneChunks for DirectHistogramPrepared {}
 
 #[cfg(not(target_arch = "spirv"))]
 impl crate::wavefront::FromOutputs<DIRECT_CELLS> for DirectHistogramPrepared {

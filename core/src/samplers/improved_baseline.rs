@@ -101,7 +101,6 @@ crate::wavefront::mlp_lane_sampler!(
     hidden: HIDDEN,
     outputs: BASELINE_OUTPUTS,
     layers: [BASELINE_L0, BASELINE_L1, BASELINE_L2, BASELINE_L3],
-    chunks: [crate::samplers::lobes::batch::lobe_chunks],
 );
 
 /// [`ImprovedBaselinePrepared::from_outputs`] over a chunk's rows, with the fast `exp`.

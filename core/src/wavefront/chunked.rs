@@ -197,9 +197,44 @@ impl<S: ChunkedSampler> BatchSampler for S {
     }
 }
 
+/// How a chunk of `Option<Self>` lanes (a scalar [`Prepared`](crate::Prepared) state that
+/// needs no weights) is sampled, evaluated and inverted: by default the scalar code lane by
+/// lane; a state with a faster whole-chunk path overrides the methods. Every method must be
+/// `#[inline(always)]` (see [`ChunkedSampler`]).
+pub(crate) trait LaneChunks: crate::Prepared + Sized {
+    /// [`ChunkedSampler::sample_chunk`] of these lanes.
+    #[inline(always)]
+    fn sample_lanes(lanes: &[Option<Self>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+        for (i, l) in lanes.iter().enumerate() {
+            out.set(i, l.as_ref().and_then(|p| p.sample(u.at(i))));
+        }
+    }
+
+    /// [`ChunkedSampler::pdf_chunk`] of these lanes.
+    #[inline(always)]
+    fn pdf_lanes(lanes: &[Option<Self>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+        for (i, l) in lanes.iter().enumerate() {
+            pdf[i] = l.as_ref().map_or(0.0, |p| p.pdf(wo.at(i)));
+        }
+    }
+
+    /// [`ChunkedSampler::invert_chunk`] of these lanes.
+    #[inline(always)]
+    fn invert_lanes(lanes: &[Option<Self>], wo: Vec3s<'_>, mut u: Vec2sMut<'_>, ok: &mut [bool]) {
+        for (i, l) in lanes.iter().enumerate() {
+            match l.as_ref().and_then(|p| p.invert(wo.at(i))) {
+                Some(v) => {
+                    u.set(i, v);
+                    ok[i] = true;
+                }
+                None => ok[i] = false,
+            }
+        }
+    }
+}
+
 /// [`ChunkedSampler`]'s `sample_chunk`, `pdf_chunk` and `invert_chunk` for lanes that are
-/// `Option<P>` of a scalar [`Prepared`](crate::Prepared) state `P` that needs no weights: the scalar code
-/// lane by lane.
+/// `Option<P>` of a [`LaneChunks`] state `P`.
 macro_rules! per_lane_chunks {
     ($p:ty) => {
         #[inline(always)]
@@ -207,16 +242,10 @@ macro_rules! per_lane_chunks {
             &self,
             lanes: &[Option<$p>],
             u: $crate::wavefront::Vec2s<'_>,
-            mut out: $crate::wavefront::SamplesMut<'_>,
+            out: $crate::wavefront::SamplesMut<'_>,
             _scratch: &mut Self::Scratch,
         ) {
-            for (i, l) in lanes.iter().enumerate() {
-                out.set(
-                    i,
-                    l.as_ref()
-                        .and_then(|p| $crate::Prepared::sample(p, u.at(i))),
-                );
-            }
+            <$p as $crate::wavefront::chunked::LaneChunks>::sample_lanes(lanes, u, out);
         }
 
         #[inline(always)]
@@ -227,11 +256,7 @@ macro_rules! per_lane_chunks {
             pdf: &mut [f32],
             _scratch: &mut Self::Scratch,
         ) {
-            for (i, l) in lanes.iter().enumerate() {
-                pdf[i] = l
-                    .as_ref()
-                    .map_or(0.0, |p| $crate::Prepared::pdf(p, wo.at(i)));
-            }
+            <$p as $crate::wavefront::chunked::LaneChunks>::pdf_lanes(lanes, wo, pdf);
         }
 
         #[inline(always)]
@@ -239,22 +264,11 @@ macro_rules! per_lane_chunks {
             &self,
             lanes: &[Option<$p>],
             wo: $crate::wavefront::Vec3s<'_>,
-            mut u: $crate::wavefront::Vec2sMut<'_>,
+            u: $crate::wavefront::Vec2sMut<'_>,
             ok: &mut [bool],
             _scratch: &mut Self::Scratch,
         ) {
-            for (i, l) in lanes.iter().enumerate() {
-                match l
-                    .as_ref()
-                    .and_then(|p| $crate::Prepared::invert(p, wo.at(i)))
-                {
-                    Some(v) => {
-                        u.set(i, v);
-                        ok[i] = true;
-                    }
-                    None => ok[i] = false,
-                }
-            }
+            <$p as $crate::wavefront::chunked::LaneChunks>::invert_lanes(lanes, wo, u, ok);
         }
     };
 }
@@ -264,16 +278,14 @@ pub(crate) use per_lane_chunks;
 /// MLP of the encoded condition (`relu_mlp` over `layers`, `hidden` wide, `outputs` out)
 /// followed by its scalar [`Prepared`](crate::Prepared) state's
 /// [`FromOutputs`](super::FromOutputs), in chunks of
-/// `chunk` lanes; sample, pdf and invert are the macro `chunks` ([`per_lane_chunks`]: the
-/// scalar code lane by lane).
+/// `chunk` lanes; sample, pdf and invert run [`per_lane_chunks`].
 macro_rules! mlp_lane_sampler {
     (
         $sampler:ident => $prepared:ident,
         chunk: $chunk:expr,
         hidden: $hidden:expr,
         outputs: $outputs:expr,
-        layers: [$($layer:expr),+ $(,)?],
-        chunks: [$($chunks:tt)+] $(,)?
+        layers: [$($layer:expr),+ $(,)?] $(,)?
     ) => {
         impl<W: $crate::weights::Weights> $crate::wavefront::chunked::ChunkedSampler
             for $sampler<W>
@@ -305,7 +317,7 @@ macro_rules! mlp_lane_sampler {
                 <$prepared as FromOutputs<{ $outputs }>>::lanes(&o, &valid, lanes);
             }
 
-            $($chunks)+!($prepared);
+            $crate::wavefront::per_lane_chunks!($prepared);
         }
     };
 }

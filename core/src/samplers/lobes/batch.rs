@@ -1,4 +1,4 @@
-//! Both lobe mixtures over wavefronts ([`lobe_chunks`]): the density of a chunk's lanes as
+//! Both lobe mixtures over wavefronts ([`LaneChunks`]): the density of a chunk's lanes as
 //! loops over whole rows, with the fast `exp` of `math::approx` (the scalar path takes
 //! libm's), and the Gaussian draws by the rows' Box–Muller; the component choice and the
 //! concentric map stay per lane. Sample and pdf take the same density function, so a
@@ -12,6 +12,7 @@ use crate::distrib::gaussian;
 use crate::math::{self, approx, finite_density};
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
+use crate::wavefront::chunked::LaneChunks;
 use crate::wavefront::lanes::{self, Lanes};
 use crate::wavefront::{SamplesMut, Vec2s, Vec3s};
 
@@ -116,125 +117,75 @@ pub(crate) fn mean_row<const B: usize>(x: &[f32; B]) -> [f32; B] {
     r
 }
 
-/// `sample_chunk` of a lobe mixture: each lane's component and its point (module docs),
-/// then the mixture's density there.
-#[inline(always)]
-pub(crate) fn sample_chunk<const K: usize, const G: usize>(
-    lanes: &[Option<LobeMixture<K, G>>],
-    u: Vec2s<'_>,
-    mut out: SamplesMut<'_>,
-) {
-    let m = lanes.len().min(CHUNK);
-    let mut ok = [false; CHUNK];
-    let mut gauss = [false; CHUNK];
-    let (mut v0, mut v1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
-    let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
-    let (mut mx, mut my, mut sx, mut sy) =
-        ([0.0f32; CHUNK], [0.0; CHUNK], [0.0; CHUNK], [0.0; CHUNK]);
-    for i in 0..m {
-        let (Some(x), Some(uu)) = (&lanes[i], math::sanitize_u2(u.at(i))) else {
-            continue;
-        };
-        let (c, u0) = gaussian::select_component(&x.weights, uu.x);
-        ok[i] = true;
-        (v0[i], v1[i]) = (u0, uu.y);
-        if c == 0 {
-            let p = warp::sample_uniform_disk_concentric(Vec2::new(u0, uu.y));
-            (px[i], py[i]) = (p.x, p.y);
-        } else {
-            // c ∈ 1 ..= G; clamped so that the index is provably in range.
-            let (mu, sigma) = x.lobes[(c - 1).min(G - 1)];
-            gauss[i] = true;
-            (mx[i], my[i], sx[i], sy[i]) = (mu.x, mu.y, sigma.x, sigma.y);
-        }
-    }
-    let (mut nx, mut ny) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
-    lanes::box_muller_rows(&v0, &v1, &mut nx, &mut ny);
-    for l in 0..CHUNK {
-        if gauss[l] {
-            px[l] = mx[l] + sx[l] * nx[l];
-            py[l] = my[l] + sy[l] * ny[l];
-        }
-    }
-    let mut d = [0.0f32; CHUNK];
-    Rows::new(lanes).densities(&px, &py, &mut d);
-    for i in 0..m {
-        let s = if ok[i] {
-            Sample::from_disk(Vec2::new(px[i], py[i]), d[i])
-        } else {
-            None
-        };
-        out.set(i, s);
-    }
-}
-
-/// `pdf_chunk` of a lobe mixture: [`Prepared::pdf`](crate::Prepared::pdf) of each lane.
-#[inline(always)]
-pub(crate) fn pdf_chunk<const K: usize, const G: usize>(
-    lanes: &[Option<LobeMixture<K, G>>],
-    wo: Vec3s<'_>,
-    pdf: &mut [f32],
-) {
-    let m = lanes.len().min(CHUNK);
-    let mut ok = [false; CHUNK];
-    let (mut px, mut py, mut cos) = ([0.0f32; CHUNK], [0.0f32; CHUNK], [0.0f32; CHUNK]);
-    for i in 0..m {
-        if let (Some(_), Some(w)) = (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
+/// Sample: each lane's component and its point (module docs), then the mixture's density
+/// there. Pdf: [`Prepared::pdf`](crate::Prepared::pdf) of each lane. No inverse (the
+/// default's `None`): the mixtures' sampling maps are not injective.
+impl<const K: usize, const G: usize> LaneChunks for LobeMixture<K, G> {
+    #[inline(always)]
+    fn sample_lanes(lanes: &[Option<Self>], u: Vec2s<'_>, mut out: SamplesMut<'_>) {
+        let m = lanes.len().min(CHUNK);
+        let mut ok = [false; CHUNK];
+        let mut gauss = [false; CHUNK];
+        let (mut v0, mut v1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
+        let (mut px, mut py) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
+        let (mut mx, mut my, mut sx, mut sy) =
+            ([0.0f32; CHUNK], [0.0; CHUNK], [0.0; CHUNK], [0.0; CHUNK]);
+        for i in 0..m {
+            let (Some(x), Some(uu)) = (&lanes[i], math::sanitize_u2(u.at(i))) else {
+                continue;
+            };
+            let (c, u0) = gaussian::select_component(&x.weights, uu.x);
             ok[i] = true;
-            (px[i], py[i], cos[i]) = (w.x, w.y, w.z);
-        }
-    }
-    let mut d = [0.0f32; CHUNK];
-    Rows::new(lanes).densities(&px, &py, &mut d);
-    for i in 0..m {
-        pdf[i] = if ok[i] {
-            warp::disk_to_solid_angle(d[i], cos[i])
-        } else {
-            0.0
-        };
-    }
-}
-
-/// The `sample_chunk`, `pdf_chunk` and `invert_chunk` of a [`ChunkedSampler`](
-/// crate::wavefront::chunked::ChunkedSampler) whose lanes are `Option<LobeMixture<K, G>>`
-/// (no inverse: the mixtures' sampling maps are not injective).
-macro_rules! lobe_chunks {
-    ($p:ty) => {
-        #[inline(always)]
-        fn sample_chunk(
-            &self,
-            lanes: &[Option<$p>],
-            u: $crate::wavefront::Vec2s<'_>,
-            out: $crate::wavefront::SamplesMut<'_>,
-            _scratch: &mut Self::Scratch,
-        ) {
-            $crate::samplers::lobes::batch::sample_chunk(lanes, u, out);
-        }
-
-        #[inline(always)]
-        fn pdf_chunk(
-            &self,
-            lanes: &[Option<$p>],
-            wo: $crate::wavefront::Vec3s<'_>,
-            pdf: &mut [f32],
-            _scratch: &mut Self::Scratch,
-        ) {
-            $crate::samplers::lobes::batch::pdf_chunk(lanes, wo, pdf);
-        }
-
-        #[inline(always)]
-        fn invert_chunk(
-            &self,
-            lanes: &[Option<$p>],
-            _wo: $crate::wavefront::Vec3s<'_>,
-            _u: $crate::wavefront::Vec2sMut<'_>,
-            ok: &mut [bool],
-            _scratch: &mut Self::Scratch,
-        ) {
-            for o in ok[..lanes.len()].iter_mut() {
-                *o = false;
+            (v0[i], v1[i]) = (u0, uu.y);
+            if c == 0 {
+                let p = warp::sample_uniform_disk_concentric(Vec2::new(u0, uu.y));
+                (px[i], py[i]) = (p.x, p.y);
+            } else {
+                // c ∈ 1 ..= G; clamped so that the index is provably in range.
+                let (mu, sigma) = x.lobes[(c - 1).min(G - 1)];
+                gauss[i] = true;
+                (mx[i], my[i], sx[i], sy[i]) = (mu.x, mu.y, sigma.x, sigma.y);
             }
         }
-    };
+        let (mut nx, mut ny) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
+        lanes::box_muller_rows(&v0, &v1, &mut nx, &mut ny);
+        for l in 0..CHUNK {
+            if gauss[l] {
+                px[l] = mx[l] + sx[l] * nx[l];
+                py[l] = my[l] + sy[l] * ny[l];
+            }
+        }
+        let mut d = [0.0f32; CHUNK];
+        Rows::new(lanes).densities(&px, &py, &mut d);
+        for i in 0..m {
+            let s = if ok[i] {
+                Sample::from_disk(Vec2::new(px[i], py[i]), d[i])
+            } else {
+                None
+            };
+            out.set(i, s);
+        }
+    }
+
+    #[inline(always)]
+    fn pdf_lanes(lanes: &[Option<Self>], wo: Vec3s<'_>, pdf: &mut [f32]) {
+        let m = lanes.len().min(CHUNK);
+        let mut ok = [false; CHUNK];
+        let (mut px, mut py, mut cos) = ([0.0f32; CHUNK], [0.0f32; CHUNK], [0.0f32; CHUNK]);
+        for i in 0..m {
+            if let (Some(_), Some(w)) = (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
+                ok[i] = true;
+                (px[i], py[i], cos[i]) = (w.x, w.y, w.z);
+            }
+        }
+        let mut d = [0.0f32; CHUNK];
+        Rows::new(lanes).densities(&px, &py, &mut d);
+        for i in 0..m {
+            pdf[i] = if ok[i] {
+                warp::disk_to_solid_angle(d[i], cos[i])
+            } else {
+                0.0
+            };
+        }
+    }
 }
-pub(crate) use lobe_chunks;

@@ -2,9 +2,10 @@
 //! both networks as matrix products over a chunk's lanes; the warp's value and its two
 //! tangents go through each layer as one product of three lane blocks (the weights are read
 //! once for all three). The per-lane steps are the scalar path's operations with the fast
-//! approximations of `math::approx`: the SiLUs as loops over whole rows (the full vector
-//! width), the warp's last step through [`Lane`](crate::math::lane::Lane) eight lanes at a
-//! time ([`V8`]); both paths agree within the `wavefront` tolerances.
+//! approximations of `math::approx`, each step across the whole chunk so that the lanes'
+//! dependency chains interleave: the SiLUs ([`approx::sigmoid_row`]), the warp's last step
+//! through [`Lane`](crate::math::lane::Lane) on all the chunk's lanes at once ([`Lanes`]);
+//! both paths agree within the `wavefront` tolerances.
 
 use glam::Vec2;
 
@@ -27,8 +28,6 @@ const CHUNK: usize = 32;
 /// A chunk's value lanes followed by its two tangent blocks (∂/∂z.x, ∂/∂z.y).
 const STACK: usize = 3 * CHUNK;
 const H: usize = REPARAM_HIDDEN;
-/// Lanes of the warp's last step side by side.
-const G: usize = 32;
 
 type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
 
@@ -47,8 +46,6 @@ fn stacked_bias<W: Weights, const I: usize, const O: usize>(
     }
     acc
 }
-
-impl<W: Weights + Copy> ReparamSampler<W> {}
 
 impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
     type Lane = Option<ReparamLane>;
@@ -100,7 +97,6 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         scratch: &mut Self::Scratch,
     ) {
         let m = lanes.len();
-        let groups = m.div_ceil(G);
         let w = &self.params;
         // Refused lanes keep u = 0 (z = 0) and are dropped at the end.
         let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
@@ -161,20 +157,18 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         let l2 = WARP_L2 as u32;
         let mut o = stacked_bias::<W, H, WARP_OUTPUTS>(w, l2);
         dense::accumulate::<W, H, WARP_OUTPUTS, STACK>(w, l2, 0, &x, &mut o, active);
-        // Each lane's direction and density, G lanes side by side.
+        // Each lane's direction and density, the whole chunk side by side.
         let mut v: Soa<3> = [[0.0; CHUNK]; 3];
         let mut q = [0.0f32; CHUNK];
-        for g in 0..groups {
-            let block = |base: usize| {
-                let at = |k: usize| Lanes::<G>::load(&o[k][base + G * g..]);
-                [at(0), at(1), at(2)]
-            };
-            let (dir, det) = finish_warp(block(0), block(CHUNK), block(2 * CHUNK));
-            let z = |k: usize| Lanes::<G>::load(&zs[k][G * g..]);
-            sample_density(z(0), z(1), det).store(&mut q[G * g..]);
-            for (row, d) in v.iter_mut().zip(dir) {
-                d.store(&mut row[G * g..]);
-            }
+        let block = |base: usize| {
+            let at = |k: usize| Lanes::<CHUNK>::load(&o[k][base..]);
+            [at(0), at(1), at(2)]
+        };
+        let (dir, det) = finish_warp(block(0), block(CHUNK), block(2 * CHUNK));
+        let z = |k: usize| Lanes::<CHUNK>::load(&zs[k]);
+        sample_density(z(0), z(1), det).store(&mut q);
+        for (row, d) in v.iter_mut().zip(dir) {
+            d.store(row);
         }
         for i in 0..m {
             let s = if ok[i] {
