@@ -190,30 +190,51 @@ impl Deviation {
 /// path exactly (a sample's MIS density is `pdf_batch` at its direction bit for bit; fused
 /// calls equal unfused ones; no lane is disturbed by another), against the scalar path within
 /// the tolerances (returned, for the caller to bound).
+/// What the unfused batched calls give for a batch: lane states, samples, pdfs at `wo`, and
+/// the inverses at `wo` (`ux`, `uy`, `ok`).
+struct Batched<L> {
+    states: Vec<L>,
+    out: Out,
+    pdf: Vec<f32>,
+    ux: Vec<f32>,
+    uy: Vec<f32>,
+    ok: Vec<bool>,
+}
+
+/// Prepare, sample, pdf and invert of the `n` lanes of `soa`, the outputs prefilled with
+/// sentinels.
+fn run_batched<S: BatchSampler>(s: &S, soa: &Soa, n: usize) -> Batched<S::Lane> {
+    let mut states = vec![S::Lane::default(); n];
+    s.prepare_batch(soa.phi(), soa.wi(), &mut states).unwrap();
+    let mut out = Out::new(n);
+    s.sample_batch(&states, soa.u(), out.view()).unwrap();
+    let mut pdf = vec![-7.0f32; n];
+    s.pdf_batch(&states, soa.wo(), &mut pdf).unwrap();
+    let (mut ux, mut uy, mut ok) = (vec![-7.0f32; n], vec![-7.0f32; n], vec![false; n]);
+    let u = Vec2sMut {
+        x: &mut ux,
+        y: &mut uy,
+    };
+    s.invert_batch(&states, soa.wo(), u, &mut ok).unwrap();
+    Batched {
+        states,
+        out,
+        pdf,
+        ux,
+        uy,
+        ok,
+    }
+}
+
 fn check_sampler<S>(s: &S, lanes: &[Lane], what: &str) -> Deviation
 where
     S: Sampler + BatchSampler,
 {
     let n = lanes.len();
     let soa = Soa::new(lanes);
-    let mut states = vec![S::Lane::default(); n];
-    s.prepare_batch(soa.phi(), soa.wi(), &mut states).unwrap();
-
-    let mut out = Out::new(n);
-    s.sample_batch(&states, soa.u(), out.view()).unwrap();
-    let mut pdf = vec![-7.0f32; n];
-    s.pdf_batch(&states, soa.wo(), &mut pdf).unwrap();
-    let (mut ux, mut uy, mut ok) = (vec![-7.0f32; n], vec![-7.0f32; n], vec![false; n]);
-    s.invert_batch(
-        &states,
-        soa.wo(),
-        Vec2sMut {
-            x: &mut ux,
-            y: &mut uy,
-        },
-        &mut ok,
-    )
-    .unwrap();
+    let b = run_batched(s, &soa, n);
+    let (states, out, pdf) = (b.states, b.out, b.pdf);
+    let (ux, uy, ok) = (b.ux, b.uy, b.ok);
     let mut fused = Out::new(n);
     s.sample_fused(soa.phi(), soa.wi(), soa.u(), fused.view())
         .unwrap();
@@ -694,5 +715,77 @@ fn small_batches_give_the_tiles_sums() {
         small_products_equal_tiles::<64, 3>(&mut r);
         small_products_equal_tiles::<14, 64>(&mut r);
         small_products_equal_tiles::<32, 16>(&mut r);
+    });
+}
+
+/// Every batched result of `lanes` as bits, lane by lane: the sample (direction, pdf, MIS
+/// density), the pdf at `wo`, the inverse at `wo` and whether it exists.
+fn batch_bits<S: BatchSampler>(s: &S, lanes: &[Lane]) -> Vec<[u32; 9]> {
+    let n = lanes.len();
+    let Batched {
+        out,
+        pdf,
+        ux,
+        uy,
+        ok,
+        ..
+    } = run_batched(s, &Soa::new(lanes), n);
+    (0..n)
+        .map(|i| {
+            let v = [
+                out.wo[0][i],
+                out.wo[1][i],
+                out.wo[2][i],
+                out.pdf[i],
+                out.mis[i],
+                pdf[i],
+                ux[i],
+                uy[i],
+            ];
+            let mut b = [0u32; 9];
+            b[..8].copy_from_slice(&v.map(bits));
+            b[8] = u32::from(ok[i]);
+            b
+        })
+        .collect()
+}
+
+/// A lane's batched results do not depend on how many lanes share its call: every fixture
+/// blob (plain and with a defensive weight), one batch against the same lanes in calls of
+/// 1 to 33 lanes (below, at and past the narrow width of small calls, a chunk and a tile).
+#[test]
+fn lane_results_do_not_depend_on_the_batch_size() {
+    const SPLITS: [usize; 9] = [1, 8, 9, 2, 16, 17, 7, 33, 3];
+    let blobs = fixture_samplers();
+    for_each_isa(|isa| {
+        let mut r = rng(11);
+        for (path, bytes, conds) in &blobs {
+            let blob = Blob::open(bytes).unwrap();
+            let defended = BlobWriter::from_blob(&blob).defensive(0.25).to_bytes();
+            for b in [bytes, &defended] {
+                let blob = Blob::open(b).unwrap();
+                let s = blob.sampler().unwrap();
+                let ls = lanes(&mut r, conds, SPLITS.iter().sum());
+                let whole = batch_bits(&s, &ls);
+                let mut at = 0;
+                for n in SPLITS {
+                    let part = batch_bits(&s, &ls[at..at + n]);
+                    for (k, (a, b)) in part.iter().zip(&whole[at..]).enumerate() {
+                        assert_eq!(
+                            a,
+                            b,
+                            "{} α = {} ({}): lane {} in a call of {n} lanes vs of {}: {:?}",
+                            path.display(),
+                            blob.defensive(),
+                            isa.name(),
+                            at + k,
+                            whole.len(),
+                            ls[at + k]
+                        );
+                    }
+                    at += n;
+                }
+            }
+        }
     });
 }

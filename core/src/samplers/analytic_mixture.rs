@@ -111,6 +111,8 @@ crate::wavefront::mlp_lane_sampler!(
 /// [`AnalyticMixturePrepared::from_outputs`] over a chunk's rows, with the fast `exp`.
 #[cfg(not(target_arch = "spirv"))]
 impl crate::wavefront::FromOutputs<ANALYTIC_OUTPUTS> for AnalyticMixturePrepared {
+    const ROWS: bool = true;
+
     #[inline(always)]
     fn lanes<const B: usize>(
         o: &crate::wavefront::Soa<ANALYTIC_OUTPUTS, B>,

@@ -106,6 +106,8 @@ crate::wavefront::mlp_lane_sampler!(
 /// [`ImprovedBaselinePrepared::from_outputs`] over a chunk's rows, with the fast `exp`.
 #[cfg(not(target_arch = "spirv"))]
 impl crate::wavefront::FromOutputs<BASELINE_OUTPUTS> for ImprovedBaselinePrepared {
+    const ROWS: bool = true;
+
     #[inline(always)]
     fn lanes<const B: usize>(
         o: &crate::wavefront::Soa<BASELINE_OUTPUTS, B>,

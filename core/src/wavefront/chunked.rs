@@ -301,6 +301,7 @@ macro_rules! mlp_lane_sampler {
                 wi: $crate::wavefront::Vec3s<'_>,
                 lanes: &mut [Self::Lane],
             ) {
+                use $crate::wavefront::lanes::{head, NARROW};
                 use $crate::wavefront::{dense, encoded_conditions, FromOutputs, Soa};
                 const CHUNK: usize = $chunk;
                 let m = lanes.len();
@@ -314,7 +315,15 @@ macro_rules! mlp_lane_sampler {
                     &mut o,
                     m,
                 );
-                <$prepared as FromOutputs<{ $outputs }>>::lanes(&o, &valid, lanes);
+                // A small chunk gives row-wise constructors rows of `NARROW` lanes (the same
+                // bits).
+                if <$prepared as FromOutputs<{ $outputs }>>::ROWS && m <= NARROW {
+                    let o: Soa<{ $outputs }, NARROW> = head(&o);
+                    let [valid] = head::<_, 1, NARROW, CHUNK>(&[valid]);
+                    <$prepared as FromOutputs<{ $outputs }>>::lanes(&o, &valid, lanes);
+                } else {
+                    <$prepared as FromOutputs<{ $outputs }>>::lanes(&o, &valid, lanes);
+                }
             }
 
             $crate::wavefront::per_lane_chunks!($prepared);

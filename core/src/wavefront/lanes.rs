@@ -50,6 +50,25 @@ macro_rules! lane_maps {
     };
 }
 
+/// The width of a small batch's element-wise steps: a chunk of at most `NARROW` lanes runs
+/// them on `NARROW` lanes instead of the chunk's full width (the steps are element-wise, so
+/// a lane's result does not depend on the width).
+pub(crate) const NARROW: usize = 8;
+
+/// The first `B` columns of `rows` (`B ≤ C`; zeros past `C`).
+#[inline(always)]
+pub(crate) fn head<T: Copy + Default, const N: usize, const B: usize, const C: usize>(
+    rows: &[[T; C]; N],
+) -> [[T; B]; N] {
+    let mut r = [[T::default(); B]; N];
+    for (r, row) in r.iter_mut().zip(rows) {
+        for (d, v) in r.iter_mut().zip(row) {
+            *d = *v;
+        }
+    }
+    r
+}
+
 /// `N` `f32` lanes.
 #[derive(Copy, Clone, Debug, PartialEq)]
 #[repr(C, align(32))]

@@ -182,6 +182,10 @@ pub(crate) fn column<const N: usize, const B: usize>(soa: &Soa<N, B>, l: usize) 
 /// A lane state built from a network's `N` outputs per lane (the samplers of
 /// [`mlp_lane_sampler`](super::chunked::mlp_lane_sampler)).
 pub(crate) trait FromOutputs<const N: usize>: Sized {
+    /// Whether [`Self::lanes`] works across whole rows, so that a small chunk is given rows of
+    /// [`lanes::NARROW`] lanes (a lane-by-lane constructor gains nothing from them).
+    const ROWS: bool = false;
+
     /// The lanes of a chunk from its output rows (`None` where not `valid`).
     fn lanes<const B: usize>(o: &Soa<N, B>, valid: &[bool; B], lanes: &mut [Option<Self>]);
 }
@@ -239,9 +243,25 @@ fn conditions<const N: usize, const B: usize>(
 
 /// The encoded conditions ([`crate::nn::encode_condition`], the sinusoids by the batched
 /// path's fast `sin`/`cos` over all lanes at once) of a chunk's lanes and which lanes are
-/// usable; refused lanes hold the encoding of `φ = 0, wi = (0, 0)`.
+/// usable; refused lanes hold the encoding of `φ = 0, wi = (0, 0)`. A chunk of at most
+/// [`lanes::NARROW`] lanes is encoded that wide (the same bits; the columns past it are 0).
 #[inline(always)]
 pub(crate) fn encoded_conditions<const B: usize>(
+    phi: &Features<'_>,
+    wi: &Vec3s<'_>,
+) -> (Soa<{ crate::nn::CONDITION_DIM }, B>, [bool; B]) {
+    if B > lanes::NARROW && wi.len() <= lanes::NARROW {
+        let (c, valid) = encode_chunk::<{ lanes::NARROW }>(phi, wi);
+        let [valid] = lanes::head(&[valid]);
+        (lanes::head(&c), valid)
+    } else {
+        encode_chunk::<B>(phi, wi)
+    }
+}
+
+/// [`encoded_conditions`] over all `B` lanes.
+#[inline(always)]
+fn encode_chunk<const B: usize>(
     phi: &Features<'_>,
     wi: &Vec3s<'_>,
 ) -> (Soa<{ crate::nn::CONDITION_DIM }, B>, [bool; B]) {

@@ -5,7 +5,8 @@
 //! approximations of `math::approx`, each step across the whole chunk so that the lanes'
 //! dependency chains interleave: the SiLUs ([`approx::sigmoid_row`]), the warp's last step
 //! through [`Lane`](crate::math::lane::Lane) on all the chunk's lanes at once ([`Lanes`]);
-//! both paths agree within the `wavefront` tolerances.
+//! a chunk of at most [`NARROW`] lanes runs these steps that wide. Both paths agree within
+//! the `wavefront` tolerances.
 
 use glam::Vec2;
 
@@ -19,7 +20,7 @@ use crate::math::approx;
 use crate::nn::{Activation, CONDITION_DIM};
 use crate::warp::{self, inside_disk};
 use crate::wavefront::chunked::ChunkedSampler;
-use crate::wavefront::lanes::{self, Lanes};
+use crate::wavefront::lanes::{self, Lanes, NARROW};
 use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
@@ -45,6 +46,155 @@ fn stacked_bias<W: Weights, const I: usize, const O: usize>(
         }
     }
     acc
+}
+
+impl<W: Weights + Copy> ReparamSampler<W> {
+    /// [`ChunkedSampler::sample_chunk`] of a chunk of at most `B` lanes, its element-wise
+    /// steps `B` lanes wide.
+    #[inline(always)]
+    fn sample_rows<const B: usize>(
+        &self,
+        lanes: &[Option<ReparamLane>],
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+    ) {
+        let m = lanes.len().min(B);
+        let w = &self.params;
+        // Refused lanes keep u = 0 (z = 0) and are dropped at the end.
+        let (mut u0, mut u1) = ([0.0f32; B], [0.0f32; B]);
+        let mut ok = [false; B];
+        let mut a: Soa<H> = [[0.0; CHUNK]; H];
+        for i in 0..m {
+            if let (Some(l), Some(uu)) = (&lanes[i], math::sanitize_u2(u.at(i))) {
+                (u0[i], u1[i]) = (uu.x, uu.y);
+                ok[i] = true;
+                for j in 0..H {
+                    a[j][i] = l.warp[j];
+                }
+            }
+        }
+        let (mut zx, mut zy) = ([0.0f32; B], [0.0f32; B]);
+        lanes::box_muller_rows(&u0, &u1, &mut zx, &mut zy);
+        let mut zs: Soa<2> = [[0.0; CHUNK]; 2];
+        Lanes(zx).store(&mut zs[0]);
+        Lanes(zy).store(&mut zs[1]);
+        let l0 = WARP_L0 as u32;
+        dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &zs, &mut a, m);
+        let r0: [f32; H] = w.read(l0 + (CONDITION_DIM * H) as u32);
+        let r1: [f32; H] = w.read(l0 + ((CONDITION_DIM + 1) * H) as u32);
+        let mut x = [[0.0f32; STACK]; H];
+        let mut s = [0.0f32; B];
+        for (xj, (aj, (r0j, r1j))) in x.iter_mut().zip(a.iter().zip(r0.into_iter().zip(r1))) {
+            approx::sigmoid_row(aj, &mut s);
+            let (y, t) = xj.split_at_mut(CHUNK);
+            let (t0, t1) = t.split_at_mut(CHUNK);
+            for ((((y, t0), t1), a), s) in y.iter_mut().zip(t0).zip(t1).zip(&aj[..m]).zip(&s) {
+                let (v, d) = silu_from_sigmoid(*a, *s);
+                (*y, *t0, *t1) = (v, d * r0j, d * r1j);
+            }
+        }
+        let active = 2 * CHUNK + m;
+        let l1 = WARP_L1 as u32;
+        let mut a2 = stacked_bias::<W, H, H>(w, l1);
+        dense::accumulate::<W, H, H, STACK>(w, l1, 0, &x, &mut a2, active);
+        for (xj, aj) in x.iter_mut().zip(&a2) {
+            let (y, t) = xj.split_at_mut(CHUNK);
+            let (t0, t1) = t.split_at_mut(CHUNK);
+            let (a, da) = aj.split_at(CHUNK);
+            let (da0, da1) = da.split_at(CHUNK);
+            approx::sigmoid_row(a, &mut s);
+            let lanes = y
+                .iter_mut()
+                .zip(t0)
+                .zip(t1)
+                .zip(&a[..m])
+                .zip(da0)
+                .zip(da1)
+                .zip(&s);
+            for ((((((y, t0), t1), a), da0), da1), s) in lanes {
+                let (v, d) = silu_from_sigmoid(*a, *s);
+                (*y, *t0, *t1) = (v, d * da0, d * da1);
+            }
+        }
+        let l2 = WARP_L2 as u32;
+        let mut o = stacked_bias::<W, H, WARP_OUTPUTS>(w, l2);
+        dense::accumulate::<W, H, WARP_OUTPUTS, STACK>(w, l2, 0, &x, &mut o, active);
+        // Each lane's direction and density, the `B` lanes side by side.
+        let mut v: Soa<3> = [[0.0; CHUNK]; 3];
+        let mut q = [0.0f32; B];
+        let block = |base: usize| {
+            let at = |k: usize| Lanes::<B>::load(&o[k][base..]);
+            [at(0), at(1), at(2)]
+        };
+        let (dir, det) = finish_warp(block(0), block(CHUNK), block(2 * CHUNK));
+        sample_density(Lanes(zx), Lanes(zy), det).store(&mut q);
+        for (row, d) in v.iter_mut().zip(dir) {
+            d.store(row);
+        }
+        for i in 0..m {
+            let s = if ok[i] {
+                warp_sample(Vec2::new(v[0][i], v[1][i]), v[2][i], q[i])
+            } else {
+                None
+            };
+            out.set(i, s);
+        }
+        // The MIS density: the pdf network at each sample (0 at refused lanes, `wo = 0`).
+        let wo = Vec3s {
+            x: &out.wo.x[..m],
+            y: &out.wo.y[..m],
+            z: &out.wo.z[..m],
+        };
+        self.pdf_rows::<B>(lanes, wo, &mut out.mis_pdf[..m]);
+    }
+
+    /// [`ChunkedSampler::pdf_chunk`] of a chunk of at most `B` lanes, its element-wise steps
+    /// `B` lanes wide.
+    #[inline(always)]
+    fn pdf_rows<const B: usize>(
+        &self,
+        lanes: &[Option<ReparamLane>],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+    ) {
+        let m = lanes.len().min(B);
+        let w = &self.params;
+        let mut ok = [false; B];
+        let mut cos = [0.0f32; B];
+        let mut ps: Soa<2> = [[0.0; CHUNK]; 2];
+        let mut g: Soa<H> = [[0.0; CHUNK]; H];
+        for i in 0..m {
+            if let (Some(l), Some(d)) = (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
+                let p = warp::to_disk(d);
+                if inside_disk(p) {
+                    ok[i] = true;
+                    cos[i] = d.z;
+                    ps[0][i] = p.x;
+                    ps[1][i] = p.y;
+                    for j in 0..H {
+                        g[j][i] = l.density[j];
+                    }
+                }
+            }
+        }
+        let l0 = DENSITY_L0 as u32;
+        dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &ps, &mut g, m);
+        dense::activate(Activation::Relu, &mut g, m);
+        let mut o: Soa<1> = [[0.0; CHUNK]; 1];
+        dense::dense::<W, H, 1, CHUNK>(w, DENSITY_L1 as u32, &g, Activation::Identity, &mut o, m);
+        // The scalar path's `density_from_output` with the fast `exp`, over the whole row.
+        let mut density = [0.0f32; B];
+        for (d, o) in density.iter_mut().zip(&o[0]) {
+            *d = approx::exp(math::clamp(*o, LOG_DENSITY_MIN, LOG_DENSITY_MAX));
+        }
+        for i in 0..m {
+            pdf[i] = if ok[i] {
+                warp::disk_to_solid_angle(density[i], cos[i])
+            } else {
+                0.0
+            };
+        }
+    }
 }
 
 impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
@@ -88,103 +238,21 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         }
     }
 
+    /// A chunk of at most [`NARROW`] lanes runs its element-wise steps that wide (the same
+    /// bits).
     #[inline(always)]
     fn sample_chunk(
         &self,
         lanes: &[Option<ReparamLane>],
         u: Vec2s<'_>,
-        mut out: SamplesMut<'_>,
-        scratch: &mut Self::Scratch,
+        out: SamplesMut<'_>,
+        _scratch: &mut Self::Scratch,
     ) {
-        let m = lanes.len();
-        let w = &self.params;
-        // Refused lanes keep u = 0 (z = 0) and are dropped at the end.
-        let (mut u0, mut u1) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
-        let mut ok = [false; CHUNK];
-        let mut a: Soa<H> = [[0.0; CHUNK]; H];
-        for i in 0..m {
-            if let (Some(l), Some(uu)) = (&lanes[i], math::sanitize_u2(u.at(i))) {
-                (u0[i], u1[i]) = (uu.x, uu.y);
-                ok[i] = true;
-                for j in 0..H {
-                    a[j][i] = l.warp[j];
-                }
-            }
+        if lanes.len() <= NARROW {
+            self.sample_rows::<NARROW>(lanes, u, out);
+        } else {
+            self.sample_rows::<CHUNK>(lanes, u, out);
         }
-        let mut zs: Soa<2> = [[0.0; CHUNK]; 2];
-        {
-            let [zx, zy] = &mut zs;
-            lanes::box_muller_rows(&u0, &u1, zx, zy);
-        }
-        let l0 = WARP_L0 as u32;
-        dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &zs, &mut a, m);
-        let r0: [f32; H] = w.read(l0 + (CONDITION_DIM * H) as u32);
-        let r1: [f32; H] = w.read(l0 + ((CONDITION_DIM + 1) * H) as u32);
-        let mut x = [[0.0f32; STACK]; H];
-        let mut s = [0.0f32; CHUNK];
-        for (xj, (aj, (r0j, r1j))) in x.iter_mut().zip(a.iter().zip(r0.into_iter().zip(r1))) {
-            approx::sigmoid_row(aj, &mut s);
-            let (y, t) = xj.split_at_mut(CHUNK);
-            let (t0, t1) = t.split_at_mut(CHUNK);
-            for ((((y, t0), t1), a), s) in y.iter_mut().zip(t0).zip(t1).zip(&aj[..m]).zip(&s) {
-                let (v, d) = silu_from_sigmoid(*a, *s);
-                (*y, *t0, *t1) = (v, d * r0j, d * r1j);
-            }
-        }
-        let active = 2 * CHUNK + m;
-        let l1 = WARP_L1 as u32;
-        let mut a2 = stacked_bias::<W, H, H>(w, l1);
-        dense::accumulate::<W, H, H, STACK>(w, l1, 0, &x, &mut a2, active);
-        for (xj, aj) in x.iter_mut().zip(&a2) {
-            let (y, t) = xj.split_at_mut(CHUNK);
-            let (t0, t1) = t.split_at_mut(CHUNK);
-            let (a, da) = aj.split_at(CHUNK);
-            let (da0, da1) = da.split_at(CHUNK);
-            approx::sigmoid_row(a, &mut s);
-            let lanes = y
-                .iter_mut()
-                .zip(t0)
-                .zip(t1)
-                .zip(&a[..m])
-                .zip(da0)
-                .zip(da1)
-                .zip(&s);
-            for ((((((y, t0), t1), a), da0), da1), s) in lanes {
-                let (v, d) = silu_from_sigmoid(*a, *s);
-                (*y, *t0, *t1) = (v, d * da0, d * da1);
-            }
-        }
-        let l2 = WARP_L2 as u32;
-        let mut o = stacked_bias::<W, H, WARP_OUTPUTS>(w, l2);
-        dense::accumulate::<W, H, WARP_OUTPUTS, STACK>(w, l2, 0, &x, &mut o, active);
-        // Each lane's direction and density, the whole chunk side by side.
-        let mut v: Soa<3> = [[0.0; CHUNK]; 3];
-        let mut q = [0.0f32; CHUNK];
-        let block = |base: usize| {
-            let at = |k: usize| Lanes::<CHUNK>::load(&o[k][base..]);
-            [at(0), at(1), at(2)]
-        };
-        let (dir, det) = finish_warp(block(0), block(CHUNK), block(2 * CHUNK));
-        let z = |k: usize| Lanes::<CHUNK>::load(&zs[k]);
-        sample_density(z(0), z(1), det).store(&mut q);
-        for (row, d) in v.iter_mut().zip(dir) {
-            d.store(row);
-        }
-        for i in 0..m {
-            let s = if ok[i] {
-                warp_sample(Vec2::new(v[0][i], v[1][i]), v[2][i], q[i])
-            } else {
-                None
-            };
-            out.set(i, s);
-        }
-        // The MIS density: the pdf network at each sample (0 at refused lanes, `wo = 0`).
-        let wo = Vec3s {
-            x: &out.wo.x[..m],
-            y: &out.wo.y[..m],
-            z: &out.wo.z[..m],
-        };
-        self.pdf_chunk(lanes, wo, &mut out.mis_pdf[..m], scratch);
     }
 
     #[inline(always)]
@@ -195,42 +263,10 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         pdf: &mut [f32],
         _scratch: &mut Self::Scratch,
     ) {
-        let m = lanes.len();
-        let w = &self.params;
-        let mut ok = [false; CHUNK];
-        let mut cos = [0.0f32; CHUNK];
-        let mut ps: Soa<2> = [[0.0; CHUNK]; 2];
-        let mut g: Soa<H> = [[0.0; CHUNK]; H];
-        for i in 0..m {
-            if let (Some(l), Some(d)) = (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
-                let p = warp::to_disk(d);
-                if inside_disk(p) {
-                    ok[i] = true;
-                    cos[i] = d.z;
-                    ps[0][i] = p.x;
-                    ps[1][i] = p.y;
-                    for j in 0..H {
-                        g[j][i] = l.density[j];
-                    }
-                }
-            }
-        }
-        let l0 = DENSITY_L0 as u32;
-        dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &ps, &mut g, m);
-        dense::activate(Activation::Relu, &mut g, m);
-        let mut o: Soa<1> = [[0.0; CHUNK]; 1];
-        dense::dense::<W, H, 1, CHUNK>(w, DENSITY_L1 as u32, &g, Activation::Identity, &mut o, m);
-        // The scalar path's `density_from_output` with the fast `exp`, over the whole row.
-        let mut density = [0.0f32; CHUNK];
-        for (d, o) in density.iter_mut().zip(&o[0]) {
-            *d = approx::exp(math::clamp(*o, LOG_DENSITY_MIN, LOG_DENSITY_MAX));
-        }
-        for i in 0..m {
-            pdf[i] = if ok[i] {
-                warp::disk_to_solid_angle(density[i], cos[i])
-            } else {
-                0.0
-            };
+        if lanes.len() <= NARROW {
+            self.pdf_rows::<NARROW>(lanes, wo, pdf);
+        } else {
+            self.pdf_rows::<CHUNK>(lanes, wo, pdf);
         }
     }
 
