@@ -8,7 +8,8 @@ use crate::weights::Weights;
 #[cfg(not(target_arch = "spirv"))]
 use {
     crate::distrib::spline::Knots,
-    crate::wavefront::lanes::Lanes,
+    crate::math::lane::Lane,
+    crate::wavefront::lanes::{Lanes, NARROW},
     crate::wavefront::simd::{dispatch, Isa, Kernel},
     crate::wavefront::Soa,
     core::marker::PhantomData,
@@ -149,6 +150,8 @@ pub struct CouplingBuffers<const RAW: usize, const CHUNK: usize> {
     raw: Soa<RAW, CHUNK>,
     /// The raw spline parameters of one group of [`GROUP`] lanes.
     group: [Group; RAW],
+    /// Those of a group of [`NARROW`] lanes (small calls).
+    narrow: [Lanes<NARROW>; RAW],
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -162,8 +165,37 @@ impl<const RAW: usize, const CHUNK: usize> CouplingBuffers<RAW, CHUNK> {
             v: [0.0; CHUNK],
             raw: [[0.0; CHUNK]; RAW],
             group: [Group::splat(0.0); RAW],
+            narrow: [Lanes::splat(0.0); RAW],
         }
     };
+}
+
+/// The buffers' raw spline parameters and the buffer of one group of `G` lanes of them, for
+/// the two group widths of the batched path ([`GROUP`], and [`NARROW`] for small calls).
+#[cfg(not(target_arch = "spirv"))]
+pub(crate) trait GroupBuffer<const G: usize, const RAW: usize, const CHUNK: usize> {
+    /// The raw parameters (read) and the group's buffer (written).
+    fn split(&mut self) -> (&Soa<RAW, CHUNK>, &mut [Lanes<G>; RAW]);
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl<const RAW: usize, const CHUNK: usize> GroupBuffer<GROUP, RAW, CHUNK>
+    for CouplingBuffers<RAW, CHUNK>
+{
+    #[inline(always)]
+    fn split(&mut self) -> (&Soa<RAW, CHUNK>, &mut [Group; RAW]) {
+        (&self.raw, &mut self.group)
+    }
+}
+
+#[cfg(not(target_arch = "spirv"))]
+impl<const RAW: usize, const CHUNK: usize> GroupBuffer<NARROW, RAW, CHUNK>
+    for CouplingBuffers<RAW, CHUNK>
+{
+    #[inline(always)]
+    fn split(&mut self) -> (&Soa<RAW, CHUNK>, &mut [Lanes<NARROW>; RAW]) {
+        (&self.raw, &mut self.narrow)
+    }
 }
 
 /// A flow's [`ChunkScratch`](crate::wavefront::chunked::ChunkScratch): the couplings'
@@ -236,10 +268,11 @@ pub(crate) struct CouplingLanes<'a, S, const CHUNK: usize> {
 /// The splines of coupling network `net` (0 or 1, at `offset`) for the lanes `at`: the
 /// lanes' shares and coordinates gathered into `b` (no copy of a lane state), then
 /// [`coupling_raw_chunk`], then group `g` of `knots` from the raw parameters of coupling
-/// lanes `GROUP·g ..` `GROUP·(g + 1)`, with the ends `E` ([`BoundedEnds`] on `[−tail_bound, tail_bound]`,
-/// or [`FreeEnds`]). Its own kernel, compiled once per instruction set (up to AVX2: the
-/// splines run in groups of [`GROUP`] lanes) and called from the flows' sample, pdf and invert
-/// rather than inlined at each of their uses.
+/// lanes `G·g .. G·(g + 1)`, with the ends `E` ([`BoundedEnds`] on
+/// `[−tail_bound, tail_bound]`, or [`FreeEnds`]). Its own kernel, compiled once per
+/// instruction set (up to AVX2: the splines run in groups of [`GROUP`] lanes, or fewer for a
+/// small chunk) and called from the flows' sample, pdf and invert rather than inlined at each
+/// of their uses.
 #[cfg(not(target_arch = "spirv"))]
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
@@ -250,6 +283,7 @@ pub(crate) fn coupling_splines_chunk<
     const K: usize,
     const RAW: usize,
     const CHUNK: usize,
+    const G: usize,
 >(
     w: &W,
     offset: u32,
@@ -257,9 +291,11 @@ pub(crate) fn coupling_splines_chunk<
     at: CouplingLanes<'_, S, CHUNK>,
     tail_bound: f32,
     b: &mut CouplingBuffers<RAW, CHUNK>,
-    knots: &mut [Knots<K, Group>],
-) {
-    dispatch(SplinesJob::<E, W, S, K, RAW, CHUNK> {
+    knots: &mut [Knots<K, Lanes<G>>],
+) where
+    CouplingBuffers<RAW, CHUNK>: GroupBuffer<G, RAW, CHUNK>,
+{
+    dispatch(SplinesJob::<E, W, S, K, RAW, CHUNK, G> {
         ends: PhantomData,
         w,
         offset,
@@ -276,7 +312,7 @@ pub(crate) fn coupling_splines_chunk<
 pub(crate) trait SplineEnds<const K: usize, const RAW: usize> {
     /// Sets `knots` to the splines of a group's lanes (`bound`: the half-width of their
     /// interval, if bounded).
-    fn set_knots(knots: &mut Knots<K, Group>, raw: &[Group; RAW], bound: f32);
+    fn set_knots<L: Lane>(knots: &mut Knots<K, L>, raw: &[L; RAW], bound: f32);
 }
 
 /// Splines on `[−bound, bound]` with identity tails (`RAW = 3K − 1`).
@@ -290,7 +326,7 @@ pub(crate) struct FreeEnds;
 #[cfg(not(target_arch = "spirv"))]
 impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for BoundedEnds {
     #[inline(always)]
-    fn set_knots(knots: &mut Knots<K, Group>, raw: &[Group; RAW], bound: f32) {
+    fn set_knots<L: Lane>(knots: &mut Knots<K, L>, raw: &[L; RAW], bound: f32) {
         knots.set_raw_lanes(raw, bound);
     }
 }
@@ -298,14 +334,15 @@ impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for BoundedEnds {
 #[cfg(not(target_arch = "spirv"))]
 impl<const K: usize, const RAW: usize> SplineEnds<K, RAW> for FreeEnds {
     #[inline(always)]
-    fn set_knots(knots: &mut Knots<K, Group>, raw: &[Group; RAW], _bound: f32) {
+    fn set_knots<L: Lane>(knots: &mut Knots<K, L>, raw: &[L; RAW], _bound: f32) {
         knots.set_raw_free_lanes(raw);
     }
 }
 
 /// The arguments of [`coupling_splines_chunk`].
 #[cfg(not(target_arch = "spirv"))]
-struct SplinesJob<'a, E, W, S, const K: usize, const RAW: usize, const CHUNK: usize> {
+struct SplinesJob<'a, E, W, S, const K: usize, const RAW: usize, const CHUNK: usize, const G: usize>
+{
     ends: PhantomData<E>,
     w: &'a W,
     offset: u32,
@@ -313,7 +350,7 @@ struct SplinesJob<'a, E, W, S, const K: usize, const RAW: usize, const CHUNK: us
     at: CouplingLanes<'a, S, CHUNK>,
     tail_bound: f32,
     b: &'a mut CouplingBuffers<RAW, CHUNK>,
-    knots: &'a mut [Knots<K, Group>],
+    knots: &'a mut [Knots<K, Lanes<G>>],
 }
 
 #[cfg(not(target_arch = "spirv"))]
@@ -324,7 +361,10 @@ impl<
         const K: usize,
         const RAW: usize,
         const CHUNK: usize,
-    > Kernel for SplinesJob<'_, E, W, S, K, RAW, CHUNK>
+        const G: usize,
+    > Kernel for SplinesJob<'_, E, W, S, K, RAW, CHUNK, G>
+where
+    CouplingBuffers<RAW, CHUNK>: GroupBuffer<G, RAW, CHUNK>,
 {
     const WIDEST: Isa = Isa::X86V3;
     type Output = ();
@@ -356,11 +396,12 @@ impl<
             b.v[k] = at.v.get(i).copied().unwrap_or(0.0);
         }
         coupling_raw_chunk(w, offset, m, b);
-        for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(GROUP)) {
-            for (rj, row) in b.group.iter_mut().zip(b.raw.iter()) {
-                *rj = Group::load(&row[GROUP * g..]);
+        let (raw, group) = b.split();
+        for (g, kn) in knots.iter_mut().enumerate().take(m.div_ceil(G)) {
+            for (rj, row) in group.iter_mut().zip(raw.iter()) {
+                *rj = Lanes::load(&row[G * g..]);
             }
-            E::set_knots(kn, &b.group, tail_bound);
+            E::set_knots(kn, group, tail_bound);
         }
     }
 }

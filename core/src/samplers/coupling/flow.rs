@@ -1,8 +1,9 @@
 //! The batched path of a flow of two spline couplings on the unit disk, written once for
 //! the spline flow and the disk flow ([`CouplingFlow`] says what differs: the base
 //! distribution and how a coupling applies its spline). Lanes run in chunks of [`CHUNK`]:
-//! the coupling networks as matrix products over the chunk's lanes, the splines eight lanes
-//! at a time through the scalar path's own generic functions.
+//! the coupling networks as matrix products over the chunk's lanes, the splines a group of
+//! [`GROUP`] lanes at a time ([`NARROW`] for a chunk of at most that many) through the
+//! scalar path's own generic functions.
 //!
 //! Sampling runs coupling 0's inverse at the base point's `y`, then coupling 1's at the
 //! result `x`; its density runs the couplings forward from the sample (as
@@ -11,14 +12,18 @@
 
 use glam::Vec2;
 
+use core::slice;
+
 use super::{
-    coupling_splines_chunk, CouplingBuffers, CouplingLanes, CouplingShares, FlowScratch, Group,
-    SplineEnds, COUPLING_INPUTS, GROUP, HIDDEN,
+    coupling_splines_chunk, CouplingBuffers, CouplingLanes, CouplingShares, FlowScratch,
+    GroupBuffer, SplineEnds, COUPLING_INPUTS, GROUP, HIDDEN,
 };
 use crate::distrib::spline::Knots;
+use crate::math::lane::Lane;
 use crate::nn::CONDITION_DIM;
 use crate::samplers::Sample;
 use crate::warp::{self, inside_disk};
+use crate::wavefront::lanes::{Lanes, NARROW};
 use crate::wavefront::{self, dense, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
@@ -27,15 +32,12 @@ pub(crate) const CHUNK: usize = 32;
 /// Groups of lanes per chunk (the splines are evaluated a group at a time).
 pub(crate) const GROUPS: usize = CHUNK / GROUP;
 
-/// The splines of a chunk's lanes, one per group.
-type Splines<const K: usize> = [Knots<K, Group>; GROUPS];
-
 /// One value per lane of a chunk.
 pub(crate) type Rows = [f32; CHUNK];
 
 /// What a two-coupling flow on the disk defines for [`coupling_flow_chunks`]: its lane
 /// state, its coupling networks, its base distribution and its coupling transforms, each
-/// on a group of eight lanes. `K` spline bins, `RAW` raw parameters per spline.
+/// on a group of lanes. `K` spline bins, `RAW` raw parameters per spline.
 pub(crate) trait CouplingFlow<const K: usize, const RAW: usize> {
     /// The prepared state of one lane.
     type Lane: CouplingShares;
@@ -69,19 +71,19 @@ pub(crate) trait CouplingFlow<const K: usize, const RAW: usize> {
     ) -> (Rows, Rows, [bool; CHUNK]);
 
     /// Coupling 0 inverted: the disk point's `x` from the base point's `(x, y)`.
-    fn inverse0(k: &Knots<K, Group>, bx: Group, by: Group) -> Group;
+    fn inverse0<L: Lane>(k: &Knots<K, L>, bx: L, by: L) -> L;
 
     /// Coupling 1 inverted: the disk point's `y` from the base point's `y` and the disk
     /// point's `x`.
-    fn inverse1(k: &Knots<K, Group>, by: Group, x: Group) -> Group;
+    fn inverse1<L: Lane>(k: &Knots<K, L>, by: L, x: L) -> L;
 
     /// Coupling 1 forward at the disk point `(x, y)`: the base point's `y`, the coupling's
     /// log-derivative and what coupling 0 needs of it (the disk flow's half chord).
-    fn forward1(k: &Knots<K, Group>, y: Group, x: Group) -> (Group, Group, Group);
+    fn forward1<L: Lane>(k: &Knots<K, L>, y: L, x: L) -> (L, L, L);
 
     /// Coupling 0 forward at the disk point's `x` with [`Self::forward1`]'s third value: the
     /// base point's `x` and the coupling's log-derivative.
-    fn forward0(k: &Knots<K, Group>, x: Group, c: Group) -> (Group, Group);
+    fn forward0<L: Lane>(k: &Knots<K, L>, x: L, c: L) -> (L, L);
 
     /// The densities on the disk (area measure) of lanes whose base points are `(bx, by)`,
     /// with the couplings' log-derivatives `ld0 + ld1`.
@@ -111,15 +113,17 @@ pub(crate) fn coupling_shares<const K: usize, const RAW: usize, F: CouplingFlow<
 /// The splines of the flow's coupling network `net` (0 or 1) for the lanes `at` into
 /// `knots`.
 #[inline(always)]
-fn splines<const K: usize, const RAW: usize, F: CouplingFlow<K, RAW>>(
+fn splines<const K: usize, const RAW: usize, const G: usize, F: CouplingFlow<K, RAW>>(
     f: &F,
     net: usize,
     at: CouplingLanes<'_, F::Lane, CHUNK>,
     b: &mut CouplingBuffers<RAW, CHUNK>,
-    knots: &mut Splines<K>,
-) {
+    knots: &mut [Knots<K, Lanes<G>>],
+) where
+    CouplingBuffers<RAW, CHUNK>: GroupBuffer<G, RAW, CHUNK>,
+{
     let offset = F::COUPLINGS[net & 1] as u32;
-    coupling_splines_chunk::<F::Ends, F::W, F::Lane, K, RAW, CHUNK>(
+    coupling_splines_chunk::<F::Ends, F::W, F::Lane, K, RAW, CHUNK, G>(
         f.weights(),
         offset,
         net,
@@ -142,53 +146,87 @@ pub(crate) fn lane_shares(share: &[Soa<HIDDEN, CHUNK>; 2], l: usize) -> [[f32; H
     sh
 }
 
-/// `ChunkedSampler::sample_chunk`.
+/// `ChunkedSampler::sample_chunk`: the splines in groups of [`GROUP`] lanes, or of
+/// [`NARROW`] for a chunk of at most that many (the same bits).
 #[inline(always)]
 pub(crate) fn sample_chunk<const K: usize, const RAW: usize, F: CouplingFlow<K, RAW>>(
     f: &F,
     lanes: &[Option<F::Lane>],
     u: Vec2s<'_>,
-    mut out: SamplesMut<'_>,
+    out: SamplesMut<'_>,
     scratch: &mut FlowScratch<K, RAW, CHUNK, GROUPS>,
 ) {
+    let FlowScratch { b, k0, k1 } = scratch;
+    if lanes.len() <= NARROW {
+        let mut k = [Knots::<K, Lanes<NARROW>>::ZERO_LANES; 2];
+        let [k0, k1] = &mut k;
+        sample_groups(
+            f,
+            lanes,
+            u,
+            out,
+            b,
+            slice::from_mut(k0),
+            slice::from_mut(k1),
+        );
+    } else {
+        sample_groups(f, lanes, u, out, b, k0, k1);
+    }
+}
+
+/// [`sample_chunk`] with the splines in groups of `G` lanes (`knots`: one per group).
+#[inline(always)]
+fn sample_groups<const K: usize, const RAW: usize, const G: usize, F: CouplingFlow<K, RAW>>(
+    f: &F,
+    lanes: &[Option<F::Lane>],
+    u: Vec2s<'_>,
+    mut out: SamplesMut<'_>,
+    b: &mut CouplingBuffers<RAW, CHUNK>,
+    k0: &mut [Knots<K, Lanes<G>>],
+    k1: &mut [Knots<K, Lanes<G>>],
+) where
+    CouplingBuffers<RAW, CHUNK>: GroupBuffer<G, RAW, CHUNK>,
+{
     let m = lanes.len();
-    let groups = m.div_ceil(GROUP);
+    let groups = m.div_ceil(G).min(k0.len()).min(k1.len());
     let all = wavefront::identity_index::<CHUNK>();
     // Refused lanes keep the base point 0 and are dropped at the end.
     let base = F::base(lanes);
     let (bx, by, mut ok) = F::draw_base(&base, lanes, &u);
-    let FlowScratch { b, k0, k1 } = scratch;
     let at = |idx, m, v| CouplingLanes { lanes, idx, m, v };
     splines(f, 0, at(&all, m, &by), b, k0);
     let mut px = [0.0f32; CHUNK];
     let mut py = [0.0f32; CHUNK];
     for g in 0..groups {
-        let (b_x, b_y) = (Group::load(&bx[GROUP * g..]), Group::load(&by[GROUP * g..]));
-        F::inverse0(&k0[g], b_x, b_y).store(&mut px[GROUP * g..]);
+        let (b_x, b_y) = (
+            Lanes::<G>::load(&bx[G * g..]),
+            Lanes::<G>::load(&by[G * g..]),
+        );
+        F::inverse0(&k0[g], b_x, b_y).store(&mut px[G * g..]);
     }
     splines(f, 1, at(&all, m, &px), b, k1);
     let mut yb = [0.0f32; CHUNK];
     let mut cb = [0.0f32; CHUNK];
     let mut ld1 = [0.0f32; CHUNK];
     for g in 0..groups {
-        let x = Group::load(&px[GROUP * g..]);
-        let y = F::inverse1(&k1[g], Group::load(&by[GROUP * g..]), x);
-        y.store(&mut py[GROUP * g..]);
+        let x = Lanes::<G>::load(&px[G * g..]);
+        let y = F::inverse1(&k1[g], Lanes::<G>::load(&by[G * g..]), x);
+        y.store(&mut py[G * g..]);
         let (a, d, c) = F::forward1(&k1[g], y, x);
-        a.store(&mut yb[GROUP * g..]);
-        d.store(&mut ld1[GROUP * g..]);
-        c.store(&mut cb[GROUP * g..]);
+        a.store(&mut yb[G * g..]);
+        d.store(&mut ld1[G * g..]);
+        c.store(&mut cb[G * g..]);
     }
     let mut xb = [0.0f32; CHUNK];
     let mut ld0 = [0.0f32; CHUNK];
     for g in 0..groups {
         let (a, d) = F::forward0(
             &k0[g],
-            Group::load(&px[GROUP * g..]),
-            Group::load(&cb[GROUP * g..]),
+            Lanes::<G>::load(&px[G * g..]),
+            Lanes::<G>::load(&cb[G * g..]),
         );
-        a.store(&mut xb[GROUP * g..]);
-        d.store(&mut ld0[GROUP * g..]);
+        a.store(&mut xb[G * g..]);
+        d.store(&mut ld0[G * g..]);
     }
     let mut again = [0usize; CHUNK];
     let mut n_again = 0;
@@ -206,14 +244,14 @@ pub(crate) fn sample_chunk<const K: usize, const RAW: usize, F: CouplingFlow<K, 
             x[k] = px[again[k]];
             c[k] = cb[again[k]];
         }
-        for g in 0..n_again.div_ceil(GROUP) {
+        for g in 0..n_again.div_ceil(G).min(k0.len()) {
             let (a, d) = F::forward0(
                 &k0[g],
-                Group::load(&x[GROUP * g..]),
-                Group::load(&c[GROUP * g..]),
+                Lanes::<G>::load(&x[G * g..]),
+                Lanes::<G>::load(&c[G * g..]),
             );
-            for i in 0..GROUP {
-                if let Some(&l) = again[..n_again].get(GROUP * g + i) {
+            for i in 0..G {
+                if let Some(&l) = again[..n_again].get(G * g + i) {
                     xb[l] = a.0[i];
                     ld0[l] = d.0[i];
                 }
@@ -258,10 +296,30 @@ fn to_base<const K: usize, const RAW: usize, F: CouplingFlow<K, RAW>>(
     py: &Rows,
     scratch: &mut FlowScratch<K, RAW, CHUNK, GROUPS>,
 ) -> (Rows, Rows, Rows) {
+    if lanes.len() <= NARROW {
+        let mut k = Knots::<K, Lanes<NARROW>>::ZERO_LANES;
+        to_base_groups(f, lanes, px, py, &mut scratch.b, slice::from_mut(&mut k))
+    } else {
+        to_base_groups(f, lanes, px, py, &mut scratch.b, &mut scratch.k0)
+    }
+}
+
+/// [`to_base`] with the splines in groups of `G` lanes (`k`: one per group).
+#[inline(always)]
+fn to_base_groups<const K: usize, const RAW: usize, const G: usize, F: CouplingFlow<K, RAW>>(
+    f: &F,
+    lanes: &[Option<F::Lane>],
+    px: &Rows,
+    py: &Rows,
+    b: &mut CouplingBuffers<RAW, CHUNK>,
+    k: &mut [Knots<K, Lanes<G>>],
+) -> (Rows, Rows, Rows)
+where
+    CouplingBuffers<RAW, CHUNK>: GroupBuffer<G, RAW, CHUNK>,
+{
     let m = lanes.len();
-    let groups = m.div_ceil(GROUP);
+    let groups = m.div_ceil(G).min(k.len());
     let all = wavefront::identity_index::<CHUNK>();
-    let (b, k) = (&mut scratch.b, &mut scratch.k0);
     let at = |v| CouplingLanes {
         lanes,
         idx: &all,
@@ -273,11 +331,14 @@ fn to_base<const K: usize, const RAW: usize, F: CouplingFlow<K, RAW>>(
     let mut cb = [0.0f32; CHUNK];
     let mut ld1 = [0.0f32; CHUNK];
     for g in 0..groups {
-        let (x, y) = (Group::load(&px[GROUP * g..]), Group::load(&py[GROUP * g..]));
+        let (x, y) = (
+            Lanes::<G>::load(&px[G * g..]),
+            Lanes::<G>::load(&py[G * g..]),
+        );
         let (a, d, c) = F::forward1(&k[g], y, x);
-        a.store(&mut yb[GROUP * g..]);
-        d.store(&mut ld1[GROUP * g..]);
-        c.store(&mut cb[GROUP * g..]);
+        a.store(&mut yb[G * g..]);
+        d.store(&mut ld1[G * g..]);
+        c.store(&mut cb[G * g..]);
     }
     splines(f, 0, at(&yb), b, k);
     let mut xb = [0.0f32; CHUNK];
@@ -285,11 +346,11 @@ fn to_base<const K: usize, const RAW: usize, F: CouplingFlow<K, RAW>>(
     for g in 0..groups {
         let (a, d) = F::forward0(
             &k[g],
-            Group::load(&px[GROUP * g..]),
-            Group::load(&cb[GROUP * g..]),
+            Lanes::<G>::load(&px[G * g..]),
+            Lanes::<G>::load(&cb[G * g..]),
         );
-        a.store(&mut xb[GROUP * g..]);
-        (d + Group::load(&ld1[GROUP * g..])).store(&mut ld[GROUP * g..]);
+        a.store(&mut xb[G * g..]);
+        (d + Lanes::<G>::load(&ld1[G * g..])).store(&mut ld[G * g..]);
     }
     (xb, yb, ld)
 }

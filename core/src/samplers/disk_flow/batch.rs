@@ -11,10 +11,10 @@ use super::{
 };
 use crate::distrib::spline::Knots;
 use crate::math;
+use crate::math::lane::Lane;
 use crate::samplers::coupling::flow::{
     coupling_flow_chunks, coupling_shares, lane_shares, CouplingFlow, Rows, CHUNK,
 };
-use crate::samplers::coupling::Group;
 use crate::samplers::coupling::{density_from_log, CouplingShares, FreeEnds, HIDDEN};
 use crate::warp;
 use crate::wavefront::{self, Features, Vec2s, Vec3s};
@@ -80,23 +80,23 @@ impl<W: Weights + Copy> CouplingFlow<DISK_FLOW_BINS, DISK_SPLINE_RAW_LEN> for Di
     }
 
     #[inline(always)]
-    fn inverse0(k: &Knots<DISK_FLOW_BINS, Group>, bx: Group, by: Group) -> Group {
+    fn inverse0<L: Lane>(k: &Knots<DISK_FLOW_BINS, L>, bx: L, by: L) -> L {
         chord_inverse(k, bx, by)
     }
 
     #[inline(always)]
-    fn inverse1(k: &Knots<DISK_FLOW_BINS, Group>, by: Group, x: Group) -> Group {
+    fn inverse1<L: Lane>(k: &Knots<DISK_FLOW_BINS, L>, by: L, x: L) -> L {
         chord_inverse(k, by, x)
     }
 
     #[inline(always)]
-    fn forward1(k: &Knots<DISK_FLOW_BINS, Group>, y: Group, x: Group) -> (Group, Group, Group) {
+    fn forward1<L: Lane>(k: &Knots<DISK_FLOW_BINS, L>, y: L, x: L) -> (L, L, L) {
         chord_forward_next(k, y, x)
     }
 
     /// `C·S₀(x / C)` on the half chord `c` that [`Self::forward1`] returned.
     #[inline(always)]
-    fn forward0(k: &Knots<DISK_FLOW_BINS, Group>, x: Group, c: Group) -> (Group, Group) {
+    fn forward0<L: Lane>(k: &Knots<DISK_FLOW_BINS, L>, x: L, c: L) -> (L, L) {
         let (s0, d) = k.forward_lanes(in_chord_lanes(x, c));
         (c * s0, d)
     }

@@ -11,11 +11,11 @@ use super::{
 };
 use crate::distrib::spline::Knots;
 use crate::math;
+use crate::math::lane::Lane;
 use crate::nn::{Activation, CONDITION_DIM};
 use crate::samplers::coupling::flow::{
     coupling_flow_chunks, coupling_shares, lane_shares, CouplingFlow, Rows, CHUNK,
 };
-use crate::samplers::coupling::Group;
 use crate::samplers::coupling::{BoundedEnds, CouplingShares, HIDDEN};
 use crate::wavefront::lanes;
 use crate::wavefront::{self, dense, Features, Vec2s, Vec3s};
@@ -168,23 +168,23 @@ impl<W: Weights + Copy> CouplingFlow<SPLINE_BINS, SPLINE_RAW_LEN> for SplineFlow
     }
 
     #[inline(always)]
-    fn inverse0(k: &Knots<SPLINE_BINS, Group>, bx: Group, _by: Group) -> Group {
+    fn inverse0<L: Lane>(k: &Knots<SPLINE_BINS, L>, bx: L, _by: L) -> L {
         k.inverse_with::<false>(bx).0
     }
 
     #[inline(always)]
-    fn inverse1(k: &Knots<SPLINE_BINS, Group>, by: Group, _x: Group) -> Group {
+    fn inverse1<L: Lane>(k: &Knots<SPLINE_BINS, L>, by: L, _x: L) -> L {
         k.inverse_with::<false>(by).0
     }
 
     #[inline(always)]
-    fn forward1(k: &Knots<SPLINE_BINS, Group>, y: Group, _x: Group) -> (Group, Group, Group) {
+    fn forward1<L: Lane>(k: &Knots<SPLINE_BINS, L>, y: L, _x: L) -> (L, L, L) {
         let (a, d) = k.forward_lanes(y);
-        (a, d, Group::splat(0.0))
+        (a, d, L::splat(0.0))
     }
 
     #[inline(always)]
-    fn forward0(k: &Knots<SPLINE_BINS, Group>, x: Group, _c: Group) -> (Group, Group) {
+    fn forward0<L: Lane>(k: &Knots<SPLINE_BINS, L>, x: L, _c: L) -> (L, L) {
         k.forward_lanes(x)
     }
 
