@@ -201,9 +201,10 @@ struct Batched<L> {
     ok: Vec<bool>,
 }
 
-/// Prepare, sample, pdf and invert of the `n` lanes of `soa`, the outputs prefilled with
+/// Prepare, sample, pdf and invert of the lanes of `soa`, the outputs prefilled with
 /// sentinels.
-fn run_batched<S: BatchSampler>(s: &S, soa: &Soa, n: usize) -> Batched<S::Lane> {
+fn run_batched<S: BatchSampler>(s: &S, soa: &Soa) -> Batched<S::Lane> {
+    let n = soa.wi().len();
     let mut states = vec![S::Lane::default(); n];
     s.prepare_batch(soa.phi(), soa.wi(), &mut states).unwrap();
     let mut out = Out::new(n);
@@ -232,9 +233,14 @@ where
 {
     let n = lanes.len();
     let soa = Soa::new(lanes);
-    let b = run_batched(s, &soa, n);
-    let (states, out, pdf) = (b.states, b.out, b.pdf);
-    let (ux, uy, ok) = (b.ux, b.uy, b.ok);
+    let Batched {
+        states,
+        out,
+        pdf,
+        ux,
+        uy,
+        ok,
+    } = run_batched(s, &soa);
     let mut fused = Out::new(n);
     s.sample_fused(soa.phi(), soa.wi(), soa.u(), fused.view())
         .unwrap();
@@ -729,7 +735,7 @@ fn batch_bits<S: BatchSampler>(s: &S, lanes: &[Lane]) -> Vec<[u32; 9]> {
         uy,
         ok,
         ..
-    } = run_batched(s, &Soa::new(lanes), n);
+    } = run_batched(s, &Soa::new(lanes));
     (0..n)
         .map(|i| {
             let v = [
