@@ -496,19 +496,17 @@ fn every_fixture_sampler_batched_equals_scalar() {
     });
 }
 
-/// The same checks through the concrete sampler type (its own lane type).
+/// The same checks through a concrete sampler type under [`Defensive`] (its own lane type, as
+/// `Blob::sampler_as` returns it), for the direct histogram; other kinds give no deviation.
+/// Every kind's batched code is the code [`AnySampler`] dispatches to, which `check_both`
+/// checks for all of them; each further concrete type here would be another copy of its
+/// batched kernels for this test to compile (together about three minutes of CI's build).
 fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) -> Deviation {
-    let a = s.alpha();
     match *s.inner() {
-        AnySampler::Cosine(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
-        AnySampler::ImprovedBaseline(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
-        AnySampler::AnalyticMixture(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
-        AnySampler::SplineFlow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
-        AnySampler::DiskFlow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
-        AnySampler::AffineFlow(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
-        AnySampler::DirectHistogram(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
-        AnySampler::HistogramMixture(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
-        AnySampler::Reparam(x) => check_sampler(&Defensive::new_unchecked(x, a), ls, what),
+        AnySampler::DirectHistogram(x) => {
+            check_sampler(&Defensive::new_unchecked(x, s.alpha()), ls, what)
+        }
+        _ => Deviation::default(),
     }
 }
 
