@@ -500,7 +500,7 @@ fn every_fixture_sampler_batched_equals_scalar() {
 /// `Blob::sampler_as` returns it), for the direct histogram; other kinds give no deviation.
 /// Every kind's batched code is the code [`AnySampler`] dispatches to, which `check_both`
 /// checks for all of them; each further concrete type here would be another copy of its
-/// batched kernels for this test to compile (together about three minutes of CI's build).
+/// batched kernels for this test crate to compile.
 fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) -> Deviation {
     match *s.inner() {
         AnySampler::DirectHistogram(x) => {
