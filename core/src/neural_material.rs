@@ -21,7 +21,7 @@
 use glam::{Vec2, Vec3};
 
 use crate::math;
-use crate::nn::{self, Activation, FEATURE_DIM};
+use crate::nn::{self, ReluMlp, FEATURE_DIM};
 use crate::warp;
 use crate::weights::Weights;
 
@@ -38,14 +38,10 @@ pub const LOG_F_MAX: f32 = 12.0;
 /// Largest texture width or height a blob may declare.
 pub const MAX_TEXTURE_SIZE: u32 = 4096;
 
-const L0: usize = 0;
-const L1: usize = L0 + nn::dense_len(DECODER_INPUTS, DECODER_HIDDEN);
-const L2: usize = L1 + nn::dense_len(DECODER_HIDDEN, DECODER_HIDDEN);
-const L3: usize = L2 + nn::dense_len(DECODER_HIDDEN, DECODER_HIDDEN);
-const END: usize = L3 + nn::dense_len(DECODER_HIDDEN, DECODER_OUTPUTS);
+type Decoder = ReluMlp<DECODER_INPUTS, DECODER_HIDDEN, DECODER_OUTPUTS, 4>;
 
 /// Number of decoder parameters: `dense(14,64) dense(64,64) dense(64,64) dense(64,3)` = 9475.
-pub const DECODER_PARAM_COUNT: usize = END;
+pub const DECODER_PARAM_COUNT: usize = Decoder::LEN;
 
 /// Number of texture values of a `width × height` feature texture (`width·height·8`).
 #[inline]
@@ -266,11 +262,7 @@ impl<W: Weights> NeuralMaterial<W> {
     #[inline]
     #[must_use]
     pub fn forward(&self, x: &[f32; DECODER_INPUTS]) -> [f32; DECODER_OUTPUTS] {
-        let w = &self.params;
-        let h: [f32; DECODER_HIDDEN] = nn::dense(w, L0 as u32, x, Activation::Relu);
-        let h: [f32; DECODER_HIDDEN] = nn::dense(w, L1 as u32, &h, Activation::Relu);
-        let h: [f32; DECODER_HIDDEN] = nn::dense(w, L2 as u32, &h, Activation::Relu);
-        nn::dense(w, L3 as u32, &h, Activation::Identity)
+        Decoder::forward(&self.params, x)
     }
 
     /// The BRDF `f(φ, wi, wo)` in linear RGB, **without** the cosine (multiply by `cos θo`
@@ -312,7 +304,7 @@ mod batch {
     use super::*;
     use crate::error::Result;
     use crate::wavefront::simd::{dispatch, Kernel};
-    use crate::wavefront::{dense, Features, FeaturesMut, RgbMut, Soa, Vec2s, Vec3s};
+    use crate::wavefront::{Features, FeaturesMut, RgbMut, Soa, Vec2s, Vec3s};
 
     /// Lanes per chunk (two 64-wide activations of 64 lanes: 32 KiB). Each register tile
     /// of the dense kernel widens its weights once per chunk, so 64 lanes amortise that
@@ -366,13 +358,9 @@ mod batch {
         ) {
             let w = &self.params;
             let m = b - a;
-            let Scratch { x, valid, h, g, o } = s;
+            let Scratch { x, valid, h, o } = s;
             encode_chunk(args, a, b, x, valid);
-            let relu = Activation::Relu;
-            dense::dense(w, L0 as u32, x, relu, h, m);
-            dense::dense(w, L1 as u32, h, relu, g, m);
-            dense::dense(w, L2 as u32, g, relu, h, m);
-            dense::dense(w, L3 as u32, h, Activation::Identity, o, m);
+            Decoder::forward_lanes_in(w, x, h, o, m);
             // Per channel over the lanes, without branches: the exponentials vectorise.
             let channels = [&mut *out.r, &mut *out.g, &mut *out.b];
             for (dst, o) in channels.into_iter().zip(o.iter()) {
@@ -423,8 +411,7 @@ mod batch {
     struct Scratch {
         x: Soa<DECODER_INPUTS, CHUNK>,
         valid: [bool; CHUNK],
-        h: Soa<DECODER_HIDDEN, CHUNK>,
-        g: Soa<DECODER_HIDDEN, CHUNK>,
+        h: [Soa<DECODER_HIDDEN, CHUNK>; 2],
         o: Soa<DECODER_OUTPUTS, CHUNK>,
     }
 
@@ -456,8 +443,7 @@ mod batch {
             let mut s = Scratch {
                 x: [[0.0; CHUNK]; DECODER_INPUTS],
                 valid: [false; CHUNK],
-                h: [[0.0; CHUNK]; DECODER_HIDDEN],
-                g: [[0.0; CHUNK]; DECODER_HIDDEN],
+                h: [[[0.0; CHUNK]; DECODER_HIDDEN]; 2],
                 o: [[0.0; CHUNK]; DECODER_OUTPUTS],
             };
             for ab in crate::wavefront::chunks(n, CHUNK) {

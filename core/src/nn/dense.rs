@@ -109,6 +109,48 @@ pub fn dense<W: Weights + ?Sized, const I: usize, const O: usize>(
     y
 }
 
+/// A ReLU MLP stored from offset 0 of a flat parameter array: `dense(I, H)` and `L − 2` of
+/// `dense(H, H)`, each followed by ReLU, then `dense(H, O)` without an activation (`L ≥ 2`
+/// layers). A type, so that a sampler names its network once and takes its parameter count,
+/// layer offsets and forward pass from it.
+#[derive(Copy, Clone, Debug)]
+pub struct ReluMlp<const I: usize, const H: usize, const O: usize, const L: usize>;
+
+impl<const I: usize, const H: usize, const O: usize, const L: usize> ReluMlp<I, H, O, L> {
+    /// Where each layer starts in the parameter array.
+    pub const OFFSETS: [usize; L] = {
+        assert!(L >= 2, "a ReLU MLP has a first and a last layer");
+        let mut o = [0; L];
+        let mut k = 1;
+        while k < L {
+            o[k] = o[k - 1]
+                + if k == 1 {
+                    dense_len(I, H)
+                } else {
+                    dense_len(H, H)
+                };
+            k += 1;
+        }
+        o
+    };
+
+    /// Number of parameters.
+    pub const LEN: usize = Self::OFFSETS[L - 1] + dense_len(H, O);
+
+    /// The network's outputs for the input `x`.
+    #[inline(always)]
+    #[must_use]
+    pub fn forward<W: Weights + ?Sized>(w: &W, x: &[f32; I]) -> [f32; O] {
+        let mut h: [f32; H] = dense(w, Self::OFFSETS[0] as u32, x, Activation::Relu);
+        let mut k = 1;
+        while k + 1 < L {
+            h = dense(w, Self::OFFSETS[k] as u32, &h, Activation::Relu);
+            k += 1;
+        }
+        linear(w, Self::OFFSETS[L - 1] as u32, &h)
+    }
+}
+
 /// Adds the contribution of inputs `first .. first + P` of the dense layer at `offset`
 /// (which has `O` outputs) to `acc`. Splitting a layer's inputs this way lets a sampler
 /// compute the condition's share of a first layer once in `prepare` and add the

@@ -8,7 +8,9 @@
 mod dense;
 mod encoding;
 
-pub use dense::{accumulate_inputs, bias, dense, dense_len, linear, Activation, LEAKY_RELU_SLOPE};
+pub use dense::{
+    accumulate_inputs, bias, dense, dense_len, linear, Activation, ReluMlp, LEAKY_RELU_SLOPE,
+};
 pub(crate) use encoding::features_finite;
 pub use encoding::{
     check_condition, encode_condition, encode_scalar, encoding_len, raw_condition, CONDITION_BANDS,

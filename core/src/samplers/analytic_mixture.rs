@@ -2,47 +2,31 @@
 //! anisotropic Gaussians on the **projected unit disk**, predicted by an MLP
 //! (`ARCHITECTURES.md` §2). How the lobes are sampled and evaluated: [`super::lobes`].
 
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 
 use crate::distrib::gaussian;
 use crate::math::clamp_logit;
-use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
-use crate::weights::Weights;
+use crate::nn::{ReluMlp, CONDITION_DIM};
 
 use super::lobes::{mean, LobeMixture, HIDDEN};
-use super::Sampler;
 
 /// Number of network outputs of the analytic mixture:
 /// `[μ1x, μ1y, μ2x, μ2y, log σ1x, log σ1y, log σ2x, log σ2y, a0, a1, a2]`.
 pub const ANALYTIC_OUTPUTS: usize = 11;
 
-const ANALYTIC_L0: usize = 0;
-const ANALYTIC_L1: usize = ANALYTIC_L0 + nn::dense_len(CONDITION_DIM, HIDDEN);
-const ANALYTIC_END: usize = ANALYTIC_L1 + nn::dense_len(HIDDEN, ANALYTIC_OUTPUTS);
+type Net = ReluMlp<CONDITION_DIM, HIDDEN, ANALYTIC_OUTPUTS, 2>;
 
-/// The analytic mixture of paper §3.1 (Eq. 2): Lambert + two axis-aligned anisotropic
-/// Gaussians on the projected disk, predicted by an MLP `30 → 32 → 11` (ReLU hidden) from
-/// `encode_condition(φ, wi)`. See `ARCHITECTURES.md` §2.
-#[derive(Copy, Clone, Debug)]
-pub struct AnalyticMixtureSampler<W> {
-    params: W,
-}
-
-super::traits::flat_params_sampler!(
-    AnalyticMixtureSampler,
-    AnalyticMixture,
-    ANALYTIC_END,
-    "Number of parameters: `dense(30,32) dense(32,11)` = 1355."
-);
-
-impl<W: Weights> AnalyticMixtureSampler<W> {
-    /// The raw network outputs (see [`ANALYTIC_OUTPUTS`]) for an encoded condition.
-    #[inline]
-    #[must_use]
-    pub fn forward(&self, c: &[f32; CONDITION_DIM]) -> [f32; ANALYTIC_OUTPUTS] {
-        let w = &self.params;
-        let h: [f32; HIDDEN] = nn::dense(w, ANALYTIC_L0 as u32, c, Activation::Relu);
-        nn::dense(w, ANALYTIC_L1 as u32, &h, Activation::Identity)
+super::mlp::mlp_sampler! {
+    /// The analytic mixture of paper §3.1 (Eq. 2): Lambert + two axis-aligned anisotropic
+    /// Gaussians on the projected disk, predicted by an MLP `30 → 32 → 11` (ReLU hidden) from
+    /// `encode_condition(φ, wi)`. See `ARCHITECTURES.md` §2.
+    pub struct AnalyticMixtureSampler => AnalyticMixturePrepared {
+        kind: AnalyticMixture,
+        net: Net,
+        outputs: ANALYTIC_OUTPUTS,
+        from: AnalyticMixturePrepared::from_outputs,
+        chunk: super::lobes::CHUNK,
+        count: "Number of parameters: `dense(30,32) dense(32,11)` = 1355.",
     }
 }
 
@@ -84,29 +68,6 @@ impl LobeMixture<3, 2> {
         [self.lobes()[0].1, self.lobes()[1].1]
     }
 }
-
-impl<W: Weights> Sampler for AnalyticMixtureSampler<W> {
-    type Prepared<'s>
-        = AnalyticMixturePrepared
-    where
-        Self: 's;
-
-    #[inline]
-    fn prepare(&self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<AnalyticMixturePrepared> {
-        let wi = check_condition(phi, wi)?;
-        let o = self.forward(&encode_condition(phi, wi));
-        Some(AnalyticMixturePrepared::from_outputs(&o))
-    }
-}
-
-#[cfg(not(target_arch = "spirv"))]
-crate::wavefront::mlp_lane_sampler!(
-    AnalyticMixtureSampler => AnalyticMixturePrepared,
-    chunk: crate::samplers::lobes::CHUNK,
-    hidden: HIDDEN,
-    outputs: ANALYTIC_OUTPUTS,
-    layers: [ANALYTIC_L0, ANALYTIC_L1],
-);
 
 /// [`AnalyticMixturePrepared::from_outputs`] over a chunk's rows, with the fast `exp`.
 #[cfg(not(target_arch = "spirv"))]

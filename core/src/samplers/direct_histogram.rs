@@ -7,11 +7,10 @@ use glam::{Vec2, Vec3};
 use crate::distrib::gaussian;
 use crate::distrib::table2d::{cell_area, half_cell_gap, Table2D, TableLayout};
 use crate::math::clamp_logit;
-use crate::nn::{self, check_condition, encode_condition, Activation, CONDITION_DIM, FEATURE_DIM};
+use crate::nn::{ReluMlp, CONDITION_DIM};
 use crate::warp;
-use crate::weights::Weights;
 
-use super::{Prepared, Sample, Sampler};
+use super::{Prepared, Sample};
 
 /// Grid resolution of the direct histogram baseline (16 × 16 cells).
 pub const DIRECT_N: usize = 16;
@@ -20,37 +19,22 @@ pub const DIRECT_N: usize = 16;
 const DIRECT_CELLS: usize = DIRECT_N * DIRECT_N;
 
 const DIRECT_HIDDEN: usize = 64;
-const DIRECT_L0: usize = 0;
-const DIRECT_L1: usize = DIRECT_L0 + nn::dense_len(CONDITION_DIM, DIRECT_HIDDEN);
-const DIRECT_L2: usize = DIRECT_L1 + nn::dense_len(DIRECT_HIDDEN, DIRECT_HIDDEN);
-const DIRECT_END: usize = DIRECT_L2 + nn::dense_len(DIRECT_HIDDEN, DIRECT_CELLS);
+type Net = ReluMlp<CONDITION_DIM, DIRECT_HIDDEN, DIRECT_CELLS, 3>;
 
-/// The direct histogram baseline (Zhu et al. 2021; "histogram (baseline)" in the paper's
-/// Table 2): an MLP `30 → 64 → 64 → 256` (ReLU hidden) maps `encode_condition(φ, wi)` to
-/// the logits of a 16 × 16 grid over `[−1, 1]²`. Cells entirely outside the disk are masked,
-/// the others get `softmax` probabilities `P_rc`, and the density on the projected disk is
-/// `P_rc / h²` (`ARCHITECTURES.md` §5).
-#[derive(Copy, Clone, Debug)]
-pub struct DirectHistogramSampler<W> {
-    params: W,
-}
-
-super::traits::flat_params_sampler!(
-    DirectHistogramSampler,
-    DirectHistogram,
-    DIRECT_END,
-    "Number of parameters: `dense(30,64) dense(64,64) dense(64,256)` = 22784."
-);
-
-impl<W: Weights> DirectHistogramSampler<W> {
-    /// The raw network outputs (cell logits, index `r·16 + c`) for an encoded condition.
-    #[inline]
-    #[must_use]
-    pub fn forward(&self, c: &[f32; CONDITION_DIM]) -> [f32; DIRECT_CELLS] {
-        let w = &self.params;
-        let h: [f32; DIRECT_HIDDEN] = nn::dense(w, DIRECT_L0 as u32, c, Activation::Relu);
-        let h: [f32; DIRECT_HIDDEN] = nn::dense(w, DIRECT_L1 as u32, &h, Activation::Relu);
-        nn::dense(w, DIRECT_L2 as u32, &h, Activation::Identity)
+// Chunks of 16 lanes: the 256 logits of 16 lanes take 16 KiB.
+super::mlp::mlp_sampler! {
+    /// The direct histogram baseline (Zhu et al. 2021; "histogram (baseline)" in the paper's
+    /// Table 2): an MLP `30 → 64 → 64 → 256` (ReLU hidden) maps `encode_condition(φ, wi)` to
+    /// the logits of a 16 × 16 grid over `[−1, 1]²` (cell `r·16 + c`). Cells entirely outside
+    /// the disk are masked, the others get `softmax` probabilities `P_rc`, and the density on
+    /// the projected disk is `P_rc / h²` (`ARCHITECTURES.md` §5).
+    pub struct DirectHistogramSampler => DirectHistogramPrepared {
+        kind: DirectHistogram,
+        net: Net,
+        outputs: DIRECT_CELLS,
+        from: DirectHistogramPrepared::from_logits,
+        chunk: 16,
+        count: "Number of parameters: `dense(30,64) dense(64,64) dense(64,256)` = 22784.",
     }
 }
 
@@ -134,20 +118,6 @@ impl DirectHistogramPrepared {
     }
 }
 
-impl<W: Weights> Sampler for DirectHistogramSampler<W> {
-    type Prepared<'s>
-        = DirectHistogramPrepared
-    where
-        Self: 's;
-
-    #[inline]
-    fn prepare(&self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<DirectHistogramPrepared> {
-        let wi = check_condition(phi, wi)?;
-        let logits = self.forward(&encode_condition(phi, wi));
-        Some(DirectHistogramPrepared::from_logits(&logits))
-    }
-}
-
 impl Prepared for DirectHistogramPrepared {
     /// Row by the marginal, column by the conditional, uniform within the cell; `None` when
     /// the point lands in the part of a boundary cell outside the disk.
@@ -173,16 +143,6 @@ impl Prepared for DirectHistogramPrepared {
         self.table().invert(warp::to_disk(w))
     }
 }
-
-// Chunks of 16 lanes: the 256 logits of 16 lanes take 16 KiB.
-#[cfg(not(target_arch = "spirv"))]
-crate::wavefront::mlp_lane_sampler!(
-    DirectHistogramSampler => DirectHistogramPrepared,
-    chunk: 16,
-    hidden: DIRECT_HIDDEN,
-    outputs: DIRECT_CELLS,
-    layers: [DIRECT_L0, DIRECT_L1, DIRECT_L2],
-);
 
 #[cfg(not(target_arch = "spirv"))]
 impl crate::wavefront::chunked::LaneChunks for DirectHistogramPrepared {}

@@ -10,7 +10,7 @@ use crate::distrib::gaussian;
 use crate::distrib::table2d::{cell_of, in_square, Table2D, TableLayout};
 use crate::kind::{Interpolation, SamplerKind};
 use crate::math::{self, clamp_logit};
-use crate::nn::{self, check_condition, raw_condition, Activation, FEATURE_DIM, RAW_CONDITION_DIM};
+use crate::nn::{check_condition, raw_condition, ReluMlp, FEATURE_DIM, RAW_CONDITION_DIM};
 use crate::warp;
 use crate::weights::{Tensor, Weights};
 
@@ -29,11 +29,7 @@ pub use crate::distrib::table2d::MAX_N;
 
 const MIX_HIDDEN: usize = 32;
 const MIX_OUTPUTS: usize = 4 * BASES;
-const MIX_L0: usize = 0;
-const MIX_L1: usize = MIX_L0 + nn::dense_len(RAW_CONDITION_DIM, MIX_HIDDEN);
-const MIX_L2: usize = MIX_L1 + nn::dense_len(MIX_HIDDEN, MIX_HIDDEN);
-const MIX_L3: usize = MIX_L2 + nn::dense_len(MIX_HIDDEN, MIX_HIDDEN);
-const MIX_END: usize = MIX_L3 + nn::dense_len(MIX_HIDDEN, MIX_OUTPUTS);
+type Net = ReluMlp<RAW_CONDITION_DIM, MIX_HIDDEN, MIX_OUTPUTS, 4>;
 
 /// [`BASES`] rounded up to a multiple of 4 (per-basis scratch arrays that vectorise).
 const PADDED_BASES: usize = BASES.div_ceil(4) * 4;
@@ -100,7 +96,7 @@ impl<'a> super::FromBlob<'a> for HistogramMixtureSampler<Tensor<'a>> {
 
 impl<W: Weights> HistogramMixtureSampler<W> {
     /// Number of parameters: `dense(10,32) dense(32,32) dense(32,32) dense(32,40)` = 3784.
-    pub const PARAM_COUNT: usize = MIX_END;
+    pub const PARAM_COUNT: usize = Net::LEN;
 
     /// A sampler over `params` and the baked tables of `t_levels` = T latent levels at
     /// resolution `resolution` = N. `None` unless `1 ≤ T ≤` [`MAX_T`], `1 ≤ N ≤` [`MAX_N`]
@@ -313,11 +309,7 @@ impl<W: Weights> HistogramMixtureSampler<W> {
     #[inline]
     #[must_use]
     pub fn forward(&self, x: &[f32; RAW_CONDITION_DIM]) -> [f32; MIX_OUTPUTS] {
-        let w = &self.params;
-        let h: [f32; MIX_HIDDEN] = nn::dense(w, MIX_L0 as u32, x, Activation::Relu);
-        let h: [f32; MIX_HIDDEN] = nn::dense(w, MIX_L1 as u32, &h, Activation::Relu);
-        let h: [f32; MIX_HIDDEN] = nn::dense(w, MIX_L2 as u32, &h, Activation::Relu);
-        nn::dense(w, MIX_L3 as u32, &h, Activation::Identity)
+        Net::forward(&self.params, x)
     }
 
     /// The prepared mixture from raw network outputs (see [`Self::forward`]):

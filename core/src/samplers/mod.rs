@@ -38,6 +38,7 @@ pub mod improved_baseline;
 pub(crate) mod kinds;
 pub mod lobes;
 mod mixture_tables;
+mod mlp;
 pub mod reparam;
 pub mod spline_flow;
 mod traits;

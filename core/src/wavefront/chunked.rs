@@ -274,18 +274,16 @@ macro_rules! per_lane_chunks {
 }
 pub(crate) use per_lane_chunks;
 
-/// The [`ChunkedSampler`] of a sampler whose prepare is one ReLU
-/// MLP of the encoded condition (`relu_mlp` over `layers`, `hidden` wide, `outputs` out)
-/// followed by its scalar [`Prepared`](crate::Prepared) state's
-/// [`FromOutputs`](super::FromOutputs), in chunks of
+/// The [`ChunkedSampler`] of a sampler whose prepare is one [`ReluMlp`](crate::nn::ReluMlp)
+/// `net` of the encoded condition with `outputs` outputs, followed by its scalar
+/// [`Prepared`](crate::Prepared) state's [`FromOutputs`](super::FromOutputs), in chunks of
 /// `chunk` lanes; sample, pdf and invert run [`per_lane_chunks`].
 macro_rules! mlp_lane_sampler {
     (
         $sampler:ident => $prepared:ident,
         chunk: $chunk:expr,
-        hidden: $hidden:expr,
-        outputs: $outputs:expr,
-        layers: [$($layer:expr),+ $(,)?] $(,)?
+        net: $net:ty,
+        outputs: $outputs:expr $(,)?
     ) => {
         impl<W: $crate::weights::Weights> $crate::wavefront::chunked::ChunkedSampler
             for $sampler<W>
@@ -302,19 +300,12 @@ macro_rules! mlp_lane_sampler {
                 lanes: &mut [Self::Lane],
             ) {
                 use $crate::wavefront::lanes::{head, NARROW};
-                use $crate::wavefront::{dense, encoded_conditions, FromOutputs, Soa};
+                use $crate::wavefront::{encoded_conditions, FromOutputs, Soa};
                 const CHUNK: usize = $chunk;
                 let m = lanes.len();
                 let (c, valid) = encoded_conditions::<CHUNK>(&phi, &wi);
                 let mut o: Soa<{ $outputs }, CHUNK> = [[0.0; CHUNK]; $outputs];
-                let layers = [$($layer),+];
-                dense::relu_mlp::<_, _, { $hidden }, _, CHUNK, { [$(stringify!($layer)),+].len() }>(
-                    &self.params,
-                    &layers,
-                    &c,
-                    &mut o,
-                    m,
-                );
+                <$net>::forward_lanes(&self.params, &c, &mut o, m);
                 // A small chunk gives row-wise constructors rows of `NARROW` lanes (the same
                 // bits).
                 if <$prepared as FromOutputs<{ $outputs }>>::ROWS && m <= NARROW {

@@ -14,7 +14,7 @@
 use super::lanes::{Lanes, V8};
 #[cfg(any(target_arch = "x86", target_arch = "x86_64", target_arch = "aarch64"))]
 use super::simd::{self, Isa};
-use crate::nn::Activation;
+use crate::nn::{Activation, ReluMlp};
 use crate::weights::Weights;
 
 /// Lanes per register tile of the portable path (two [`V8`]); chunks are whole tiles.
@@ -43,43 +43,47 @@ pub(crate) fn dense<W: Weights + ?Sized, const I: usize, const O: usize, const B
     product::<W, I, O, B>(w, offset, 0, x, y, m, Start::Bias, act);
 }
 
-/// A chain of `L` dense layers over the first `m` lanes of a chunk, at the parameter
-/// offsets `offsets`: `dense(I, H)` and `L − 2` of `dense(H, H)`, each with ReLU, then
-/// `dense(H, O)` without an activation into `y`.
-#[inline(always)]
-pub(crate) fn relu_mlp<
-    W: Weights + ?Sized,
-    const I: usize,
-    const H: usize,
-    const O: usize,
-    const B: usize,
-    const L: usize,
->(
-    w: &W,
-    offsets: &[usize; L],
-    x: &[[f32; B]; I],
-    y: &mut [[f32; B]; O],
-    m: usize,
-) {
-    const { assert!(L >= 2, "a chain has a first and a last layer") };
-    let relu = Activation::Relu;
-    let mut h = [[[0.0f32; B]; H]; 2];
-    dense(w, offsets[0] as u32, x, relu, &mut h[0], m);
-    let mut k = 1;
-    while k + 1 < L {
-        let [a, b] = &mut h;
-        let (src, dst) = if k % 2 == 1 { (&*a, b) } else { (&*b, a) };
-        dense(w, offsets[k] as u32, src, relu, dst, m);
-        k += 1;
+impl<const I: usize, const H: usize, const O: usize, const L: usize> ReluMlp<I, H, O, L> {
+    /// [`ReluMlp::forward`] over the first `m` lanes of a chunk, into `y`.
+    #[inline(always)]
+    pub(crate) fn forward_lanes<W: Weights + ?Sized, const B: usize>(
+        w: &W,
+        x: &[[f32; B]; I],
+        y: &mut [[f32; B]; O],
+        m: usize,
+    ) {
+        Self::forward_lanes_in(w, x, &mut [[[0.0; B]; H]; 2], y, m);
     }
-    dense(
-        w,
-        offsets[L - 1] as u32,
-        &h[(L - 2) % 2],
-        Activation::Identity,
-        y,
-        m,
-    );
+
+    /// [`ReluMlp::forward_lanes`] with the hidden layers' activations in `h` (working
+    /// memory, so that a caller that keeps it across chunks does not zero it again).
+    #[inline(always)]
+    pub(crate) fn forward_lanes_in<W: Weights + ?Sized, const B: usize>(
+        w: &W,
+        x: &[[f32; B]; I],
+        h: &mut [[[f32; B]; H]; 2],
+        y: &mut [[f32; B]; O],
+        m: usize,
+    ) {
+        let offsets = Self::OFFSETS;
+        let relu = Activation::Relu;
+        dense(w, offsets[0] as u32, x, relu, &mut h[0], m);
+        let mut k = 1;
+        while k + 1 < L {
+            let [a, b] = h;
+            let (src, dst) = if k % 2 == 1 { (&*a, b) } else { (&*b, a) };
+            dense(w, offsets[k] as u32, src, relu, dst, m);
+            k += 1;
+        }
+        dense(
+            w,
+            offsets[L - 1] as u32,
+            &h[(L - 2) % 2],
+            Activation::Identity,
+            y,
+            m,
+        );
+    }
 }
 
 /// `acc[j][b] += Σ_{i < I} x[i][b] · W[offset + (row0 + i)·O + j]` for `j < O`, `b < B`:

@@ -285,9 +285,8 @@ pub(crate) fn box_muller_rows<const C: usize>(
     }
 }
 
-/// `exp(log_pdf)` as a density (the batched path's
-/// [`density_from_log`](crate::samplers::coupling::density_from_log)): 0 for −∞, NaN or an
-/// overflow.
+/// `exp(log_pdf)` as a density with the fast `exp` (the scalar flows' `density_from_log`
+/// over lanes): 0 for −∞, NaN or an overflow.
 #[inline(always)]
 pub(crate) fn density_from_log(log_pdf: f32) -> f32 {
     let p = approx::exp(log_pdf);

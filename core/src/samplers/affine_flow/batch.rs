@@ -1,4 +1,4 @@
-//! [`AffineFlowSampler`] over wavefronts ([`BatchSampler`]): the coupling networks as matrix
+//! [`AffineFlowSampler`] over wavefronts ([`BatchSampler`](crate::wavefront::BatchSampler)): the coupling networks as matrix
 //! products over a chunk's lanes, the affine updates per lane in the scalar path's order.
 
 use glam::Vec2;

@@ -1,4 +1,4 @@
-//! [`DiskFlowSampler`] over wavefronts ([`BatchSampler`](crate::BatchSampler)): the
+//! [`DiskFlowSampler`] over wavefronts ([`BatchSampler`](crate::wavefront::BatchSampler)): the
 //! two-coupling flow's chunks ([`coupling_flow_chunks`]) with a uniform base and the chord
 //! couplings, eight lanes at a time through the scalar path's own generic functions, so both
 //! paths give the same bits.

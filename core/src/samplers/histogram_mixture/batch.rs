@@ -5,7 +5,7 @@
 use super::*;
 use crate::wavefront::chunked::ChunkedSampler;
 use crate::wavefront::lanes::V8;
-use crate::wavefront::{self, dense, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s};
+use crate::wavefront::{self, Features, SamplesMut, Soa, Vec2s, Vec2sMut, Vec3s};
 
 /// Lanes per chunk.
 const CHUNK: usize = 32;
@@ -20,14 +20,8 @@ impl<W: Weights + Copy> ChunkedSampler for HistogramMixtureSampler<W> {
         let w = &self.params;
         let m = lanes.len();
         let (c, valid) = wavefront::raw_conditions::<CHUNK>(&phi, &wi);
-        let mut h: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
-        let mut g: Soa<MIX_HIDDEN, CHUNK> = [[0.0; CHUNK]; MIX_HIDDEN];
         let mut o: Soa<MIX_OUTPUTS, CHUNK> = [[0.0; CHUNK]; MIX_OUTPUTS];
-        let relu = Activation::Relu;
-        dense::dense(w, MIX_L0 as u32, &c, relu, &mut h, m);
-        dense::dense(w, MIX_L1 as u32, &h, relu, &mut g, m);
-        dense::dense(w, MIX_L2 as u32, &g, relu, &mut h, m);
-        dense::dense(w, MIX_L3 as u32, &h, Activation::Identity, &mut o, m);
+        Net::forward_lanes(w, &c, &mut o, m);
         // The softmax of the logits a_k across lanes, eight at a time.
         let mut soft: Soa<BASES, CHUNK> = [[0.0; CHUNK]; BASES];
         let mut g = 0;

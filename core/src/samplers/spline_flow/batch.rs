@@ -1,4 +1,4 @@
-//! [`SplineFlowSampler`] over wavefronts ([`BatchSampler`](crate::BatchSampler)): the
+//! [`SplineFlowSampler`] over wavefronts ([`BatchSampler`](crate::wavefront::BatchSampler)): the
 //! two-coupling flow's chunks ([`coupling_flow_chunks`]) with a Gaussian base, bounded
 //! splines, and the base network in `prepare` (the paths agree within the `wavefront`
 //! tolerances).

@@ -196,11 +196,9 @@ const CHUNK: usize = 64;
 /// The decoder's layers through `neusample::wavefront::dense_layer`: ns per point at batch
 /// `n` (whole chunks of [`CHUNK`]; the last one partial).
 fn runtime_decoder_ns(n: usize, lanes: usize, passes: usize) -> f64 {
-    use neusample::nn::{dense_len, Activation};
+    use neusample::nn::{Activation, ReluMlp};
     use neusample::wavefront::dense_layer;
-    const L1: usize = dense_len(DI, DH);
-    const L2: usize = L1 + dense_len(DH, DH);
-    const L3: usize = L2 + dense_len(DH, DH);
+    let [l0, l1, l2, l3] = ReluMlp::<DI, DH, DO, 4>::OFFSETS.map(|o| o as u32);
     let params = filled(1, DECODER_PARAM_COUNT, 0xDEC)
         .into_raw_vec_and_offset()
         .0;
@@ -221,10 +219,10 @@ fn runtime_decoder_ns(n: usize, lanes: usize, passes: usize) -> f64 {
         for _ in 0..calls {
             for (c, x) in inputs.iter().enumerate() {
                 let m = (n - c * CHUNK).min(CHUNK);
-                dense_layer(w, 0, x, relu, &mut h, m);
-                dense_layer(w, L1 as u32, &h, relu, &mut g, m);
-                dense_layer(w, L2 as u32, &g, relu, &mut h, m);
-                dense_layer(w, L3 as u32, &h, Activation::Identity, &mut o, m);
+                dense_layer(w, l0, x, relu, &mut h, m);
+                dense_layer(w, l1, &h, relu, &mut g, m);
+                dense_layer(w, l2, &g, relu, &mut h, m);
+                dense_layer(w, l3, &h, Activation::Identity, &mut o, m);
                 std::hint::black_box(&o);
             }
         }
