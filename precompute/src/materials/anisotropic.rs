@@ -25,11 +25,11 @@
 use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
-use super::check;
+use super::check::params;
 use super::microfacet::{alpha_from_roughness, clamp_tilt, half_angle, ShadingFrame};
 use super::model::FEATURE_DIM;
 use super::noise::{fbm, gradient_of, smoothstep, unit as hunit, worley};
-use super::surface::{lerp3, signed, unit, Surface, SurfaceModel};
+use super::surface::{lerp, lerp3, signed, unit, Surface, SurfaceModel};
 
 /// Tangent-field pattern.
 #[derive(Copy, Clone, Debug, Deserialize, PartialEq, Eq)]
@@ -43,28 +43,28 @@ pub enum Pattern {
     Shell,
 }
 
-/// `[params]` of an `anisotropic` material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    /// Tangent-field pattern.
-    pub pattern: Pattern,
-    /// Noise seed.
-    pub seed: u32,
-    /// Pattern frequency (cells or fBm lattice cells per uv unit), 1..=256.
-    pub freq: u32,
-    /// Perceptual roughness along the tangent, `[min, max]` in `[0, 1]`.
-    pub roughness_along: [f32; 2],
-    /// Perceptual roughness across the tangent, `[min, max]` in `[0, 1]`.
-    pub roughness_across: [f32; 2],
-    /// First colour (F0 for metals, albedo for dielectrics).
-    pub color_a: [f32; 3],
-    /// Second colour.
-    pub color_b: [f32; 3],
-    /// Metallic, `[0, 1]`.
-    pub metallic: f32,
-    /// Bump strength (slope scale), 0..=3.
-    pub bump: f32,
+params! {
+    /// `[params]` of an `anisotropic` material.
+    pub struct Params {
+        /// Tangent-field pattern.
+        pub pattern: Pattern,
+        /// Noise seed.
+        pub seed: u32,
+        /// Pattern frequency (cells or fBm lattice cells per uv unit).
+        pub freq: u32 => count(1..=256),
+        /// Perceptual roughness along the tangent.
+        pub roughness_along: [f32; 2] => interval(0.0..=1.0),
+        /// Perceptual roughness across the tangent.
+        pub roughness_across: [f32; 2] => interval(0.0..=1.0),
+        /// First colour (F0 for metals, albedo for dielectrics).
+        pub color_a: [f32; 3] => range_n(0.0..=1.0),
+        /// Second colour.
+        pub color_b: [f32; 3] => range_n(0.0..=1.0),
+        /// Metallic.
+        pub metallic: f32 => range(0.0..=1.0),
+        /// Bump strength (slope scale).
+        pub bump: f32 => range(0.0..=3.0),
+    }
 }
 
 /// An `anisotropic` material.
@@ -83,13 +83,7 @@ impl SurfaceModel for Anisotropic {
     type Params = Params;
 
     fn from_params(p: Params) -> anyhow::Result<Self> {
-        check::count("freq", p.freq, 1, 256)?;
-        check::interval("roughness_along", p.roughness_along, 0.0, 1.0)?;
-        check::interval("roughness_across", p.roughness_across, 0.0, 1.0)?;
-        check::range_n("color_a", &p.color_a, 0.0, 1.0)?;
-        check::range_n("color_b", &p.color_b, 0.0, 1.0)?;
-        check::range("metallic", p.metallic, 0.0, 1.0)?;
-        check::range("bump", p.bump, 0.0, 3.0)?;
+        p.check()?;
         Ok(Anisotropic { p })
     }
 
@@ -142,8 +136,8 @@ impl SurfaceModel for Anisotropic {
         };
         let n = Vec3::new(-p.bump * grad.x, -p.bump * grad.y, 1.0).normalize();
         let (nx, ny) = clamp_tilt(n.x, n.y);
-        let ra = p.roughness_along[0] + (p.roughness_along[1] - p.roughness_along[0]) * rb;
-        let rc = p.roughness_across[0] + (p.roughness_across[1] - p.roughness_across[0]) * rb;
+        let ra = lerp(p.roughness_along[0], p.roughness_along[1], rb);
+        let rc = lerp(p.roughness_across[0], p.roughness_across[1], rb);
         [c2, s2, ra, rc, nx, ny, tint, p.metallic]
     }
 
@@ -152,10 +146,7 @@ impl SurfaceModel for Anisotropic {
         let ax = alpha_from_roughness(unit(phi[2]));
         let ay = alpha_from_roughness(unit(phi[3]));
         let color = lerp3(self.p.color_a, self.p.color_b, unit(phi[6]));
-        let m = unit(phi[7]);
-        let f0 = lerp3([0.04; 3], color, m);
-        let diffuse = color.map(|x| x * (1.0 - m));
-        let mut surf = Surface::isotropic(ax, f0, diffuse);
+        let mut surf = Surface::metallic(ax, color, unit(phi[7]));
         surf.ay = ay;
         surf.frame = ShadingFrame::new(signed(phi[4]), signed(phi[5]), c, s);
         surf

@@ -24,9 +24,8 @@
 //! | 6, 7  | base shading normal `n.x`, `n.y` (flakes)          | `|(n.x, n.y)| ≤ 0.9` |
 
 use glam::{Vec2, Vec3};
-use serde::Deserialize;
 
-use super::check;
+use super::check::params;
 use super::format::File;
 use super::microfacet::{
     alpha_from_roughness, clamp_tilt, fresnel_dielectric, ggx_dg, normalize_pair, refract_up,
@@ -34,36 +33,36 @@ use super::microfacet::{
 };
 use super::model::{Material, FEATURE_DIM};
 use super::noise::{fbm, hash, unit as hunit, worley, wrap_uv};
-use super::surface::{lerp3, sanitize, signed, unit, Surface};
+use super::surface::{lerp, lerp3, sanitize, signed, unit, unit3, Surface};
 
-/// `[params]` of a `clearcoat` material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    /// Noise seed.
-    pub seed: u32,
-    /// Coat index of refraction, 1.01..=2.5.
-    pub coat_ior: f32,
-    /// Coat perceptual roughness `[min, max]` (orange peel / wear varies it).
-    pub coat_roughness: [f32; 2],
-    /// Absorption coefficient σ of the coat per unit thickness (RGB), 0..=8.
-    pub absorption: [f32; 3],
-    /// Coat thickness `[min, max]` in `[0, 1]`.
-    pub thickness: [f32; 2],
-    /// Base colours blended by a low-frequency pattern.
-    pub base_color_a: [f32; 3],
-    /// Second base colour.
-    pub base_color_b: [f32; 3],
-    /// Base metallic, 0..=1 (constant).
-    pub base_metallic: f32,
-    /// Base perceptual roughness `[min, max]`.
-    pub base_roughness: [f32; 2],
-    /// Flakes per uv unit (Worley cells), 1..=512.
-    pub flakes: u32,
-    /// Flake normal tilt `|(n.x, n.y)|` (max), 0..=0.9.
-    pub flake_tilt: f32,
-    /// Pattern frequency of colour/roughness variation, 1..=64.
-    pub pattern_freq: u32,
+params! {
+    /// `[params]` of a `clearcoat` material.
+    pub struct Params {
+        /// Noise seed.
+        pub seed: u32,
+        /// Coat index of refraction.
+        pub coat_ior: f32 => range(1.01..=2.5),
+        /// Coat perceptual roughness (orange peel / wear varies it).
+        pub coat_roughness: [f32; 2] => interval(0.0..=1.0),
+        /// Absorption coefficient σ of the coat per unit thickness (RGB).
+        pub absorption: [f32; 3] => range_n(0.0..=8.0),
+        /// Coat thickness.
+        pub thickness: [f32; 2] => interval(0.0..=1.0),
+        /// Base colours blended by a low-frequency pattern.
+        pub base_color_a: [f32; 3] => range_n(0.0..=1.0),
+        /// Second base colour.
+        pub base_color_b: [f32; 3] => range_n(0.0..=1.0),
+        /// Base metallic (constant).
+        pub base_metallic: f32 => range(0.0..=1.0),
+        /// Base perceptual roughness.
+        pub base_roughness: [f32; 2] => interval(0.0..=1.0),
+        /// Flakes per uv unit (Worley cells).
+        pub flakes: u32 => count(1..=512),
+        /// Flake normal tilt `|(n.x, n.y)|` (max).
+        pub flake_tilt: f32 => range(0.0..=0.9),
+        /// Pattern frequency of colour/roughness variation.
+        pub pattern_freq: u32 => count(1..=64),
+    }
 }
 
 /// A `clearcoat` material.
@@ -76,18 +75,7 @@ pub struct ClearCoat {
 impl ClearCoat {
     /// Validates a parsed file.
     pub fn new(file: File<Params>) -> anyhow::Result<Self> {
-        let p = &file.params;
-        check::range("coat_ior", p.coat_ior, 1.01, 2.5)?;
-        check::interval("coat_roughness", p.coat_roughness, 0.0, 1.0)?;
-        check::range_n("absorption", &p.absorption, 0.0, 8.0)?;
-        check::interval("thickness", p.thickness, 0.0, 1.0)?;
-        check::range_n("base_color_a", &p.base_color_a, 0.0, 1.0)?;
-        check::range_n("base_color_b", &p.base_color_b, 0.0, 1.0)?;
-        check::range("base_metallic", p.base_metallic, 0.0, 1.0)?;
-        check::interval("base_roughness", p.base_roughness, 0.0, 1.0)?;
-        check::count("flakes", p.flakes, 1, 512)?;
-        check::range("flake_tilt", p.flake_tilt, 0.0, 0.9)?;
-        check::count("pattern_freq", p.pattern_freq, 1, 64)?;
+        file.params.check()?;
         Ok(ClearCoat {
             name: file.name,
             p: file.params,
@@ -111,9 +99,9 @@ impl Material for ClearCoat {
         let t = p.flake_tilt * hunit(hash(w.id, 1, p.seed)).sqrt();
         let (nx, ny) = clamp_tilt(t * a.cos(), t * a.sin());
         let color = lerp3(p.base_color_a, p.base_color_b, pat);
-        let rc = p.coat_roughness[0] + (p.coat_roughness[1] - p.coat_roughness[0]) * wear;
-        let tau = p.thickness[1] + (p.thickness[0] - p.thickness[1]) * wear;
-        let rb = p.base_roughness[0] + (p.base_roughness[1] - p.base_roughness[0]) * pat;
+        let rc = lerp(p.coat_roughness[0], p.coat_roughness[1], wear);
+        let tau = lerp(p.thickness[1], p.thickness[0], wear);
+        let rb = lerp(p.base_roughness[0], p.base_roughness[1], pat);
         [rc, tau, rb, color[0], color[1], color[2], nx, ny]
     }
 
@@ -129,12 +117,10 @@ impl Material for ClearCoat {
         let (fo, cto) = fresnel_dielectric(wo.z, eta);
         let wi_t = refract_up(wi, eta, cti);
         let wo_t = refract_up(wo, eta, cto);
-        let color = [unit(phi[3]), unit(phi[4]), unit(phi[5])];
-        let m = self.p.base_metallic;
-        let mut base = Surface::isotropic(
+        let mut base = Surface::metallic(
             alpha_from_roughness(unit(phi[2])),
-            lerp3([0.04; 3], color, m),
-            color.map(|x| x * (1.0 - m)),
+            unit3(phi, 3),
+            self.p.base_metallic,
         );
         base.frame = ShadingFrame::new(signed(phi[6]), signed(phi[7]), 1.0, 0.0);
         let fb = base.eval_unit(wi_t, wo_t);

@@ -12,27 +12,26 @@
 //! | 7     | unused, 0                                           | `0`      |
 
 use glam::Vec2;
-use serde::Deserialize;
 
-use super::check;
+use super::check::params;
 use super::microfacet::{alpha_from_roughness, half_angle, ShadingFrame};
 use super::model::FEATURE_DIM;
-use super::surface::{signed, unit, Surface, SurfaceModel};
+use super::surface::{signed, unit, unit3, Surface, SurfaceModel};
 
-/// `[params]` of a `conductor` material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    /// Perceptual roughness along the tangent, 0..=1.
-    pub roughness_x: f32,
-    /// Perceptual roughness along the bitangent (defaults to `roughness_x`), 0..=1.
-    #[serde(default)]
-    pub roughness_y: Option<f32>,
-    /// Reflectance at normal incidence (RGB).
-    pub f0: [f32; 3],
-    /// Tangent angle ψ from the u axis, degrees.
-    #[serde(default)]
-    pub tangent_deg: f32,
+params! {
+    /// `[params]` of a `conductor` material.
+    pub struct Params {
+        /// Perceptual roughness along the tangent.
+        pub roughness_x: f32 => range(0.0..=1.0),
+        /// Perceptual roughness along the bitangent (defaults to `roughness_x`).
+        #[serde(default)]
+        pub roughness_y: Option<f32> => range(0.0..=1.0),
+        /// Reflectance at normal incidence (RGB).
+        pub f0: [f32; 3] => range_n(0.0..=1.0),
+        /// Tangent angle ψ from the u axis, degrees.
+        #[serde(default)]
+        pub tangent_deg: f32 => range(-360.0..=360.0),
+    }
 }
 
 /// A `conductor` material.
@@ -45,11 +44,8 @@ impl SurfaceModel for Conductor {
     type Params = Params;
 
     fn from_params(p: Params) -> anyhow::Result<Self> {
-        check::range("roughness_x", p.roughness_x, 0.0, 1.0)?;
+        p.check()?;
         let ry = p.roughness_y.unwrap_or(p.roughness_x);
-        check::range("roughness_y", ry, 0.0, 1.0)?;
-        check::range_n("f0", &p.f0, 0.0, 1.0)?;
-        check::range("tangent_deg", p.tangent_deg, -360.0, 360.0)?;
         let (s2, c2) = (2.0 * p.tangent_deg.to_radians()).sin_cos();
         let phi = [p.roughness_x, ry, p.f0[0], p.f0[1], p.f0[2], c2, s2, 0.0];
         Ok(Conductor { phi })
@@ -61,8 +57,8 @@ impl SurfaceModel for Conductor {
 
     fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface {
         let (c, s) = half_angle(signed(phi[5]), signed(phi[6]));
-        let f0 = [unit(phi[2]), unit(phi[3]), unit(phi[4])];
-        let mut surf = Surface::isotropic(alpha_from_roughness(unit(phi[0])), f0, [0.0; 3]);
+        let mut surf =
+            Surface::isotropic(alpha_from_roughness(unit(phi[0])), unit3(phi, 2), [0.0; 3]);
         surf.ay = alpha_from_roughness(unit(phi[1]));
         surf.frame = ShadingFrame::new(0.0, 0.0, c, s);
         surf

@@ -28,7 +28,7 @@
 use glam::{Vec2, Vec3};
 use serde::Deserialize;
 
-use super::check;
+use super::check::params;
 use super::format::File;
 use super::microfacet::{
     alpha_from_roughness, charlie_d, ggx_d, ggx_dg, ggx_g2, half_angle, normalize_pair, schlick1,
@@ -36,7 +36,7 @@ use super::microfacet::{
 };
 use super::model::{Material, FEATURE_DIM};
 use super::noise::{fbm, hash, smoothstep, unit as hunit, wrap_uv};
-use super::surface::{sanitize, signed, unit};
+use super::surface::{lerp, sanitize, signed, unit};
 
 /// Weave pattern.
 #[derive(Copy, Clone, Debug, Deserialize, PartialEq, Eq)]
@@ -48,46 +48,46 @@ pub enum Weave {
     Satin,
 }
 
-/// `[params]` of a `fabric` material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    /// Noise seed.
-    pub seed: u32,
-    /// Threads per uv unit (each direction), 4..=1024.
-    pub threads: u32,
-    /// Weave outside the motif.
-    pub weave: Weave,
-    /// Weave inside the motif (a low-frequency damask pattern).
-    pub motif_weave: Weave,
-    /// Motif frequency (fBm lattice cells per uv unit), 1..=32.
-    pub motif_freq: u32,
-    /// Warp thread colour (runs along v).
-    pub warp_color: [f32; 3],
-    /// Weft thread colour (runs along u).
-    pub weft_color: [f32; 3],
-    /// Gloss of warp threads, 0..=1.
-    pub warp_gloss: f32,
-    /// Gloss of weft threads, 0..=1.
-    pub weft_gloss: f32,
-    /// Thread lobe perceptual roughness along the thread, 0..=1.
-    pub roughness_along: f32,
-    /// Thread lobe perceptual roughness across the thread, 0..=1.
-    pub roughness_across: f32,
-    /// Tilt of the lobe normals along the thread, degrees, 0..=60.
-    pub tilt_deg: f32,
-    /// Thread specular F0, 0..=0.2.
-    pub f0: f32,
-    /// Retro-reflective lobe weight, 0..=0.3.
-    pub retro: f32,
-    /// Retro lobe perceptual roughness, 0..=1.
-    pub retro_roughness: f32,
-    /// Sheen colour.
-    pub sheen_color: [f32; 3],
-    /// Sheen α (Charlie), 0.05..=1.
-    pub sheen_alpha: f32,
-    /// Sheen amount `[min, max]` (fuzz varies over the cloth).
-    pub sheen: [f32; 2],
+params! {
+    /// `[params]` of a `fabric` material.
+    pub struct Params {
+        /// Noise seed.
+        pub seed: u32,
+        /// Threads per uv unit (each direction).
+        pub threads: u32 => count(4..=1024),
+        /// Weave outside the motif.
+        pub weave: Weave,
+        /// Weave inside the motif (a low-frequency damask pattern).
+        pub motif_weave: Weave,
+        /// Motif frequency (fBm lattice cells per uv unit).
+        pub motif_freq: u32 => count(1..=32),
+        /// Warp thread colour (runs along v).
+        pub warp_color: [f32; 3] => range_n(0.0..=1.0),
+        /// Weft thread colour (runs along u).
+        pub weft_color: [f32; 3] => range_n(0.0..=1.0),
+        /// Gloss of warp threads.
+        pub warp_gloss: f32 => range(0.0..=1.0),
+        /// Gloss of weft threads.
+        pub weft_gloss: f32 => range(0.0..=1.0),
+        /// Thread lobe perceptual roughness along the thread.
+        pub roughness_along: f32 => range(0.0..=1.0),
+        /// Thread lobe perceptual roughness across the thread.
+        pub roughness_across: f32 => range(0.0..=1.0),
+        /// Tilt of the lobe normals along the thread, degrees.
+        pub tilt_deg: f32 => range(0.0..=60.0),
+        /// Thread specular F0.
+        pub f0: f32 => range(0.0..=0.2),
+        /// Retro-reflective lobe weight.
+        pub retro: f32 => range(0.0..=0.3),
+        /// Retro lobe perceptual roughness.
+        pub retro_roughness: f32 => range(0.0..=1.0),
+        /// Sheen colour.
+        pub sheen_color: [f32; 3] => range_n(0.0..=1.0),
+        /// Sheen α (Charlie).
+        pub sheen_alpha: f32 => range(0.05..=1.0),
+        /// Sheen amount (fuzz varies over the cloth).
+        pub sheen: [f32; 2] => interval(0.0..=1.0),
+    }
 }
 
 /// A `fabric` material.
@@ -107,21 +107,7 @@ impl Fabric {
     /// Validates a parsed file.
     pub fn new(file: File<Params>) -> anyhow::Result<Self> {
         let p = &file.params;
-        check::count("threads", p.threads, 4, 1024)?;
-        check::count("motif_freq", p.motif_freq, 1, 32)?;
-        check::range_n("warp_color", &p.warp_color, 0.0, 1.0)?;
-        check::range_n("weft_color", &p.weft_color, 0.0, 1.0)?;
-        check::range("warp_gloss", p.warp_gloss, 0.0, 1.0)?;
-        check::range("weft_gloss", p.weft_gloss, 0.0, 1.0)?;
-        check::range("roughness_along", p.roughness_along, 0.0, 1.0)?;
-        check::range("roughness_across", p.roughness_across, 0.0, 1.0)?;
-        check::range("tilt_deg", p.tilt_deg, 0.0, 60.0)?;
-        check::range("f0", p.f0, 0.0, 0.2)?;
-        check::range("retro", p.retro, 0.0, 0.3)?;
-        check::range("retro_roughness", p.retro_roughness, 0.0, 1.0)?;
-        check::range_n("sheen_color", &p.sheen_color, 0.0, 1.0)?;
-        check::range("sheen_alpha", p.sheen_alpha, 0.05, 1.0)?;
-        check::interval("sheen", p.sheen, 0.0, 1.0)?;
+        p.check()?;
         let (tilt_sin, tilt_cos) = p.tilt_deg.to_radians().sin_cos();
         let sheen_max = p.sheen_color.iter().fold(0.0f32, |a, &b| a.max(b));
         Ok(Fabric {
@@ -190,7 +176,7 @@ impl Material for Fabric {
             0.3,
             fbm(uv, p.motif_freq * 8, 2, 0.5, p.seed ^ 0xf022),
         );
-        let sheen = p.sheen[0] + (p.sheen[1] - p.sheen[0]) * fuzz;
+        let sheen = lerp(p.sheen[0], p.sheen[1], fuzz);
         [c2, s2, tau, color[0], color[1], color[2], sheen, gloss]
     }
 

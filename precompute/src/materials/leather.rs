@@ -17,43 +17,42 @@
 //! | 7     | cavity `c` (multiplies f)                   | `[0, 1]`  |
 
 use glam::Vec2;
-use serde::Deserialize;
 
-use super::check;
+use super::check::params;
 use super::microfacet::{alpha_from_roughness, clamp_tilt, ShadingFrame};
 use super::model::FEATURE_DIM;
 use super::noise::{fbm, gradient_of, smoothstep, unit as hunit, worley};
-use super::surface::{lerp3, signed, unit, Surface, SurfaceModel};
+use super::surface::{lerp, lerp3, signed, unit, unit3, Surface, SurfaceModel};
 
-/// `[params]` of a `normal_mapped` material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    /// Noise seed.
-    pub seed: u32,
-    /// Grain cells per uv unit (Worley frequency), 1..=256.
-    pub grain_cells: u32,
-    /// Bump strength of the grain (slope scale), 0..=3.
-    pub grain_depth: f32,
-    /// Wrinkle fBm base frequency (cells per uv unit), 1..=256.
-    pub wrinkle_freq: u32,
-    /// Wrinkle fBm octaves, 1..=8.
-    pub wrinkle_octaves: u32,
-    /// Bump strength of the wrinkles, 0..=3.
-    pub wrinkle_strength: f32,
-    /// Albedo of the cell tops.
-    pub color_top: [f32; 3],
-    /// Albedo in the creases.
-    pub color_crease: [f32; 3],
-    /// Extra per-cell albedo variation (relative), 0..=1.
-    #[serde(default)]
-    pub color_jitter: f32,
-    /// Perceptual roughness on the cell tops, 0..=1.
-    pub roughness_top: f32,
-    /// Perceptual roughness in the creases, 0..=1.
-    pub roughness_crease: f32,
-    /// Specular level `s` (`F0 = 0.08 s`), 0..=1.
-    pub specular: f32,
+params! {
+    /// `[params]` of a `normal_mapped` material.
+    pub struct Params {
+        /// Noise seed.
+        pub seed: u32,
+        /// Grain cells per uv unit (Worley frequency).
+        pub grain_cells: u32 => count(1..=256),
+        /// Bump strength of the grain (slope scale).
+        pub grain_depth: f32 => range(0.0..=3.0),
+        /// Wrinkle fBm base frequency (cells per uv unit).
+        pub wrinkle_freq: u32 => count(1..=256),
+        /// Wrinkle fBm octaves.
+        pub wrinkle_octaves: u32 => count(1..=8),
+        /// Bump strength of the wrinkles.
+        pub wrinkle_strength: f32 => range(0.0..=3.0),
+        /// Albedo of the cell tops.
+        pub color_top: [f32; 3] => range_n(0.0..=1.0),
+        /// Albedo in the creases.
+        pub color_crease: [f32; 3] => range_n(0.0..=1.0),
+        /// Extra per-cell albedo variation (relative).
+        #[serde(default)]
+        pub color_jitter: f32 => range(0.0..=1.0),
+        /// Perceptual roughness on the cell tops.
+        pub roughness_top: f32 => range(0.0..=1.0),
+        /// Perceptual roughness in the creases.
+        pub roughness_crease: f32 => range(0.0..=1.0),
+        /// Specular level `s` (`F0 = 0.08 s`).
+        pub specular: f32 => range(0.0..=1.0),
+    }
 }
 
 /// A `normal_mapped` material.
@@ -78,17 +77,7 @@ impl SurfaceModel for Leather {
     type Params = Params;
 
     fn from_params(p: Params) -> anyhow::Result<Self> {
-        check::count("grain_cells", p.grain_cells, 1, 256)?;
-        check::range("grain_depth", p.grain_depth, 0.0, 3.0)?;
-        check::count("wrinkle_freq", p.wrinkle_freq, 1, 256)?;
-        check::count("wrinkle_octaves", p.wrinkle_octaves, 1, 8)?;
-        check::range("wrinkle_strength", p.wrinkle_strength, 0.0, 3.0)?;
-        check::range_n("color_top", &p.color_top, 0.0, 1.0)?;
-        check::range_n("color_crease", &p.color_crease, 0.0, 1.0)?;
-        check::range("color_jitter", p.color_jitter, 0.0, 1.0)?;
-        check::range("roughness_top", p.roughness_top, 0.0, 1.0)?;
-        check::range("roughness_crease", p.roughness_crease, 0.0, 1.0)?;
-        check::range("specular", p.specular, 0.0, 1.0)?;
+        p.check()?;
         Ok(Leather { p })
     }
 
@@ -102,7 +91,7 @@ impl SurfaceModel for Leather {
         let jitter = 1.0 + p.color_jitter * (hunit(w.id) - 0.5);
         let albedo =
             lerp3(p.color_top, p.color_crease, crease).map(|c| (c * jitter).clamp(0.0, 1.0));
-        let r = p.roughness_top + (p.roughness_crease - p.roughness_top) * crease;
+        let r = lerp(p.roughness_top, p.roughness_crease, crease);
         let cavity = 1.0 - 0.5 * crease;
         let (nx, ny) = clamp_tilt(n.x, n.y);
         [
@@ -112,8 +101,7 @@ impl SurfaceModel for Leather {
 
     fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface {
         let a = alpha_from_roughness(unit(phi[2]));
-        let f0 = 0.08 * unit(phi[6]);
-        let mut s = Surface::isotropic(a, [f0; 3], [unit(phi[3]), unit(phi[4]), unit(phi[5])]);
+        let mut s = Surface::dielectric(a, unit(phi[6]), unit3(phi, 3));
         s.frame = ShadingFrame::new(signed(phi[0]), signed(phi[1]), 1.0, 0.0);
         s.scale = unit(phi[7]);
         s

@@ -16,44 +16,43 @@
 //! | 7     | haze weight `w_h`                         | `[0, 1]` |
 
 use glam::{Vec2, Vec3};
-use serde::Deserialize;
 
-use super::check;
+use super::check::params;
 use super::microfacet::{alpha_from_roughness, clamp_tilt, ShadingFrame};
 use super::model::FEATURE_DIM;
 use super::noise::{fbm, gradient_of, smoothstep, turbulence};
-use super::surface::{lerp3, signed, unit, Surface, SurfaceModel};
+use super::surface::{lerp, lerp3, signed, unit, unit3, Surface, SurfaceModel};
 
-/// `[params]` of a `marble` material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    /// Noise seed.
-    pub seed: u32,
-    /// Vein frequency (periods per uv unit), 1..=64.
-    pub vein_freq: u32,
-    /// Turbulence frequency (lattice cells per uv unit), 1..=64.
-    pub turbulence_freq: u32,
-    /// Turbulence strength (phase distortion in periods), 0..=8.
-    pub turbulence: f32,
-    /// Vein sharpness (power applied to the vein profile), 0.5..=32.
-    pub vein_sharpness: f32,
-    /// Body albedo.
-    pub color_body: [f32; 3],
-    /// Vein albedo.
-    pub color_vein: [f32; 3],
-    /// Perceptual roughness of the polished body, 0..=1.
-    pub roughness_body: f32,
-    /// Perceptual roughness in the veins, 0..=1.
-    pub roughness_vein: f32,
-    /// Haze weight of the body, 0..=1.
-    pub haze_body: f32,
-    /// Haze weight in the veins, 0..=1.
-    pub haze_vein: f32,
-    /// Specular level `s` (`F0 = 0.08 s`), 0..=1.
-    pub specular: f32,
-    /// Bump strength of polishing ripples (slope scale), 0..=1.
-    pub bump: f32,
+params! {
+    /// `[params]` of a `marble` material.
+    pub struct Params {
+        /// Noise seed.
+        pub seed: u32,
+        /// Vein frequency (periods per uv unit).
+        pub vein_freq: u32 => count(1..=64),
+        /// Turbulence frequency (lattice cells per uv unit).
+        pub turbulence_freq: u32 => count(1..=64),
+        /// Turbulence strength (phase distortion in periods).
+        pub turbulence: f32 => range(0.0..=8.0),
+        /// Vein sharpness (power applied to the vein profile).
+        pub vein_sharpness: f32 => range(0.5..=32.0),
+        /// Body albedo.
+        pub color_body: [f32; 3] => range_n(0.0..=1.0),
+        /// Vein albedo.
+        pub color_vein: [f32; 3] => range_n(0.0..=1.0),
+        /// Perceptual roughness of the polished body.
+        pub roughness_body: f32 => range(0.0..=1.0),
+        /// Perceptual roughness in the veins.
+        pub roughness_vein: f32 => range(0.0..=1.0),
+        /// Haze weight of the body.
+        pub haze_body: f32 => range(0.0..=1.0),
+        /// Haze weight in the veins.
+        pub haze_vein: f32 => range(0.0..=1.0),
+        /// Specular level `s` (`F0 = 0.08 s`).
+        pub specular: f32 => range(0.0..=1.0),
+        /// Bump strength of polishing ripples (slope scale).
+        pub bump: f32 => range(0.0..=1.0),
+    }
 }
 
 /// A `marble` material.
@@ -77,18 +76,7 @@ impl SurfaceModel for Marble {
     type Params = Params;
 
     fn from_params(p: Params) -> anyhow::Result<Self> {
-        check::count("vein_freq", p.vein_freq, 1, 64)?;
-        check::count("turbulence_freq", p.turbulence_freq, 1, 64)?;
-        check::range("turbulence", p.turbulence, 0.0, 8.0)?;
-        check::range("vein_sharpness", p.vein_sharpness, 0.5, 32.0)?;
-        check::range_n("color_body", &p.color_body, 0.0, 1.0)?;
-        check::range_n("color_vein", &p.color_vein, 0.0, 1.0)?;
-        check::range("roughness_body", p.roughness_body, 0.0, 1.0)?;
-        check::range("roughness_vein", p.roughness_vein, 0.0, 1.0)?;
-        check::range("haze_body", p.haze_body, 0.0, 1.0)?;
-        check::range("haze_vein", p.haze_vein, 0.0, 1.0)?;
-        check::range("specular", p.specular, 0.0, 1.0)?;
-        check::range("bump", p.bump, 0.0, 1.0)?;
+        p.check()?;
         Ok(Marble { p })
     }
 
@@ -99,8 +87,8 @@ impl SurfaceModel for Marble {
         let vein = smoothstep(0.05, 0.6, v + 0.15 * mottle);
         let albedo = lerp3(p.color_body, p.color_vein, vein)
             .map(|c| (c * (1.0 + 0.25 * mottle)).clamp(0.0, 1.0));
-        let r = p.roughness_body + (p.roughness_vein - p.roughness_body) * vein;
-        let haze = p.haze_body + (p.haze_vein - p.haze_body) * vein;
+        let r = lerp(p.roughness_body, p.roughness_vein, vein);
+        let haze = lerp(p.haze_body, p.haze_vein, vein);
         let f = (p.turbulence_freq * 8) as f32;
         let g = gradient_of(
             |q| fbm(q, p.turbulence_freq * 8, 2, 0.5, p.seed ^ 0xb0b) / f + 0.5 * v / f,
@@ -114,8 +102,7 @@ impl SurfaceModel for Marble {
 
     fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface {
         let a = alpha_from_roughness(unit(phi[0]));
-        let f0 = 0.08 * unit(phi[4]);
-        let mut s = Surface::isotropic(a, [f0; 3], [unit(phi[1]), unit(phi[2]), unit(phi[3])]);
+        let mut s = Surface::dielectric(a, unit(phi[4]), unit3(phi, 1));
         s.frame = ShadingFrame::new(signed(phi[5]), signed(phi[6]), 1.0, 0.0);
         s.haze = unit(phi[7]);
         s.haze_alpha = (4.0 * a).min(1.0);

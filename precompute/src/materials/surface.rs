@@ -72,6 +72,23 @@ impl Surface {
         }
     }
 
+    /// An isotropic dielectric of specular level `s` (`F0 = 0.08 s`) and albedo `diffuse`.
+    #[must_use]
+    pub fn dielectric(alpha: f32, specular: f32, diffuse: [f32; 3]) -> Self {
+        Self::isotropic(alpha, [0.08 * specular; 3], diffuse)
+    }
+
+    /// An isotropic surface of a base colour and metallic weight `m`:
+    /// `F0 = lerp(0.04, colour, m)`, diffuse = colour·(1 − m).
+    #[must_use]
+    pub fn metallic(alpha: f32, color: [f32; 3], m: f32) -> Self {
+        Self::isotropic(
+            alpha,
+            lerp3([0.04; 3], color, m),
+            color.map(|x| x * (1.0 - m)),
+        )
+    }
+
     /// Evaluates f (no cosine) for unit directions above the geometric horizon.
     #[inline]
     #[must_use]
@@ -154,14 +171,28 @@ pub fn signed(x: f32) -> f32 {
     }
 }
 
+/// `φ[i..i + 3]` (a colour), each clamped to `[0, 1]`.
+#[inline]
+#[must_use]
+pub fn unit3(phi: &[f32; FEATURE_DIM], i: usize) -> [f32; 3] {
+    [unit(phi[i]), unit(phi[i + 1]), unit(phi[i + 2])]
+}
+
+/// `a + (b − a) t`.
+#[inline]
+#[must_use]
+pub fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    a + (b - a) * t
+}
+
 /// `a + (b − a) t` per channel.
 #[inline]
 #[must_use]
 pub fn lerp3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
     [
-        a[0] + (b[0] - a[0]) * t,
-        a[1] + (b[1] - a[1]) * t,
-        a[2] + (b[2] - a[2]) * t,
+        lerp(a[0], b[0], t),
+        lerp(a[1], b[1], t),
+        lerp(a[2], b[2], t),
     ]
 }
 

@@ -34,29 +34,28 @@
 
 use anyhow::{bail, Context};
 use glam::{Vec2, Vec3};
-use serde::Deserialize;
 
-use super::check;
+use super::check::params;
 use super::format::{File, SideFiles};
 use super::microfacet::normalize_pair;
 use super::model::{luminance, Material, FEATURE_DIM};
 use super::noise::{fbm, wrap_uv};
-use super::surface::{sanitize, unit};
+use super::surface::{lerp, sanitize, unit};
 
 /// Magic bytes of a `.nstab` file.
 pub const MAGIC: [u8; 8] = *b"NSTAB\x01\0\0";
 
-/// `[params]` of a `tabulated` material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    /// Table file, relative to the material file.
-    pub table: String,
-    /// Noise seed of the gain texture.
-    #[serde(default)]
-    pub seed: u32,
-    /// Gain range `[min, max]` in `[0, 1]` (a stain texture); `[1, 1]` for none.
-    pub gain: [f32; 2],
+params! {
+    /// `[params]` of a `tabulated` material.
+    pub struct Params {
+        /// Table file, relative to the material file.
+        pub table: String,
+        /// Noise seed of the gain texture.
+        #[serde(default)]
+        pub seed: u32,
+        /// Gain range (a stain texture); `[1, 1]` for none.
+        pub gain: [f32; 2] => interval(0.0..=1.0),
+    }
 }
 
 /// An isotropic BRDF table (see the module docs for the layout).
@@ -230,7 +229,7 @@ pub struct Tabulated {
 impl Tabulated {
     /// Validates a parsed file and loads its table through `side`.
     pub fn new(file: File<Params>, side: SideFiles<'_>) -> anyhow::Result<Self> {
-        check::interval("gain", file.params.gain, 0.0, 1.0)?;
+        file.params.check()?;
         let bytes = side(&file.params.table).with_context(|| "field `params.table`".to_string())?;
         let table = Table::from_bytes(&bytes)
             .with_context(|| format!("field `params.table`: table `{}`", file.params.table))?;
@@ -272,7 +271,7 @@ impl Material for Tabulated {
         let g = if g1 > g0 {
             let uv = wrap_uv(uv);
             let t = (0.5 + 1.5 * fbm(uv, 4, 4, 0.5, self.p.seed)).clamp(0.0, 1.0);
-            g0 + (g1 - g0) * t
+            lerp(g0, g1, t)
         } else {
             g1
         };

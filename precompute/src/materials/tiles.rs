@@ -18,50 +18,49 @@
 //! | 6, 7  | shading normal `n.x`, `n.y`                            | `|(n.x, n.y)| ≤ 0.9` |
 
 use glam::{Vec2, Vec3};
-use serde::Deserialize;
 
-use super::check;
+use super::check::{self, params};
 use super::microfacet::{clamp_tilt, ShadingFrame};
 use super::model::FEATURE_DIM;
 use super::noise::{fbm, hash, smoothstep};
-use super::surface::{aniso_alphas, lerp3, signed, unit, Surface, SurfaceModel};
+use super::surface::{aniso_alphas, lerp3, signed, unit, unit3, Surface, SurfaceModel};
 
-/// One tile material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Kind {
-    /// Base colour.
-    pub color: [f32; 3],
-    /// Colour of the central inlay (defaults to `color`).
-    #[serde(default)]
-    pub inlay_color: Option<[f32; 3]>,
-    /// Metallic, 0..=1.
-    pub metallic: f32,
-    /// Perceptual roughness, 0..=1.
-    pub roughness: f32,
-    /// Signed anisotropy, −1..=1.
-    #[serde(default)]
-    pub anisotropy: f32,
+params! {
+    /// One tile material.
+    pub struct Kind {
+        /// Base colour.
+        pub color: [f32; 3] => range_n(0.0..=1.0),
+        /// Colour of the central inlay (defaults to `color`).
+        #[serde(default)]
+        pub inlay_color: Option<[f32; 3]> => range_n(0.0..=1.0),
+        /// Metallic.
+        pub metallic: f32 => range(0.0..=1.0),
+        /// Perceptual roughness.
+        pub roughness: f32 => range(0.0..=1.0),
+        /// Signed anisotropy.
+        #[serde(default)]
+        pub anisotropy: f32 => range(-1.0..=1.0),
+    }
 }
 
-/// `[params]` of a `tiles` material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    /// Noise seed.
-    pub seed: u32,
-    /// Tiles per uv unit (each direction), 1..=64.
-    pub tiles: u32,
-    /// Grout width as a fraction of a tile, 0..=0.3.
-    pub grout_width: f32,
-    /// Bevel width as a fraction of a tile, 0..=0.3.
-    pub bevel_width: f32,
-    /// Bevel tilt `|(n.x, n.y)|` at the tile border, 0..=0.9.
-    pub bevel_tilt: f32,
-    /// Grout material.
-    pub grout: Kind,
-    /// Tile materials (1..=16), chosen per tile by hash.
-    pub kinds: Vec<Kind>,
+params! {
+    /// `[params]` of a `tiles` material.
+    pub struct Params {
+        /// Noise seed.
+        pub seed: u32,
+        /// Tiles per uv unit (each direction).
+        pub tiles: u32 => count(1..=64),
+        /// Grout width as a fraction of a tile.
+        pub grout_width: f32 => range(0.0..=0.3),
+        /// Bevel width as a fraction of a tile.
+        pub bevel_width: f32 => range(0.0..=0.3),
+        /// Bevel tilt `|(n.x, n.y)|` at the tile border.
+        pub bevel_tilt: f32 => range(0.0..=0.9),
+        /// Grout material.
+        pub grout: Kind,
+        /// Tile materials (1..=16), chosen per tile by hash.
+        pub kinds: Vec<Kind>,
+    }
 }
 
 /// A `tiles` material.
@@ -70,28 +69,15 @@ pub struct Tiles {
     p: Params,
 }
 
-fn check_kind(field: &str, k: &Kind) -> anyhow::Result<()> {
-    check::range_n(&format!("{field}.color"), &k.color, 0.0, 1.0)?;
-    if let Some(c) = &k.inlay_color {
-        check::range_n(&format!("{field}.inlay_color"), c, 0.0, 1.0)?;
-    }
-    check::range(&format!("{field}.metallic"), k.metallic, 0.0, 1.0)?;
-    check::range(&format!("{field}.roughness"), k.roughness, 0.0, 1.0)?;
-    check::range(&format!("{field}.anisotropy"), k.anisotropy, -1.0, 1.0)
-}
-
 impl SurfaceModel for Tiles {
     type Params = Params;
 
     fn from_params(p: Params) -> anyhow::Result<Self> {
-        check::count("tiles", p.tiles, 1, 64)?;
-        check::range("grout_width", p.grout_width, 0.0, 0.3)?;
-        check::range("bevel_width", p.bevel_width, 0.0, 0.3)?;
-        check::range("bevel_tilt", p.bevel_tilt, 0.0, 0.9)?;
-        check_kind("grout", &p.grout)?;
+        p.check()?;
+        p.grout.check_in("grout.")?;
         check::count("kinds (number of entries)", p.kinds.len() as u32, 1, 16)?;
         for (i, k) in p.kinds.iter().enumerate() {
-            check_kind(&format!("kinds[{i}]"), k)?;
+            k.check_in(&format!("kinds[{i}]."))?;
         }
         Ok(Tiles { p })
     }
@@ -155,8 +141,6 @@ impl SurfaceModel for Tiles {
     }
 
     fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface {
-        let color = [unit(phi[0]), unit(phi[1]), unit(phi[2])];
-        let m = unit(phi[3]);
         let a = signed(phi[5]);
         let (along, across) = aniso_alphas(unit(phi[4]), a.abs()); // α_t ≤ α_b
         let (ax, ay) = if a >= 0.0 {
@@ -164,8 +148,7 @@ impl SurfaceModel for Tiles {
         } else {
             (across, along)
         };
-        let mut s =
-            Surface::isotropic(ax, lerp3([0.04; 3], color, m), color.map(|x| x * (1.0 - m)));
+        let mut s = Surface::metallic(ax, unit3(phi, 0), unit(phi[3]));
         s.ay = ay;
         s.frame = ShadingFrame::new(signed(phi[6]), signed(phi[7]), 1.0, 0.0);
         s

@@ -14,34 +14,33 @@
 //! | 7     | specular level `s` (`F0 = 0.08 s`)                    | `[0, 1]` |
 
 use glam::Vec2;
-use serde::Deserialize;
 
-use super::check;
+use super::check::params;
 use super::microfacet::{half_angle, ShadingFrame};
 use super::model::FEATURE_DIM;
 use super::noise::{fbm, gradient, gradient_of, smoothstep};
-use super::surface::{aniso_alphas, lerp3, signed, unit, Surface, SurfaceModel};
+use super::surface::{aniso_alphas, lerp, lerp3, signed, unit, unit3, Surface, SurfaceModel};
 
-/// `[params]` of a `wood` material.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Params {
-    /// Noise seed.
-    pub seed: u32,
-    /// Growth rings per uv unit across the grain, 1..=128.
-    pub rings: u32,
-    /// Ring distortion (in ring periods), 0..=8.
-    pub distortion: f32,
-    /// Early-wood albedo (light).
-    pub color_early: [f32; 3],
-    /// Late-wood albedo (dark).
-    pub color_late: [f32; 3],
-    /// Perceptual roughness `[min, max]`: late wood is smoother.
-    pub roughness: [f32; 2],
-    /// Anisotropy along the grain, 0..=1.
-    pub anisotropy: f32,
-    /// Specular level `s` (`F0 = 0.08 s`), 0..=1.
-    pub specular: f32,
+params! {
+    /// `[params]` of a `wood` material.
+    pub struct Params {
+        /// Noise seed.
+        pub seed: u32,
+        /// Growth rings per uv unit across the grain.
+        pub rings: u32 => count(1..=128),
+        /// Ring distortion (in ring periods).
+        pub distortion: f32 => range(0.0..=8.0),
+        /// Early-wood albedo (light).
+        pub color_early: [f32; 3] => range_n(0.0..=1.0),
+        /// Late-wood albedo (dark).
+        pub color_late: [f32; 3] => range_n(0.0..=1.0),
+        /// Perceptual roughness: late wood is smoother.
+        pub roughness: [f32; 2] => interval(0.0..=1.0),
+        /// Anisotropy along the grain.
+        pub anisotropy: f32 => range(0.0..=1.0),
+        /// Specular level `s` (`F0 = 0.08 s`).
+        pub specular: f32 => range(0.0..=1.0),
+    }
 }
 
 /// A `wood` material.
@@ -63,13 +62,7 @@ impl SurfaceModel for Wood {
     type Params = Params;
 
     fn from_params(p: Params) -> anyhow::Result<Self> {
-        check::count("rings", p.rings, 1, 128)?;
-        check::range("distortion", p.distortion, 0.0, 8.0)?;
-        check::range_n("color_early", &p.color_early, 0.0, 1.0)?;
-        check::range_n("color_late", &p.color_late, 0.0, 1.0)?;
-        check::interval("roughness", p.roughness, 0.0, 1.0)?;
-        check::range("anisotropy", p.anisotropy, 0.0, 1.0)?;
-        check::range("specular", p.specular, 0.0, 1.0)?;
+        p.check()?;
         Ok(Wood { p })
     }
 
@@ -96,7 +89,7 @@ impl SurfaceModel for Wood {
             Vec2::X
         };
         let t = if t.x < 0.0 { -t } else { t };
-        let r = p.roughness[1] + (p.roughness[0] - p.roughness[1]) * late;
+        let r = lerp(p.roughness[1], p.roughness[0], late);
         [
             albedo[0],
             albedo[1],
@@ -112,8 +105,7 @@ impl SurfaceModel for Wood {
     fn decode(&self, phi: &[f32; FEATURE_DIM]) -> Surface {
         let (c, s) = half_angle(signed(phi[4]), signed(phi[5]));
         let (ax, ay) = aniso_alphas(unit(phi[3]), unit(phi[6])); // x = grain
-        let f0 = 0.08 * unit(phi[7]);
-        let mut surf = Surface::isotropic(ax, [f0; 3], [unit(phi[0]), unit(phi[1]), unit(phi[2])]);
+        let mut surf = Surface::dielectric(ax, unit(phi[7]), unit3(phi, 0));
         surf.ay = ay;
         surf.frame = ShadingFrame::new(0.0, 0.0, c, s);
         surf
