@@ -88,7 +88,7 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
                     x.speedup_vs_baseline().unwrap_or(f64::NAN),
                 ),
                 ("cost.total_ns", x.cost.total_ns),
-                ("kl_divergence", x.kl_divergence),
+                ("kl_divergence", x.fit.kl_divergence),
                 ("cost_vs_material_eval", x.cost_vs_material_eval()),
             ] {
                 let v = finite(v, &format!("{what}.{field}"));
@@ -144,22 +144,22 @@ fn quick_demo_with_fixtures_writes_a_complete_report() {
             // Relations between the fields. The pdf of a kind whose samples are drawn with
             // another density (the reparameterization sampler's pdf network, measured on its
             // samples in `sampled`) is not normalised: only the others' are bounded.
-            let exact = x.sampled.is_none();
+            let exact = x.fit.sampled.is_none();
             assert_eq!(
-                x.sampled.is_some(),
+                x.fit.sampled.is_some(),
                 x.method == "reparam",
                 "{what}: measured on its own samples"
             );
             assert!(
-                !exact || x.mass_in_disk <= 1.0 + MASS_TOLERANCE,
+                !exact || x.fit.mass_in_disk <= 1.0 + MASS_TOLERANCE,
                 "{what}: mass in the disk {}",
-                x.mass_in_disk
+                x.fit.mass_in_disk
             );
             assert!(
-                oracle.kl_divergence <= x.kl_divergence + ORACLE_KL_TOLERANCE,
+                oracle.fit.kl_divergence <= x.fit.kl_divergence + ORACLE_KL_TOLERANCE,
                 "{what}: KL {} below the oracle's {}",
-                x.kl_divergence,
-                oracle.kl_divergence
+                x.fit.kl_divergence,
+                oracle.fit.kl_divergence
             );
             assert!(
                 close(
@@ -234,9 +234,9 @@ fn procedural_demo_uses_the_source_materials() {
             assert!(m.reference.is_none() && m.figures.is_none());
             for x in &m.methods {
                 assert!(x.kl_vs_source.is_none());
-                assert!(x.kl_divergence.is_finite());
+                assert!(x.fit.kl_divergence.is_finite());
                 assert!(x.render.is_none() && x.speedup_vs_baseline().is_none());
-                assert!(x.mass_in_disk <= 1.0 + MASS_TOLERANCE);
+                assert!(x.fit.mass_in_disk <= 1.0 + MASS_TOLERANCE);
             }
             m.material.as_str()
         })
@@ -250,11 +250,15 @@ fn procedural_demo_uses_the_source_materials() {
 
 /// The committed reports still read into the current schema, written before it dropped the
 /// copies of render values (schema 4) or after: where a report still holds the copies, they
-/// equal what the current schema derives.
+/// equal what the current schema derives, and the fit's fields read into the method's `fit`.
 #[test]
 fn committed_reports_still_read() {
     let docs = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs");
-    for rel in ["table/uniform/report.json", "table/sky-sun/report.json"] {
+    for rel in [
+        "table/uniform/report.json",
+        "table/sky-sun/report.json",
+        "measured/report_uniform.json",
+    ] {
         let text = std::fs::read_to_string(docs.join(rel)).unwrap();
         let r: Report = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{rel}: {e}"));
         let raw: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -264,6 +268,15 @@ fn committed_reports_still_read() {
             for (x, rx) in m.methods.iter().zip(rm["methods"].as_array().unwrap()) {
                 let what = format!("{rel}: {}/{}", m.material, x.method);
                 let old = |v: &serde_json::Value| v.as_f64();
+                let fit = [
+                    ("kl_divergence", x.fit.kl_divergence),
+                    ("pdf_mse", x.fit.pdf_mse),
+                    ("mass_in_disk", x.fit.mass_in_disk),
+                ];
+                for (key, value) in fit {
+                    let v = old(&rx[key]).unwrap_or_else(|| panic!("{what}: no {key}"));
+                    assert_eq!(value, v, "{what}: {key}");
+                }
                 if let Some(v) = old(&rx["speedup_vs_baseline"]) {
                     assert_eq!(x.speedup_vs_baseline(), Some(v), "{what}");
                     compared += 1;

@@ -227,13 +227,13 @@ fn fit_table(s: &mut String, m: &MaterialReport) {
             s,
             "| {} | {:.4} | {} | {} | {} | {:.3e} | {:.4} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {:.1} | {} |",
             x.method,
-            x.kl_divergence,
-            fmt_chi2(x.chi2),
-            fmt_chi2(x.chi2_worst),
+            x.fit.kl_divergence,
+            fmt_chi2(x.fit.chi2),
+            fmt_chi2(x.fit.chi2_worst),
             x.kl_vs_source
                 .map_or_else(|| "—".to_string(), |k| format!("{k:.4}")),
-            x.pdf_mse,
-            x.mass_in_disk,
+            x.fit.pdf_mse,
+            x.fit.mass_in_disk,
             x.cost.prepare_ns,
             x.cost.sample_ns,
             x.cost.pdf_ns,
@@ -251,7 +251,7 @@ fn fit_table(s: &mut String, m: &MaterialReport) {
 /// What a method that draws with another density than its pdf measured on its own samples.
 fn sampled_notes(s: &mut String, m: &MaterialReport) {
     for x in &m.methods {
-        if let Some(sf) = &x.sampled {
+        if let Some(sf) = &x.fit.sampled {
             let _ = writeln!(
                 s,
                 "`{}` draws with the density of its warp and reports its pdf network for MIS \

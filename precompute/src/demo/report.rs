@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::eval::metrics::{ConvergencePoint, RenderSettings, Verdict};
 use crate::eval::{Cost, EvalCost, Fit, FitReport};
-use crate::util::json::{f64_or_nan, nan};
+use crate::util::json::f64_or_nan;
 use crate::util::stats::Estimate;
 
 /// Schema version of `report.json` (`docs/report_schema.md` documents it).
@@ -79,27 +79,9 @@ pub struct MethodReport {
     pub blob_bytes: usize,
     /// Largest relative difference between the blob and the trained model.
     pub blob_vs_model: Option<f64>,
-    /// Mean KL(p* ‖ p), nats.
-    #[serde(deserialize_with = "f64_or_nan")]
-    pub kl_divergence: f64,
-    /// Mean χ²(p* ‖ p) = ∫ p*²/p − 1 over the fit conditions: the render's relative variance
-    /// per sample (the measure KL misses where p ≪ p*); NaN in reports written before it.
-    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
-    pub chi2: f64,
-    /// The largest χ²(p* ‖ p) of the fit conditions.
-    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
-    pub chi2_worst: f64,
-    /// Mean squared pdf difference on the disk.
-    #[serde(deserialize_with = "f64_or_nan")]
-    pub pdf_mse: f64,
-    /// Mass inside the disk.
-    #[serde(deserialize_with = "f64_or_nan")]
-    pub mass_in_disk: f64,
-    /// A sampler whose `pdf` is not its samples' density (the reparameterization sampler:
-    /// the fields above are its pdf network's) measured on its own samples: weight mean,
-    /// χ² of the sampling density, the pdf network's mismatch; absent for the others.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sampled: Option<crate::eval::SampledFit>,
+    /// The fit to p* (its fields stand beside the others in the JSON).
+    #[serde(flatten)]
+    pub fit: Fit,
     /// For a neural material with a known source: mean KL(p*_source ‖ p) in nats, the
     /// sampler (conditioned on the neural φ) against the source material's ground truth at
     /// the same uv and wi; null otherwise.
@@ -286,12 +268,7 @@ pub(crate) fn method_report(
         final_loss: training.final_loss,
         blob_bytes: training.blob_bytes,
         blob_vs_model: training.blob_vs_model,
-        kl_divergence: fit.kl_divergence,
-        chi2: fit.chi2,
-        chi2_worst: fit.chi2_worst,
-        pdf_mse: fit.pdf_mse,
-        mass_in_disk: fit.mass_in_disk,
-        sampled: fit.sampled,
+        fit,
         kl_vs_source,
         cost,
         render: None,

@@ -16,7 +16,8 @@ use crate::util::rng::mix_seed;
 /// Fit of a sampler's density to the ground truth, averaged over conditions.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Fit {
-    /// Conditions evaluated.
+    /// Conditions evaluated (0 in reports written before the demo report stored it).
+    #[serde(default)]
     pub conditions: usize,
     /// Mean KL(p* ‖ p) in nats over the conditions (p* tabulated at `res`², p at cell
     /// midpoints).
