@@ -123,12 +123,7 @@ impl<const I: usize, const H: usize, const O: usize, const L: usize> ReluMlp<I, 
         let mut o = [0; L];
         let mut k = 1;
         while k < L {
-            o[k] = o[k - 1]
-                + if k == 1 {
-                    dense_len(I, H)
-                } else {
-                    dense_len(H, H)
-                };
+            o[k] = o[k - 1] + dense_len(if k == 1 { I } else { H }, H);
             k += 1;
         }
         o

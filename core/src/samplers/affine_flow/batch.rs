@@ -1,5 +1,6 @@
-//! [`AffineFlowSampler`] over wavefronts ([`BatchSampler`](crate::wavefront::BatchSampler)): the coupling networks as matrix
-//! products over a chunk's lanes, the affine updates per lane in the scalar path's order.
+//! [`AffineFlowSampler`] over wavefronts ([`BatchSampler`](crate::wavefront::BatchSampler)):
+//! the coupling networks as matrix products over a chunk's lanes, the affine updates per lane
+//! in the scalar path's order.
 
 use glam::Vec2;
 
