@@ -9,8 +9,8 @@
 use std::path::PathBuf;
 
 use neusample::wavefront::{
-    prefer_isa, BatchSampler, Features, FeaturesMut, Isa, LaneState, SamplesMut, Vec2s, Vec2sMut,
-    Vec3s, Vec3sMut,
+    prefer_isa, AnyScratch, BatchSampler, Features, FeaturesMut, Isa, LaneState, SamplesMut,
+    Scratch, Vec2s, Vec2sMut, Vec3s, Vec3sMut,
 };
 use neusample::{
     AnySampler, Blob, BlobSampler, BlobWriter, DType, Defensive, Error, Prepared, Sampler,
@@ -202,15 +202,26 @@ struct Batched<L> {
 }
 
 /// Prepare, sample, pdf and invert of the lanes of `soa`, the outputs prefilled with
-/// sentinels.
-fn run_batched<S: BatchSampler>(s: &S, soa: &Soa) -> Batched<S::Lane> {
+/// sentinels; sample and pdf in `scratch` if given (else each call's own).
+fn run_batched<S: BatchSampler>(
+    s: &S,
+    soa: &Soa,
+    scratch: Option<&mut S::Scratch>,
+) -> Batched<S::Lane> {
     let n = soa.wi().len();
     let mut states = vec![S::Lane::default(); n];
     s.prepare_batch(soa.phi(), soa.wi(), &mut states).unwrap();
     let mut out = Out::new(n);
-    s.sample_batch(&states, soa.u(), out.view()).unwrap();
     let mut pdf = vec![-7.0f32; n];
-    s.pdf_batch(&states, soa.wo(), &mut pdf).unwrap();
+    if let Some(scratch) = scratch {
+        s.sample_batch_in(&states, soa.u(), out.view(), scratch)
+            .unwrap();
+        s.pdf_batch_in(&states, soa.wo(), &mut pdf, scratch)
+            .unwrap();
+    } else {
+        s.sample_batch(&states, soa.u(), out.view()).unwrap();
+        s.pdf_batch(&states, soa.wo(), &mut pdf).unwrap();
+    }
     let (mut ux, mut uy, mut ok) = (vec![-7.0f32; n], vec![-7.0f32; n], vec![false; n]);
     let u = Vec2sMut {
         x: &mut ux,
@@ -240,7 +251,7 @@ where
         ux,
         uy,
         ok,
-    } = run_batched(s, &soa);
+    } = run_batched(s, &soa, None);
     let mut fused = Out::new(n);
     s.sample_fused(soa.phi(), soa.wi(), soa.u(), fused.view())
         .unwrap();
@@ -723,8 +734,13 @@ fn small_batches_give_the_tiles_sums() {
 }
 
 /// Every batched result of `lanes` as bits, lane by lane: the sample (direction, pdf, MIS
-/// density), the pdf at `wo`, the inverse at `wo` and whether it exists.
-fn batch_bits<S: BatchSampler>(s: &S, lanes: &[Lane]) -> Vec<[u32; 9]> {
+/// density), the pdf at `wo`, the inverse at `wo` and whether it exists (sample and pdf in
+/// `scratch` if given).
+fn batch_bits<S: BatchSampler>(
+    s: &S,
+    lanes: &[Lane],
+    scratch: Option<&mut S::Scratch>,
+) -> Vec<[u32; 9]> {
     let n = lanes.len();
     let Batched {
         out,
@@ -733,7 +749,7 @@ fn batch_bits<S: BatchSampler>(s: &S, lanes: &[Lane]) -> Vec<[u32; 9]> {
         uy,
         ok,
         ..
-    } = run_batched(s, &Soa::new(lanes));
+    } = run_batched(s, &Soa::new(lanes), scratch);
     (0..n)
         .map(|i| {
             let v = [
@@ -754,15 +770,18 @@ fn batch_bits<S: BatchSampler>(s: &S, lanes: &[Lane]) -> Vec<[u32; 9]> {
         .collect()
 }
 
-/// A lane's batched results do not depend on how many lanes share its call: every fixture
-/// blob (plain and with a defensive weight), one batch against the same lanes in calls of
-/// 1 to 33 lanes (below, at and past the narrow width of small calls, a chunk and a tile).
+/// A lane's batched results do not depend on how many lanes share its call, nor on the
+/// working memory's history: every fixture blob (plain and with a defensive weight), one
+/// batch against the same lanes in calls of 1 to 33 lanes (below, at and past the narrow
+/// width of small calls, a chunk and a tile), each call also in one working memory kept
+/// across all calls, sizes and kinds (a caller's [`AnyScratch`]).
 #[test]
 fn lane_results_do_not_depend_on_the_batch_size() {
     const SPLITS: [usize; 9] = [1, 8, 9, 2, 16, 17, 7, 33, 3];
     let blobs = fixture_samplers();
     for_each_isa(|isa| {
         let mut r = rng(11);
+        let mut kept = Box::new(AnyScratch::NEW);
         for (path, bytes, conds) in &blobs {
             let blob = Blob::open(bytes).unwrap();
             let defended = BlobWriter::from_blob(&blob).defensive(0.25).to_bytes();
@@ -770,22 +789,26 @@ fn lane_results_do_not_depend_on_the_batch_size() {
                 let blob = Blob::open(b).unwrap();
                 let s = blob.sampler().unwrap();
                 let ls = lanes(&mut r, conds, SPLITS.iter().sum());
-                let whole = batch_bits(&s, &ls);
+                let whole = batch_bits(&s, &ls, None);
                 let mut at = 0;
                 for n in SPLITS {
-                    let part = batch_bits(&s, &ls[at..at + n]);
-                    for (k, (a, b)) in part.iter().zip(&whole[at..]).enumerate() {
-                        assert_eq!(
-                            a,
-                            b,
-                            "{} α = {} ({}): lane {} in a call of {n} lanes vs of {}: {:?}",
-                            path.display(),
-                            blob.defensive(),
-                            isa.name(),
-                            at + k,
-                            whole.len(),
-                            ls[at + k]
-                        );
+                    let part = batch_bits(&s, &ls[at..at + n], None);
+                    let in_kept = batch_bits(&s, &ls[at..at + n], Some(&mut kept));
+                    let calls = part.iter().zip(&in_kept).zip(&whole[at..]).enumerate();
+                    for (k, ((a, c), b)) in calls {
+                        let ctx = || {
+                            format!(
+                                "{} α = {} ({}): lane {} in a call of {n} lanes vs of {}: {:?}",
+                                path.display(),
+                                blob.defensive(),
+                                isa.name(),
+                                at + k,
+                                whole.len(),
+                                ls[at + k]
+                            )
+                        };
+                        assert_eq!(a, b, "{}", ctx());
+                        assert_eq!(c, b, "kept working memory: {}", ctx());
                     }
                     at += n;
                 }

@@ -42,8 +42,27 @@ macro_rules! batch_impl {
             }};
         }
 
+        /// `$scratch` (`&mut AnyScratch`) as kind `$variant`'s working memory, made anew
+        /// when it held another kind's.
+        macro_rules! scratch_of {
+            ($scratch:expr, $variant:ident, $fresh:ident) => {{
+                if !matches!($scratch, AnyScratch::$variant(_)) {
+                    *$scratch = AnyScratch::$variant(Scratch::NEW);
+                }
+                match $scratch {
+                    AnyScratch::$variant(ws) => ws,
+                    // Not reached (set above); fresh memory gives the same results.
+                    _ => {
+                        $fresh = Scratch::NEW;
+                        &mut $fresh
+                    }
+                }
+            }};
+        }
+
         impl BatchSampler for AnySampler<'_> {
             type Lane = AnyLane;
+            type Scratch = AnyScratch;
 
             fn prepare_batch(
                 &self,
@@ -70,35 +89,48 @@ macro_rules! batch_impl {
                 $each_kind!(self, prep)
             }
 
-            fn sample_batch(
+            fn sample_batch_in(
                 &self,
                 lanes: &[AnyLane],
                 u: Vec2s<'_>,
                 mut out: SamplesMut<'_>,
+                scratch: &mut AnyScratch,
             ) -> Result<()> {
                 crate::wavefront::check_sample_args(lanes, &u, &out)?;
                 macro_rules! samp {
-                    ($s:expr, $variant:ident, $lane_ty:ty) => {
-                        typed!(lanes, $variant, $lane_ty, |t, a| $s.sample_batch(
+                    ($s:expr, $variant:ident, $lane_ty:ty) => {{
+                        let mut fresh;
+                        let ws = scratch_of!(scratch, $variant, fresh);
+                        typed!(lanes, $variant, $lane_ty, |t, a| $s.sample_batch_in(
                             t,
                             u.range(a, a + t.len()),
-                            out.range(a, a + t.len())
+                            out.range(a, a + t.len()),
+                            ws
                         ))
-                    };
+                    }};
                 }
                 $each_kind!(self, samp)
             }
 
-            fn pdf_batch(&self, lanes: &[AnyLane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+            fn pdf_batch_in(
+                &self,
+                lanes: &[AnyLane],
+                wo: Vec3s<'_>,
+                pdf: &mut [f32],
+                scratch: &mut AnyScratch,
+            ) -> Result<()> {
                 crate::wavefront::check_pdf_args(lanes, &wo, pdf)?;
                 macro_rules! dens {
-                    ($s:expr, $variant:ident, $lane_ty:ty) => {
-                        typed!(lanes, $variant, $lane_ty, |t, a| $s.pdf_batch(
+                    ($s:expr, $variant:ident, $lane_ty:ty) => {{
+                        let mut fresh;
+                        let ws = scratch_of!(scratch, $variant, fresh);
+                        typed!(lanes, $variant, $lane_ty, |t, a| $s.pdf_batch_in(
                             t,
                             wo.range(a, a + t.len()),
-                            &mut pdf[a..a + t.len()]
+                            &mut pdf[a..a + t.len()],
+                            ws
                         ))
-                    };
+                    }};
                 }
                 $each_kind!(self, dens)
             }
@@ -253,7 +285,7 @@ impl Prepared for AnyPrepared<'_, '_> {
 
             use super::*;
             use crate::wavefront::{
-                BatchSampler, Features, LaneState, SamplesMut, Vec2s, Vec2sMut, Vec3s,
+                BatchSampler, Features, LaneState, SamplesMut, Scratch, Vec2s, Vec2sMut, Vec3s,
                 FUSED_CHUNK,
             };
             use crate::error::{Error, Result};
@@ -269,6 +301,34 @@ impl Prepared for AnyPrepared<'_, '_> {
                 Refused,
                 $(#[doc = concat!("[`SamplerKind::", stringify!($variant), "`].")] $variant($lane),)*
             }
+
+            /// The working memory of an [`AnySampler`]'s batched calls: the concrete
+            /// sampler's ([`BatchSampler::Scratch`]), made anew when a call's kind differs
+            /// from the last one's. As large as the largest (a flow's, tens of KiB): keep one
+            /// per thread, not per lane.
+            #[allow(clippy::large_enum_variant)]
+            pub enum AnyScratch {
+                /// Fresh: no call yet.
+                Fresh,
+                $(#[doc = concat!("[`SamplerKind::", stringify!($variant), "`].")]
+                $variant(<Tensor<'static> as KindScratch<$tag>>::Scratch),)*
+            }
+
+            impl Scratch for AnyScratch {
+                const NEW: Self = AnyScratch::Fresh;
+            }
+
+            /// The working memory of the kind with blob tag `TAG`, named without the blob's
+            /// lifetime (no kind's working memory depends on it), so that one
+            /// [`AnyScratch`] serves samplers of any blob.
+            pub trait KindScratch<const TAG: u32> {
+                /// [`BatchSampler::Scratch`] of the kind's sampler.
+                type Scratch: Scratch;
+            }
+
+            $(impl<'a> KindScratch<$tag> for Tensor<'a> {
+                type Scratch = <$sampler as BatchSampler>::Scratch;
+            })*
 
             /// One arm per kind: `$m!(sampler, Variant, LaneType)`.
             macro_rules! each_kind {
@@ -322,4 +382,4 @@ impl BlobKind {
 }
 
 #[cfg(not(target_arch = "spirv"))]
-pub use batch::{AnyLane, SamplerVisitor};
+pub use batch::{AnyLane, AnyScratch, SamplerVisitor};

@@ -134,8 +134,8 @@ pub(crate) trait CouplingShares {
 }
 
 /// The buffers of [`coupling_splines_chunk`], part of a flow's
-/// [`ChunkScratch`](crate::wavefront::chunked::ChunkScratch): made once per batched call, so
-/// that no coupling zeroes or copies its activations.
+/// [`Scratch`](crate::wavefront::Scratch) (made once per batched call or kept by the caller),
+/// so that no coupling zeroes or copies its activations.
 #[cfg(not(target_arch = "spirv"))]
 pub struct CouplingBuffers<const RAW: usize, const CHUNK: usize> {
     /// The first hidden layer (starting as the lanes' shares).
@@ -198,7 +198,7 @@ impl<const RAW: usize, const CHUNK: usize> GroupBuffer<NARROW, RAW, CHUNK>
     }
 }
 
-/// A flow's [`ChunkScratch`](crate::wavefront::chunked::ChunkScratch): the couplings'
+/// A flow's [`Scratch`](crate::wavefront::Scratch): the couplings'
 /// buffers and two sets of splines of `K` bins (one per group of [`GROUP`] lanes).
 #[cfg(not(target_arch = "spirv"))]
 pub struct FlowScratch<const K: usize, const RAW: usize, const CHUNK: usize, const GROUPS: usize> {
@@ -209,7 +209,7 @@ pub struct FlowScratch<const K: usize, const RAW: usize, const CHUNK: usize, con
 
 #[cfg(not(target_arch = "spirv"))]
 impl<const K: usize, const RAW: usize, const CHUNK: usize, const GROUPS: usize>
-    crate::wavefront::chunked::ChunkScratch for FlowScratch<K, RAW, CHUNK, GROUPS>
+    crate::wavefront::Scratch for FlowScratch<K, RAW, CHUNK, GROUPS>
 {
     const NEW: Self = FlowScratch {
         b: CouplingBuffers::ZERO,

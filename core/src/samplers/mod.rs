@@ -46,7 +46,7 @@ mod traits;
 pub use affine_flow::{AffineFlowLane, AffineFlowPrepared, AffineFlowSampler};
 pub use analytic_mixture::{AnalyticMixturePrepared, AnalyticMixtureSampler};
 #[cfg(not(target_arch = "spirv"))]
-pub use any::{AnyLane, SamplerVisitor};
+pub use any::{AnyLane, AnyScratch, SamplerVisitor};
 pub use any::{AnyPrepared, AnySampler};
 pub use cosine::{CosinePrepared, CosineSampler};
 pub use defensive::{BlobSampler, Defensive, DefensivePrepared};

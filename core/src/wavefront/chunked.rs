@@ -4,21 +4,9 @@
 use super::simd::{dispatch, Isa, Kernel};
 use super::{
     check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, chunks, BatchSampler,
-    Features, SamplesMut, Vec2s, Vec2sMut, Vec3s,
+    Features, SamplesMut, Scratch, Vec2s, Vec2sMut, Vec3s,
 };
 use crate::error::Result;
-
-/// Working memory that a sampler's chunks reuse within one batched call: made once per call
-/// (so that large buffers are not zeroed again at every chunk), its contents meaningless
-/// between chunks.
-pub trait ChunkScratch {
-    /// Fresh working memory (a constant, so that a call writes it in place).
-    const NEW: Self;
-}
-
-impl ChunkScratch for () {
-    const NEW: () = ();
-}
 
 /// How a sampler computes one chunk of at most `CHUNK` lanes (arguments already checked).
 /// Every method must be `#[inline(always)]`, so that [`dispatch`] compiles it for the
@@ -27,8 +15,8 @@ impl ChunkScratch for () {
 pub trait ChunkedSampler {
     /// See [`BatchSampler::Lane`].
     type Lane: super::LaneState;
-    /// Working memory of sample, pdf and invert (`()` for none).
-    type Scratch: ChunkScratch;
+    /// See [`BatchSampler::Scratch`]: one for all the chunks of a call.
+    type Scratch: Scratch;
     /// Lanes per chunk.
     const CHUNK: usize;
     /// The widest instruction set its chunks are compiled for ([`Kernel::WIDEST`]).
@@ -87,13 +75,14 @@ struct Sample<'a, 's, S: ChunkedSampler> {
     lanes: &'a [S::Lane],
     u: Vec2s<'a>,
     out: SamplesMut<'a>,
+    scratch: &'a mut S::Scratch,
 }
 
-/// [`Kernel`] for the pass `$kernel` (a struct holding `s: &S` and `lanes`): the lanes in chunks
-/// of `S::CHUNK`, which share one `S::Scratch`. `$chunk` computes chunk `$a .. $b`, with `$k` the
-/// kernel (`&mut`) and `$scratch` the scratch (`&mut`).
+/// [`Kernel`] for the pass `$kernel` (a struct holding `s: &S`, `lanes` and `scratch`): the
+/// lanes in chunks of `S::CHUNK`, which share the one scratch. `$chunk` computes chunk
+/// `$a .. $b`, with `$k` the kernel (`&mut`).
 macro_rules! chunk_pass {
-    ($kernel:ident, |$k:ident, $a:ident, $b:ident, $scratch:ident| $chunk:expr) => {
+    ($kernel:ident, |$k:ident, $a:ident, $b:ident| $chunk:expr) => {
         impl<S: ChunkedSampler> Kernel for $kernel<'_, '_, S> {
             type Output = ();
             const WIDEST: Isa = S::WIDEST;
@@ -101,8 +90,6 @@ macro_rules! chunk_pass {
             fn run(mut self) {
                 let $k = &mut self;
                 let n = $k.lanes.len();
-                let mut scratch = S::Scratch::NEW;
-                let $scratch = &mut scratch;
                 for ($a, $b) in chunks(n, S::CHUNK) {
                     $chunk;
                 }
@@ -111,9 +98,9 @@ macro_rules! chunk_pass {
     };
 }
 
-chunk_pass!(Sample, |k, a, b, scratch| {
+chunk_pass!(Sample, |k, a, b| {
     let (lanes, u) = (&k.lanes[a..b], k.u.range(a, b));
-    k.s.sample_chunk(lanes, u, k.out.range(a, b), scratch)
+    k.s.sample_chunk(lanes, u, k.out.range(a, b), k.scratch)
 });
 
 struct Pdf<'a, 's, S: ChunkedSampler> {
@@ -121,11 +108,12 @@ struct Pdf<'a, 's, S: ChunkedSampler> {
     lanes: &'a [S::Lane],
     wo: Vec3s<'a>,
     pdf: &'a mut [f32],
+    scratch: &'a mut S::Scratch,
 }
 
-chunk_pass!(Pdf, |k, a, b, scratch| {
+chunk_pass!(Pdf, |k, a, b| {
     let (lanes, wo) = (&k.lanes[a..b], k.wo.range(a, b));
-    k.s.pdf_chunk(lanes, wo, &mut k.pdf[a..b], scratch)
+    k.s.pdf_chunk(lanes, wo, &mut k.pdf[a..b], k.scratch)
 });
 
 struct Invert<'a, 's, S: ChunkedSampler> {
@@ -134,16 +122,18 @@ struct Invert<'a, 's, S: ChunkedSampler> {
     wo: Vec3s<'a>,
     u: Vec2sMut<'a>,
     ok: &'a mut [bool],
+    scratch: &'a mut S::Scratch,
 }
 
-chunk_pass!(Invert, |k, a, b, scratch| {
+chunk_pass!(Invert, |k, a, b| {
     let (lanes, wo) = (&k.lanes[a..b], k.wo.range(a, b));
     let (u, ok) = (k.u.range(a, b), &mut k.ok[a..b]);
-    k.s.invert_chunk(lanes, wo, u, ok, scratch)
+    k.s.invert_chunk(lanes, wo, u, ok, k.scratch)
 });
 
 impl<S: ChunkedSampler> BatchSampler for S {
     type Lane = S::Lane;
+    type Scratch = S::Scratch;
 
     fn prepare_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [S::Lane]) -> Result<()> {
         check_prepare_args(&phi, &wi, lanes)?;
@@ -156,24 +146,38 @@ impl<S: ChunkedSampler> BatchSampler for S {
         Ok(())
     }
 
-    fn sample_batch(&self, lanes: &[S::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) -> Result<()> {
+    fn sample_batch_in(
+        &self,
+        lanes: &[S::Lane],
+        u: Vec2s<'_>,
+        out: SamplesMut<'_>,
+        scratch: &mut S::Scratch,
+    ) -> Result<()> {
         check_sample_args(lanes, &u, &out)?;
         dispatch(Sample {
             s: self,
             lanes,
             u,
             out,
+            scratch,
         });
         Ok(())
     }
 
-    fn pdf_batch(&self, lanes: &[S::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+    fn pdf_batch_in(
+        &self,
+        lanes: &[S::Lane],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        scratch: &mut S::Scratch,
+    ) -> Result<()> {
         check_pdf_args(lanes, &wo, pdf)?;
         dispatch(Pdf {
             s: self,
             lanes,
             wo,
             pdf,
+            scratch,
         });
         Ok(())
     }
@@ -186,12 +190,14 @@ impl<S: ChunkedSampler> BatchSampler for S {
         ok: &mut [bool],
     ) -> Result<()> {
         check_invert_args(lanes, &wo, &u, ok)?;
+        let mut scratch = <S::Scratch as Scratch>::NEW;
         dispatch(Invert {
             s: self,
             lanes,
             wo,
             u,
             ok,
+            scratch: &mut scratch,
         });
         Ok(())
     }

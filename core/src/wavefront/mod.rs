@@ -14,6 +14,11 @@
 //! - The caller provides every buffer; nothing allocates. Any N works (no multiple of a SIMD
 //!   width is required); every slice of one call must have the same length, otherwise the
 //!   call returns [`Error::BatchLength`](crate::Error::BatchLength) and writes nothing.
+//! - Sample, pdf and invert work in a sampler's [`BatchSampler::Scratch`] (tens of KiB for
+//!   the flows, nothing for most kinds). Each call makes its own on the stack; a renderer
+//!   keeps one per thread and passes it to [`BatchSampler::sample_batch_in`] and
+//!   [`BatchSampler::pdf_batch_in`] ([`AnyScratch`] for an [`AnySampler`](crate::AnySampler)),
+//!   so that no call fills it again. Results never depend on its contents.
 //! - Per lane, the rules of the scalar API hold: a refused condition gives a refused lane
 //!   (`Lane::default()`), a refused sample gives `pdf = 0` and `wo = 0`, a direction outside
 //!   the hemisphere gives a zero pdf. A bad lane never disturbs another lane.
@@ -54,12 +59,12 @@ pub(crate) use sampler::{
     encoded_conditions, identity_index, lanes_from_outputs, pdf_fused_chunks, raw_conditions,
     sample_fused_chunks, FromOutputs, Soa,
 };
-pub use sampler::{BatchSampler, LaneState, FUSED_CHUNK};
+pub use sampler::{BatchSampler, LaneState, Scratch, FUSED_CHUNK};
 pub use simd::{current as current_isa, detected as detected_isa, prefer as prefer_isa, Isa};
 pub(crate) use views::check_len;
 pub use views::{Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3s, Vec3sMut};
 
-pub use crate::samplers::{AnyLane, SamplerVisitor};
+pub use crate::samplers::{AnyLane, AnyScratch, SamplerVisitor};
 
 /// One dense layer `dense(I, O)` at `offset` of `w` (`core/ARCHITECTURES.md`: weights
 /// input-major `W[i][o]`, then the bias) over a chunk of `B` lanes in structure-of-arrays

@@ -47,11 +47,28 @@ pub(crate) fn chunks(n: usize, c: usize) -> Chunks {
 /// [`BatchSampler::pdf_fused`]): their prepared states live on the stack.
 pub const FUSED_CHUNK: usize = 32;
 
+/// Working memory of a sampler's batched sample, pdf and invert calls (`()` for a sampler
+/// that needs none): [`BatchSampler::sample_batch`] and [`BatchSampler::pdf_batch`] make one
+/// per call; a caller that keeps one ([`BatchSampler::sample_batch_in`],
+/// [`BatchSampler::pdf_batch_in`]), one per thread, saves making it at every call. Its
+/// contents carry nothing from one call to the next: results never depend on them.
+pub trait Scratch {
+    /// Fresh working memory (a constant, so that a call writes it in place).
+    const NEW: Self;
+}
+
+impl Scratch for () {
+    const NEW: () = ();
+}
+
 /// A sampler evaluated over wavefronts (see the [`crate::wavefront`] docs for the contract).
 pub trait BatchSampler {
     /// The prepared state of one shading point, without the sampler's weights handle
     /// (`Option<…>`: `None`, the default, is a refused lane).
     type Lane: LaneState;
+
+    /// The working memory of its sample, pdf and invert calls.
+    type Scratch: Scratch;
 
     /// Runs the networks for the `N = lanes.len()` conditions `(phi[i], wi[i])` and writes
     /// each lane's state (refused conditions: `Lane::default()`).
@@ -64,10 +81,34 @@ pub trait BatchSampler {
 
     /// Draws one direction per lane from `u[i]` (as [`Prepared::sample`](crate::Prepared::sample)),
     /// with its density and its MIS density ([`crate::Sample`]).
-    fn sample_batch(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) -> Result<()>;
+    fn sample_batch(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) -> Result<()> {
+        let mut scratch = <Self::Scratch as Scratch>::NEW;
+        self.sample_batch_in(lanes, u, out, &mut scratch)
+    }
+
+    /// [`BatchSampler::sample_batch`] in the caller's working memory (the same results).
+    fn sample_batch_in(
+        &self,
+        lanes: &[Self::Lane],
+        u: Vec2s<'_>,
+        out: SamplesMut<'_>,
+        scratch: &mut Self::Scratch,
+    ) -> Result<()>;
 
     /// The solid-angle density of `wo[i]` at lane `i` (as [`Prepared::pdf`](crate::Prepared::pdf)).
-    fn pdf_batch(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()>;
+    fn pdf_batch(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+        let mut scratch = <Self::Scratch as Scratch>::NEW;
+        self.pdf_batch_in(lanes, wo, pdf, &mut scratch)
+    }
+
+    /// [`BatchSampler::pdf_batch`] in the caller's working memory (the same results).
+    fn pdf_batch_in(
+        &self,
+        lanes: &[Self::Lane],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        scratch: &mut Self::Scratch,
+    ) -> Result<()>;
 
     /// The `u` that [`BatchSampler::sample_batch`] maps to `wo[i]`, where the method has a
     /// unique inverse (as [`Prepared::invert`](crate::Prepared::invert)); `ok[i]` says whether lane `i` has one (its
@@ -106,7 +147,7 @@ pub trait BatchSampler {
 }
 
 /// [`BatchSampler::sample_fused`]'s default: prepare and sample in chunks of [`FUSED_CHUNK`]
-/// lanes on the stack.
+/// lanes on the stack, in one working memory.
 pub(crate) fn sample_fused_chunks<S: BatchSampler + ?Sized>(
     s: &S,
     phi: Features<'_>,
@@ -120,16 +161,17 @@ pub(crate) fn sample_fused_chunks<S: BatchSampler + ?Sized>(
     u.check(n)?;
     out.check(n)?;
     let mut lanes = [S::Lane::default(); FUSED_CHUNK];
+    let mut scratch = <S::Scratch as Scratch>::NEW;
     for (a, b) in chunks(n, FUSED_CHUNK) {
         let chunk = &mut lanes[..b - a];
         s.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
-        s.sample_batch(chunk, u.range(a, b), out.range(a, b))?;
+        s.sample_batch_in(chunk, u.range(a, b), out.range(a, b), &mut scratch)?;
     }
     Ok(())
 }
 
 /// [`BatchSampler::pdf_fused`]'s default: prepare and evaluate in chunks of [`FUSED_CHUNK`]
-/// lanes on the stack.
+/// lanes on the stack, in one working memory.
 pub(crate) fn pdf_fused_chunks<S: BatchSampler + ?Sized>(
     s: &S,
     phi: Features<'_>,
@@ -143,10 +185,11 @@ pub(crate) fn pdf_fused_chunks<S: BatchSampler + ?Sized>(
     wo.check(n)?;
     check_len("pdf", pdf.len(), n)?;
     let mut lanes = [S::Lane::default(); FUSED_CHUNK];
+    let mut scratch = <S::Scratch as Scratch>::NEW;
     for (a, b) in chunks(n, FUSED_CHUNK) {
         let chunk = &mut lanes[..b - a];
         s.prepare_batch(phi.range(a, b), wi.range(a, b), chunk)?;
-        s.pdf_batch(chunk, wo.range(a, b), &mut pdf[a..b])?;
+        s.pdf_batch_in(chunk, wo.range(a, b), &mut pdf[a..b], &mut scratch)?;
     }
     Ok(())
 }

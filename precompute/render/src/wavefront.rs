@@ -15,7 +15,8 @@ use std::time::Instant;
 
 use glam::{Vec2, Vec3};
 use neusample::wavefront::{
-    BatchSampler, Features, FeaturesMut, LaneState, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut,
+    BatchSampler, Features, FeaturesMut, LaneState, RgbMut, SamplesMut, Scratch, Vec2s, Vec3s,
+    Vec3sMut,
 };
 use neusample::{Frame, FEATURE_DIM};
 use rayon::prelude::*;
@@ -243,6 +244,8 @@ struct Tile<'r, 'a, M: ?Sized, S: BatchSampler> {
     /// when it ends, so `None` between depths).
     next: Vec<Option<(Ray, Hit)>>,
     batch: Batch<S::Lane>,
+    /// The sampler's working memory, kept across its calls.
+    scratch: Box<S::Scratch>,
 }
 
 impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
@@ -259,6 +262,7 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
             terms,
             next,
             batch: b,
+            scratch,
             ..
         } = self;
         let mis = opts.estimator == Estimator::Mis;
@@ -284,7 +288,7 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
             let _ = surface
                 .sampler
                 .prepare_batch(b.phi.features(n), b.wi.view(n), lanes);
-            let _ = surface.sampler.sample_batch(
+            let _ = surface.sampler.sample_batch_in(
                 lanes,
                 b.u.view(n),
                 SamplesMut {
@@ -292,6 +296,7 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
                     pdf: &mut b.pdf[..n],
                     mis_pdf: &mut b.mis_pdf[..n],
                 },
+                scratch,
             );
             surface.material.eval_batch(
                 b.phi.features(n),
@@ -307,9 +312,12 @@ impl<M: Material + ?Sized, S: BatchSampler> Tile<'_, '_, M, S> {
                     let wo = s.map_or(Vec3::ZERO, |(dir, _)| b.frames[i].to_local(dir));
                     b.env_wo.set(i, wo.to_array());
                 }
-                let _ = surface
-                    .sampler
-                    .pdf_batch(lanes, b.env_wo.view(n), &mut b.env_pdf[..n]);
+                let _ = surface.sampler.pdf_batch_in(
+                    lanes,
+                    b.env_wo.view(n),
+                    &mut b.env_pdf[..n],
+                    scratch,
+                );
                 surface.material.eval_batch(
                     b.phi.features(n),
                     b.wi.view(n),
@@ -524,6 +532,7 @@ where
                 terms: vec![vec![VertexTerms::default(); len]; opts.max_bounces.max(1) as usize],
                 next: vec![None; len],
                 batch: Batch::new(len),
+                scratch: Box::new(Scratch::NEW),
             };
             t.run(start, len)
         })

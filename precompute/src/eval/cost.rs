@@ -8,7 +8,7 @@ use std::hint::black_box;
 
 use glam::{Vec2, Vec3};
 use neusample::wavefront::{
-    BatchSampler, Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut,
+    BatchSampler, Features, FeaturesMut, RgbMut, SamplesMut, Scratch, Vec2s, Vec3s, Vec3sMut,
 };
 use neusample::{Prepared, Sampler, FEATURE_DIM};
 use rand::SeedableRng;
@@ -293,6 +293,8 @@ pub fn batched_split<S: BatchSampler>(s: &S, rows: &Rows, n: usize, passes: usiz
     let mut pdf = vec![0.0f32; total];
     let mut mis = vec![0.0f32; total];
     let mut pdf2 = vec![0.0f32; total];
+    // Kept across calls, as a renderer keeps it.
+    let mut scratch = Box::new(<S::Scratch as Scratch>::NEW);
     let prepare_ns = time_per(passes, total, || {
         for (a, b) in rows.calls(n) {
             s.prepare_batch(rows.phi.at(a, b), rows.wi.at(a, b), &mut lanes[a..b])
@@ -311,14 +313,19 @@ pub fn batched_split<S: BatchSampler>(s: &S, rows: &Rows, n: usize, passes: usiz
                 pdf: &mut pdf[a..b],
                 mis_pdf: &mut mis[a..b],
             };
-            s.sample_batch(&lanes[a..b], rows.u.at(a, b), out)
+            s.sample_batch_in(&lanes[a..b], rows.u.at(a, b), out, &mut scratch)
                 .expect("lengths agree");
         }
     });
     let pdf_ns = time_per(passes, total, || {
         for (a, b) in rows.calls(n) {
-            s.pdf_batch(&lanes[a..b], rows.wo.at(a, b), &mut pdf2[a..b])
-                .expect("lengths agree");
+            s.pdf_batch_in(
+                &lanes[a..b],
+                rows.wo.at(a, b),
+                &mut pdf2[a..b],
+                &mut scratch,
+            )
+            .expect("lengths agree");
         }
     });
     black_box((&pdf, &pdf2));

@@ -85,6 +85,7 @@ impl<W: Weights> Sampler for MeasuredDataSampler<W> {
 
 impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
     type Lane = Option<[f32; 3]>;
+    type Scratch = ();
 
     fn prepare_batch(
         &self,
@@ -102,7 +103,13 @@ impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
         Ok(())
     }
 
-    fn sample_batch(&self, lanes: &[Self::Lane], u: Vec2s<'_>, out: SamplesMut<'_>) -> Result<()> {
+    fn sample_batch_in(
+        &self,
+        lanes: &[Self::Lane],
+        u: Vec2s<'_>,
+        out: SamplesMut<'_>,
+        _scratch: &mut (),
+    ) -> Result<()> {
         let n = lanes.len();
         check("u", u.len(), n)?;
         check("wo", out.wo.x.len(), n)?;
@@ -133,7 +140,13 @@ impl<W: Weights> BatchSampler for MeasuredDataSampler<W> {
         Ok(())
     }
 
-    fn pdf_batch(&self, lanes: &[Self::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+    fn pdf_batch_in(
+        &self,
+        lanes: &[Self::Lane],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        _scratch: &mut (),
+    ) -> Result<()> {
         let n = lanes.len();
         check("wo", wo.len(), n)?;
         check("pdf", pdf.len(), n)?;

@@ -10,15 +10,22 @@ use crate::wavefront::{
 
 impl<S: BatchSampler> BatchSampler for Defensive<S> {
     type Lane = S::Lane;
+    type Scratch = S::Scratch;
 
     #[inline]
     fn prepare_batch(&self, phi: Features<'_>, wi: Vec3s<'_>, lanes: &mut [S::Lane]) -> Result<()> {
         self.inner.prepare_batch(phi, wi, lanes)
     }
 
-    fn sample_batch(&self, lanes: &[S::Lane], u: Vec2s<'_>, mut out: SamplesMut<'_>) -> Result<()> {
+    fn sample_batch_in(
+        &self,
+        lanes: &[S::Lane],
+        u: Vec2s<'_>,
+        mut out: SamplesMut<'_>,
+        scratch: &mut S::Scratch,
+    ) -> Result<()> {
         if !self.is_mixed() {
-            return self.inner.sample_batch(lanes, u, out);
+            return self.inner.sample_batch_in(lanes, u, out, scratch);
         }
         let n = check_sample_args(lanes, &u, &out)?;
         let alpha = self.alpha;
@@ -55,13 +62,14 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
                 }
             }
             let mut chunk = out.range(a, b);
-            self.inner.sample_batch(
+            self.inner.sample_batch_in(
                 &lanes[a..b],
                 Vec2s {
                     x: &ux[..m],
                     y: &uy[..m],
                 },
                 chunk.range(0, m),
+                scratch,
             )?;
             for i in 0..m {
                 // Learned lanes: the mixture's densities; refused and cosine lanes:
@@ -76,7 +84,7 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
             }
             if c > 0 {
                 let mut pl = [0.0f32; FUSED_CHUNK];
-                self.inner.pdf_batch(
+                self.inner.pdf_batch_in(
                     &cl[..c],
                     Vec3s {
                         x: &cx[..c],
@@ -84,6 +92,7 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
                         z: &cz[..c],
                     },
                     &mut pl[..c],
+                    scratch,
                 )?;
                 for j in 0..c {
                     let wo = Vec3::new(cx[j], cy[j], cz[j]);
@@ -94,12 +103,18 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
         Ok(())
     }
 
-    fn pdf_batch(&self, lanes: &[S::Lane], wo: Vec3s<'_>, pdf: &mut [f32]) -> Result<()> {
+    fn pdf_batch_in(
+        &self,
+        lanes: &[S::Lane],
+        wo: Vec3s<'_>,
+        pdf: &mut [f32],
+        scratch: &mut S::Scratch,
+    ) -> Result<()> {
         if !self.is_mixed() {
-            return self.inner.pdf_batch(lanes, wo, pdf);
+            return self.inner.pdf_batch_in(lanes, wo, pdf, scratch);
         }
         let n = check_pdf_args(lanes, &wo, pdf)?;
-        self.inner.pdf_batch(lanes, wo, pdf)?;
+        self.inner.pdf_batch_in(lanes, wo, pdf, scratch)?;
         for i in 0..n {
             pdf[i] = match warp::upper_hemisphere(wo.at(i)) {
                 Some(w) if lanes[i].is_prepared() => mix(self.alpha, pdf[i], w.z),
