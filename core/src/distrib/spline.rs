@@ -104,7 +104,8 @@ fn sanitize_raw<L: Lane>(v: L) -> L {
 /// `raw[K .. 2K]`: `size = min + (1 − K·min)·softmax(raw)`, cumulative sum scaled to
 /// `[−B, B]`, left end exactly `−B` (the right end `+B` is implicit in [`Knots`]). Widths and
 /// heights are independent; their softmaxes and running sums are interleaved so that the two
-/// sequential chains overlap (each computed exactly as on its own). Written into `x` and `y`.
+/// sequential chains overlap (each computed exactly as on its own). Computed in `x` and `y`
+/// (the softmaxes first, then each replaced by its knot), so no temporary is zeroed.
 #[inline(always)]
 fn cumulative_knots<L: Lane, const K: usize, const N: usize>(
     raw: &[L; N],
@@ -112,28 +113,30 @@ fn cumulative_knots<L: Lane, const K: usize, const N: usize>(
     x: &mut [L; K],
     y: &mut [L; K],
 ) {
-    let mut w = [L::splat(0.0); K];
-    let mut h = [L::splat(0.0); K];
     let mut k = 0;
     while k < K {
-        w[k] = sanitize_raw(raw[k]);
-        h[k] = sanitize_raw(raw[K + k]);
+        x[k] = sanitize_raw(raw[k]);
+        y[k] = sanitize_raw(raw[K + k]);
         k += 1;
     }
-    gaussian::softmax_pair_lanes::<L, K>(&mut w, &mut h);
+    gaussian::softmax_pair_lanes::<L, K>(x, y);
     let scale_w = L::splat(1.0 - MIN_BIN_WIDTH * K as f32);
     let scale_h = L::splat(1.0 - MIN_BIN_HEIGHT * K as f32);
     let (min_w, min_h) = (L::splat(MIN_BIN_WIDTH), L::splat(MIN_BIN_HEIGHT));
     let (b2, b) = (L::splat(2.0 * bound), L::splat(bound));
+    // Bin k − 1's size, read before knot k − 1 replaced it.
+    let (mut w, mut h) = (x[0], y[0]);
     x[0] = -b;
     y[0] = -b;
     let mut cum_w = L::splat(0.0);
     let mut cum_h = L::splat(0.0);
     k = 1;
     while k < K {
-        cum_w = cum_w + (min_w + scale_w * w[k - 1]);
+        cum_w = cum_w + (min_w + scale_w * w);
+        w = x[k];
         x[k] = b2 * cum_w - b;
-        cum_h = cum_h + (min_h + scale_h * h[k - 1]);
+        cum_h = cum_h + (min_h + scale_h * h);
+        h = y[k];
         y[k] = b2 * cum_h - b;
         k += 1;
     }

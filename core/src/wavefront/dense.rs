@@ -131,16 +131,30 @@ pub(crate) fn accumulate_act<
     product::<W, I, O, B>(w, offset, row0, x, acc, m, Start::Output, act);
 }
 
-/// Every lane of `y[j]` set to the bias `b_j` of the dense layer `dense(I, O)` at `offset`.
+/// For each offset in `offsets`, the condition's share of the dense layer `dense(I, O)` there,
+/// into `shares`: its bias plus its first `C` input rows times `c`, no activation, for the
+/// first `m` lanes (the other lanes hold the bias).
 #[inline(always)]
-pub(crate) fn bias<W: Weights + ?Sized, const I: usize, const O: usize, const B: usize>(
+pub(crate) fn condition_shares<
+    W: Weights + ?Sized,
+    const I: usize,
+    const C: usize,
+    const O: usize,
+    const B: usize,
+    const N: usize,
+>(
     w: &W,
-    offset: u32,
-    y: &mut [[f32; B]; O],
+    offsets: [u32; N],
+    c: &[[f32; B]; C],
+    m: usize,
+    shares: &mut [[[f32; B]; O]; N],
 ) {
-    let b: [f32; O] = w.read(offset + (I * O) as u32);
-    for (row, v) in y.iter_mut().zip(b) {
-        *row = [v; B];
+    for (y, offset) in shares.iter_mut().zip(offsets) {
+        let b: [f32; O] = w.read(offset + (I * O) as u32);
+        for (row, v) in y.iter_mut().zip(b) {
+            *row = [v; B];
+        }
+        accumulate::<W, C, O, B>(w, offset, 0, c, y, m);
     }
 }
 

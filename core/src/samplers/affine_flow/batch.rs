@@ -191,12 +191,14 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         let m = out.len();
         let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
-        let mut share: [Soa<HIDDEN>; AFFINE_LAYERS] = [[[0.0; CHUNK]; HIDDEN]; AFFINE_LAYERS];
-        for (l, s) in share.iter_mut().enumerate() {
-            let off = (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32;
-            dense::bias::<W, COUPLING_INPUTS, HIDDEN, CHUNK>(w, off, s);
-            dense::accumulate::<W, CONDITION_DIM, HIDDEN, CHUNK>(w, off, 0, &c, s, m);
+        let mut offsets = [0u32; AFFINE_LAYERS];
+        for (l, off) in offsets.iter_mut().enumerate() {
+            *off = (l * AFFINE_NET_LEN + AFFINE_NET_L0) as u32;
         }
+        let mut share: [Soa<HIDDEN>; AFFINE_LAYERS] = [[[0.0; CHUNK]; HIDDEN]; AFFINE_LAYERS];
+        dense::condition_shares::<W, COUPLING_INPUTS, CONDITION_DIM, HIDDEN, CHUNK, AFFINE_LAYERS>(
+            w, offsets, &c, m, &mut share,
+        );
         for l in 0..m {
             out[l] = if valid[l] {
                 let mut sh = [[0.0f32; HIDDEN]; AFFINE_LAYERS];

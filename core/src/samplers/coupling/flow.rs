@@ -101,12 +101,15 @@ pub(crate) fn coupling_shares<const K: usize, const RAW: usize, F: CouplingFlow<
     c: &Soa<CONDITION_DIM, CHUNK>,
     m: usize,
 ) -> [Soa<HIDDEN, CHUNK>; 2] {
-    let w = f.weights();
+    let offsets = [F::COUPLINGS[0] as u32, F::COUPLINGS[1] as u32];
     let mut share = [[[0.0f32; CHUNK]; HIDDEN]; 2];
-    for (s, net) in share.iter_mut().zip(F::COUPLINGS) {
-        dense::bias::<F::W, COUPLING_INPUTS, HIDDEN, CHUNK>(w, net as u32, s);
-        dense::accumulate::<F::W, CONDITION_DIM, HIDDEN, CHUNK>(w, net as u32, 0, c, s, m);
-    }
+    dense::condition_shares::<F::W, COUPLING_INPUTS, CONDITION_DIM, HIDDEN, CHUNK, 2>(
+        f.weights(),
+        offsets,
+        c,
+        m,
+        &mut share,
+    );
     share
 }
 

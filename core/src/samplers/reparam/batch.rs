@@ -207,11 +207,15 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         let m = out.len();
         let (c, valid) = wavefront::encoded_conditions::<CHUNK>(&phi, &wi);
         let w = &self.params;
+        let offsets = [WARP_L0 as u32, DENSITY_L0 as u32];
         let mut shares: [Soa<H>; 2] = [[[0.0; CHUNK]; H]; 2];
-        for (s, off) in shares.iter_mut().zip([WARP_L0, DENSITY_L0]) {
-            dense::bias::<W, REPARAM_INPUTS, H, CHUNK>(w, off as u32, s);
-            dense::accumulate::<W, CONDITION_DIM, H, CHUNK>(w, off as u32, 0, &c, s, m);
-        }
+        dense::condition_shares::<W, REPARAM_INPUTS, CONDITION_DIM, H, CHUNK, 2>(
+            w,
+            offsets,
+            &c,
+            m,
+            &mut shares,
+        );
         // ReparamLane::new's finiteness check, across lanes: 0·v is ±0 for a finite v and NaN
         // otherwise, so a lane's sum of them is 0 exactly when all its values are finite
         // (float adds vectorise where a chain of boolean ands does not).
