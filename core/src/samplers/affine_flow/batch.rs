@@ -18,7 +18,7 @@ use crate::warp::{self, inside_disk};
 use crate::wavefront::chunked::ChunkedSampler;
 use crate::wavefront::lanes;
 use crate::wavefront::lanes::density_from_log;
-use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
+use crate::wavefront::{self, dense, Features, SamplesMut, Scratch, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk.
@@ -28,6 +28,29 @@ type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
 
 /// Per coupling layer and lane, the input `v` and the `(s, t)` computed from it.
 type Seen = [[(f32, f32, f32); CHUNK]; AFFINE_LAYERS];
+
+/// [`AffineFlowSampler`]'s working memory ([`Scratch`]): one coupling network's lane blocks.
+/// Lanes past a network's count keep earlier values: lanes are independent and no result
+/// reads those.
+pub struct AffineScratch {
+    /// The first hidden layer (starting as the lanes' shares).
+    h: Soa<HIDDEN>,
+    /// The encoded other coordinates.
+    e: Soa<OTHER_DIM>,
+    /// The second hidden layer.
+    g: Soa<HIDDEN>,
+    /// The network's outputs.
+    o: Soa<AFFINE_OUTPUTS>,
+}
+
+impl Scratch for AffineScratch {
+    const NEW: Self = AffineScratch {
+        h: [[0.0; CHUNK]; HIDDEN],
+        e: [[0.0; CHUNK]; OTHER_DIM],
+        g: [[0.0; CHUNK]; HIDDEN],
+        o: [[0.0; CHUNK]; AFFINE_OUTPUTS],
+    };
+}
 
 impl<W: Weights + Copy> AffineFlowSampler<W> {
     /// `(s, t)` of coupling network `l` for the lanes `idx[..m]` of a chunk, each at its own
@@ -41,49 +64,32 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         m: usize,
         v: &[f32; CHUNK],
         st: &mut [(f32, f32); CHUNK],
+        scratch: &mut AffineScratch,
     ) {
         let w = &self.params;
         let off = (l * AFFINE_NET_LEN) as u32;
-        let mut h: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
+        let AffineScratch { h, e, g, o } = scratch;
         let mut vv = [0.0f32; CHUNK];
         for k in 0..m {
-            if let Some(s) = &lanes[idx[k]] {
-                for j in 0..HIDDEN {
-                    h[j][k] = s.share[l][j];
-                }
+            let share = lanes[idx[k]].as_ref().map(|s| &s.share[l]);
+            for j in 0..HIDDEN {
+                h[j][k] = share.map_or(0.0, |s| s[j]);
             }
             vv[k] = v[idx[k]];
         }
-        let mut e: Soa<OTHER_DIM> = [[0.0; CHUNK]; OTHER_DIM];
-        lanes::encode_rows::<OTHER_BANDS, OTHER_DIM, CHUNK>(&vv, &mut e, 0);
+        lanes::encode_rows::<OTHER_BANDS, OTHER_DIM, CHUNK>(&vv, e, 0);
         let l0 = off + AFFINE_NET_L0 as u32;
         dense::accumulate_act::<W, OTHER_DIM, HIDDEN, CHUNK>(
             w,
             l0,
             CONDITION_DIM as u32,
-            &e,
-            &mut h,
+            e,
+            h,
             m,
             Activation::Relu,
         );
-        let mut g: Soa<HIDDEN> = [[0.0; CHUNK]; HIDDEN];
-        dense::dense(
-            w,
-            off + AFFINE_NET_L1 as u32,
-            &h,
-            Activation::Relu,
-            &mut g,
-            m,
-        );
-        let mut o: Soa<AFFINE_OUTPUTS> = [[0.0; CHUNK]; AFFINE_OUTPUTS];
-        dense::dense(
-            w,
-            off + AFFINE_NET_L2 as u32,
-            &g,
-            Activation::Identity,
-            &mut o,
-            m,
-        );
+        dense::dense(w, off + AFFINE_NET_L1 as u32, h, Activation::Relu, g, m);
+        dense::dense(w, off + AFFINE_NET_L2 as u32, g, Activation::Identity, o, m);
         for k in 0..m {
             st[idx[k]] = scale_shift(&[o[0][k], o[1][k]]);
         }
@@ -100,6 +106,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         seen: Option<&Seen>,
         zl: &mut [Vec2; CHUNK],
         ld: &mut [f32; CHUNK],
+        scratch: &mut AffineScratch,
     ) {
         let m = lanes.len();
         for i in 0..m {
@@ -125,7 +132,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
                 }
             }
             if n_run > 0 {
-                self.scale_shift_for(l, lanes, &idx, n_run, &v, &mut st);
+                self.scale_shift_for(l, lanes, &idx, n_run, &v, &mut st, scratch);
             }
             for i in 0..m {
                 let (s, t) = st[i];
@@ -142,7 +149,12 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
     /// The density direction (`to_latent`) at the directions `wo`: per lane, whether its disk
     /// point is valid, cos θ, the latent point and the log-det.
     #[inline(always)]
-    fn latent_at_chunk(&self, lanes: &[Option<AffineFlowLane>], wo: Vec3s<'_>) -> LatentAt {
+    fn latent_at_chunk(
+        &self,
+        lanes: &[Option<AffineFlowLane>],
+        wo: Vec3s<'_>,
+        scratch: &mut AffineScratch,
+    ) -> LatentAt {
         let mut at = LatentAt {
             ok: [false; CHUNK],
             cos: [0.0; CHUNK],
@@ -163,8 +175,9 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
             v[i] = p[i].y;
         }
         let mut st0 = [(0.0f32, 0.0f32); CHUNK];
-        self.scale_shift_for(0, lanes, &all, m, &v, &mut st0);
-        self.latent_chunk(lanes, &p, &st0, None, &mut at.z, &mut at.log_det);
+        self.scale_shift_for(0, lanes, &all, m, &v, &mut st0, scratch);
+        let (z, log_det) = (&mut at.z, &mut at.log_det);
+        self.latent_chunk(lanes, &p, &st0, None, z, log_det, scratch);
         at
     }
 }
@@ -183,7 +196,7 @@ struct LatentAt {
 
 impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
     type Lane = Option<AffineFlowLane>;
-    type Scratch = ();
+    type Scratch = AffineScratch;
     const CHUNK: usize = CHUNK;
 
     #[inline(always)]
@@ -218,7 +231,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         lanes: &[Option<AffineFlowLane>],
         u: Vec2s<'_>,
         mut out: SamplesMut<'_>,
-        _scratch: &mut Self::Scratch,
+        scratch: &mut AffineScratch,
     ) {
         let m = lanes.len();
         let all = wavefront::identity_index::<CHUNK>();
@@ -246,7 +259,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
             for i in 0..m {
                 v[i] = if l % 2 == 0 { xy[i].y } else { xy[i].x };
             }
-            self.scale_shift_for(l, lanes, &all, m, &v, &mut st);
+            self.scale_shift_for(l, lanes, &all, m, &v, &mut st, scratch);
             for i in 0..m {
                 let (s, t) = st[i];
                 seen[l][i] = (v[i], s, t);
@@ -261,7 +274,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
             v[i] = xy[i].y;
         }
         let mut st0 = [(0.0f32, 0.0f32); CHUNK];
-        self.scale_shift_for(0, lanes, &all, m, &v, &mut st0);
+        self.scale_shift_for(0, lanes, &all, m, &v, &mut st0, scratch);
         for i in 0..m {
             let (s0, t0) = st0[i];
             xy[i].x = (xy[i].x - t0) * approx::exp(-s0);
@@ -269,7 +282,7 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         }
         let mut zl = [Vec2::ZERO; CHUNK];
         let mut ld = [0.0f32; CHUNK];
-        self.latent_chunk(lanes, &xy, &st0, Some(&seen), &mut zl, &mut ld);
+        self.latent_chunk(lanes, &xy, &st0, Some(&seen), &mut zl, &mut ld, scratch);
         for i in 0..m {
             let s = if ok[i] {
                 let log_p = AffineFlowPrepared::<W>::log_density(zl[i], ld[i]);
@@ -287,9 +300,9 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         lanes: &[Option<AffineFlowLane>],
         wo: Vec3s<'_>,
         pdf: &mut [f32],
-        _scratch: &mut Self::Scratch,
+        scratch: &mut AffineScratch,
     ) {
-        let at = self.latent_at_chunk(lanes, wo);
+        let at = self.latent_at_chunk(lanes, wo, scratch);
         for i in 0..lanes.len() {
             pdf[i] = if at.ok[i] {
                 let d = AffineFlowPrepared::<W>::log_density(at.z[i], at.log_det[i]);
@@ -307,9 +320,9 @@ impl<W: Weights + Copy> ChunkedSampler for AffineFlowSampler<W> {
         wo: Vec3s<'_>,
         mut u: Vec2sMut<'_>,
         ok_out: &mut [bool],
-        _scratch: &mut Self::Scratch,
+        scratch: &mut AffineScratch,
     ) {
-        let at = self.latent_at_chunk(lanes, wo);
+        let at = self.latent_at_chunk(lanes, wo, scratch);
         for i in 0..lanes.len() {
             let z = at.z[i];
             let r = if at.ok[i] && math::is_finite(z.x) && math::is_finite(z.y) {

@@ -21,7 +21,7 @@ use crate::nn::{Activation, CONDITION_DIM};
 use crate::warp::{self, inside_disk};
 use crate::wavefront::chunked::ChunkedSampler;
 use crate::wavefront::lanes::{self, Lanes, NARROW};
-use crate::wavefront::{self, dense, Features, SamplesMut, Vec2s, Vec2sMut, Vec3s};
+use crate::wavefront::{self, dense, Features, SamplesMut, Scratch, Vec2s, Vec2sMut, Vec3s};
 use crate::weights::Weights;
 
 /// Lanes per chunk.
@@ -37,15 +37,40 @@ type Soa<const N: usize> = wavefront::Soa<N, CHUNK>;
 fn stacked_bias<W: Weights, const I: usize, const O: usize>(
     w: &W,
     offset: u32,
-) -> [[f32; STACK]; O] {
+    acc: &mut [[f32; STACK]; O],
+) {
     let b: [f32; O] = w.read(offset + (I * O) as u32);
-    let mut acc = [[0.0f32; STACK]; O];
     for (row, v) in acc.iter_mut().zip(b) {
-        for x in row[..CHUNK].iter_mut() {
-            *x = v;
-        }
+        let (value, tangents) = row.split_at_mut(CHUNK);
+        value.fill(v);
+        tangents.fill(0.0);
     }
-    acc
+}
+
+/// [`ReparamSampler`]'s working memory ([`Scratch`]): a chunk's lane blocks of both
+/// networks. Lanes past a call's count keep an earlier call's values: lanes are independent
+/// and no result reads those.
+pub struct ReparamScratch {
+    /// The warp's first layer: each lane's share plus its latent point's rows.
+    a: Soa<H>,
+    /// The warp's hidden activations, value lanes then both tangent blocks.
+    x: [[f32; STACK]; H],
+    /// The warp's second layer before its activation, in the same blocks.
+    a2: [[f32; STACK]; H],
+    /// The warp's outputs, in the same blocks.
+    o: [[f32; STACK]; WARP_OUTPUTS],
+    /// The pdf network's hidden layer.
+    g: Soa<H>,
+}
+
+impl Scratch for ReparamScratch {
+    const NEW: Self = ReparamScratch {
+        a: [[0.0; CHUNK]; H],
+        x: [[0.0; STACK]; H],
+        a2: [[0.0; STACK]; H],
+        o: [[0.0; STACK]; WARP_OUTPUTS],
+        g: [[0.0; CHUNK]; H],
+    };
 }
 
 impl<W: Weights + Copy> ReparamSampler<W> {
@@ -57,20 +82,23 @@ impl<W: Weights + Copy> ReparamSampler<W> {
         lanes: &[Option<ReparamLane>],
         u: Vec2s<'_>,
         mut out: SamplesMut<'_>,
+        scratch: &mut ReparamScratch,
     ) {
         let m = lanes.len().min(B);
         let w = &self.params;
-        // Refused lanes keep u = 0 (z = 0) and are dropped at the end.
+        let ReparamScratch { a, x, a2, o, g } = scratch;
+        // Refused lanes keep u = 0 (z = 0) and a zero share, and are dropped at the end.
         let (mut u0, mut u1) = ([0.0f32; B], [0.0f32; B]);
         let mut ok = [false; B];
-        let mut a: Soa<H> = [[0.0; CHUNK]; H];
         for i in 0..m {
+            let mut share = None;
             if let (Some(l), Some(uu)) = (&lanes[i], math::sanitize_u2(u.at(i))) {
                 (u0[i], u1[i]) = (uu.x, uu.y);
                 ok[i] = true;
-                for j in 0..H {
-                    a[j][i] = l.warp[j];
-                }
+                share = Some(&l.warp);
+            }
+            for j in 0..H {
+                a[j][i] = share.map_or(0.0, |s| s[j]);
             }
         }
         let (mut zx, mut zy) = ([0.0f32; B], [0.0f32; B]);
@@ -79,10 +107,9 @@ impl<W: Weights + Copy> ReparamSampler<W> {
         Lanes(zx).store(&mut zs[0]);
         Lanes(zy).store(&mut zs[1]);
         let l0 = WARP_L0 as u32;
-        dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &zs, &mut a, m);
+        dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &zs, a, m);
         let r0: [f32; H] = w.read(l0 + (CONDITION_DIM * H) as u32);
         let r1: [f32; H] = w.read(l0 + ((CONDITION_DIM + 1) * H) as u32);
-        let mut x = [[0.0f32; STACK]; H];
         let mut s = [0.0f32; B];
         for (xj, (aj, (r0j, r1j))) in x.iter_mut().zip(a.iter().zip(r0.into_iter().zip(r1))) {
             approx::sigmoid_row(aj, &mut s);
@@ -95,9 +122,9 @@ impl<W: Weights + Copy> ReparamSampler<W> {
         }
         let active = 2 * CHUNK + m;
         let l1 = WARP_L1 as u32;
-        let mut a2 = stacked_bias::<W, H, H>(w, l1);
-        dense::accumulate::<W, H, H, STACK>(w, l1, 0, &x, &mut a2, active);
-        for (xj, aj) in x.iter_mut().zip(&a2) {
+        stacked_bias::<W, H, H>(w, l1, a2);
+        dense::accumulate::<W, H, H, STACK>(w, l1, 0, x, a2, active);
+        for (xj, aj) in x.iter_mut().zip(a2.iter()) {
             let (y, t) = xj.split_at_mut(CHUNK);
             let (t0, t1) = t.split_at_mut(CHUNK);
             let (a, da) = aj.split_at(CHUNK);
@@ -117,8 +144,8 @@ impl<W: Weights + Copy> ReparamSampler<W> {
             }
         }
         let l2 = WARP_L2 as u32;
-        let mut o = stacked_bias::<W, H, WARP_OUTPUTS>(w, l2);
-        dense::accumulate::<W, H, WARP_OUTPUTS, STACK>(w, l2, 0, &x, &mut o, active);
+        stacked_bias::<W, H, WARP_OUTPUTS>(w, l2, o);
+        dense::accumulate::<W, H, WARP_OUTPUTS, STACK>(w, l2, 0, x, o, active);
         // Each lane's direction and density, the `B` lanes side by side.
         let mut v: Soa<3> = [[0.0; CHUNK]; 3];
         let mut q = [0.0f32; B];
@@ -145,7 +172,7 @@ impl<W: Weights + Copy> ReparamSampler<W> {
             y: &out.wo.y[..m],
             z: &out.wo.z[..m],
         };
-        self.pdf_rows::<B>(lanes, wo, &mut out.mis_pdf[..m]);
+        self.pdf_rows::<B>(lanes, wo, &mut out.mis_pdf[..m], g);
     }
 
     /// [`ChunkedSampler::pdf_chunk`] of a chunk of at most `B` lanes, its element-wise steps
@@ -156,14 +183,15 @@ impl<W: Weights + Copy> ReparamSampler<W> {
         lanes: &[Option<ReparamLane>],
         wo: Vec3s<'_>,
         pdf: &mut [f32],
+        g: &mut Soa<H>,
     ) {
         let m = lanes.len().min(B);
         let w = &self.params;
         let mut ok = [false; B];
         let mut cos = [0.0f32; B];
         let mut ps: Soa<2> = [[0.0; CHUNK]; 2];
-        let mut g: Soa<H> = [[0.0; CHUNK]; H];
         for i in 0..m {
+            let mut share = None;
             if let (Some(l), Some(d)) = (&lanes[i], warp::upper_hemisphere(wo.at(i))) {
                 let p = warp::to_disk(d);
                 if inside_disk(p) {
@@ -171,17 +199,18 @@ impl<W: Weights + Copy> ReparamSampler<W> {
                     cos[i] = d.z;
                     ps[0][i] = p.x;
                     ps[1][i] = p.y;
-                    for j in 0..H {
-                        g[j][i] = l.density[j];
-                    }
+                    share = Some(&l.density);
                 }
+            }
+            for j in 0..H {
+                g[j][i] = share.map_or(0.0, |s| s[j]);
             }
         }
         let l0 = DENSITY_L0 as u32;
-        dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &ps, &mut g, m);
-        dense::activate(Activation::Relu, &mut g, m);
+        dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &ps, g, m);
+        dense::activate(Activation::Relu, g, m);
         let mut o: Soa<1> = [[0.0; CHUNK]; 1];
-        dense::dense::<W, H, 1, CHUNK>(w, DENSITY_L1 as u32, &g, Activation::Identity, &mut o, m);
+        dense::dense::<W, H, 1, CHUNK>(w, DENSITY_L1 as u32, g, Activation::Identity, &mut o, m);
         // The scalar path's `density_from_output` with the fast `exp`, over the whole row.
         let mut density = [0.0f32; B];
         for (d, o) in density.iter_mut().zip(&o[0]) {
@@ -199,7 +228,7 @@ impl<W: Weights + Copy> ReparamSampler<W> {
 
 impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
     type Lane = Option<ReparamLane>;
-    type Scratch = ();
+    type Scratch = ReparamScratch;
     const CHUNK: usize = CHUNK;
 
     #[inline(always)]
@@ -250,12 +279,12 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         lanes: &[Option<ReparamLane>],
         u: Vec2s<'_>,
         out: SamplesMut<'_>,
-        _scratch: &mut Self::Scratch,
+        scratch: &mut ReparamScratch,
     ) {
         if lanes.len() <= NARROW {
-            self.sample_rows::<NARROW>(lanes, u, out);
+            self.sample_rows::<NARROW>(lanes, u, out, scratch);
         } else {
-            self.sample_rows::<CHUNK>(lanes, u, out);
+            self.sample_rows::<CHUNK>(lanes, u, out, scratch);
         }
     }
 
@@ -265,12 +294,12 @@ impl<W: Weights + Copy> ChunkedSampler for ReparamSampler<W> {
         lanes: &[Option<ReparamLane>],
         wo: Vec3s<'_>,
         pdf: &mut [f32],
-        _scratch: &mut Self::Scratch,
+        scratch: &mut ReparamScratch,
     ) {
         if lanes.len() <= NARROW {
-            self.pdf_rows::<NARROW>(lanes, wo, pdf);
+            self.pdf_rows::<NARROW>(lanes, wo, pdf, &mut scratch.g);
         } else {
-            self.pdf_rows::<CHUNK>(lanes, wo, pdf);
+            self.pdf_rows::<CHUNK>(lanes, wo, pdf, &mut scratch.g);
         }
     }
 
