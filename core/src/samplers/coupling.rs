@@ -390,9 +390,7 @@ where
                 .get(i)
                 .and_then(Option::as_ref)
                 .map(|s| s.share(net));
-            for j in 0..HIDDEN {
-                b.h[j][k] = share.map_or(0.0, |s| s[j]);
-            }
+            crate::wavefront::set_column(&mut b.h, k, share);
             b.v[k] = at.v.get(i).copied().unwrap_or(0.0);
         }
         coupling_raw_chunk(w, offset, m, b);

@@ -57,7 +57,7 @@ pub(crate) use chunked::{mlp_lane_sampler, per_lane_chunks};
 pub(crate) use sampler::{
     check_invert_args, check_pdf_args, check_prepare_args, check_sample_args, chunks, column,
     encoded_conditions, identity_index, lanes_from_outputs, pdf_fused_chunks, raw_conditions,
-    sample_fused_chunks, FromOutputs, Soa,
+    sample_fused_chunks, set_column, FromOutputs, Soa,
 };
 pub use sampler::{BatchSampler, LaneState, Scratch, FUSED_CHUNK};
 pub use simd::{current as current_isa, detected as detected_isa, prefer as prefer_isa, Isa};

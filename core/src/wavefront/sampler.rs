@@ -222,6 +222,18 @@ pub(crate) fn column<const N: usize, const B: usize>(soa: &Soa<N, B>, l: usize) 
     c
 }
 
+/// Sets lane `l` of a chunk's activations to `v`, or to zeros for `None` (a refused lane).
+#[inline(always)]
+pub(crate) fn set_column<const N: usize, const B: usize>(
+    soa: &mut Soa<N, B>,
+    l: usize,
+    v: Option<&[f32; N]>,
+) {
+    for (k, row) in soa.iter_mut().enumerate() {
+        row[l] = v.map_or(0.0, |v| v[k]);
+    }
+}
+
 /// A lane state built from a network's `N` outputs per lane (the samplers of
 /// [`mlp_lane_sampler`](super::chunked::mlp_lane_sampler)).
 pub(crate) trait FromOutputs<const N: usize>: Sized {

@@ -71,10 +71,7 @@ impl<W: Weights + Copy> AffineFlowSampler<W> {
         let AffineScratch { h, e, g, o } = scratch;
         let mut vv = [0.0f32; CHUNK];
         for k in 0..m {
-            let share = lanes[idx[k]].as_ref().map(|s| &s.share[l]);
-            for j in 0..HIDDEN {
-                h[j][k] = share.map_or(0.0, |s| s[j]);
-            }
+            wavefront::set_column(h, k, lanes[idx[k]].as_ref().map(|s| &s.share[l]));
             vv[k] = v[idx[k]];
         }
         lanes::encode_rows::<OTHER_BANDS, OTHER_DIM, CHUNK>(&vv, e, 0);

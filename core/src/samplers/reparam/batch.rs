@@ -97,9 +97,7 @@ impl<W: Weights + Copy> ReparamSampler<W> {
                 ok[i] = true;
                 share = Some(&l.warp);
             }
-            for j in 0..H {
-                a[j][i] = share.map_or(0.0, |s| s[j]);
-            }
+            wavefront::set_column(a, i, share);
         }
         let (mut zx, mut zy) = ([0.0f32; B], [0.0f32; B]);
         lanes::box_muller_rows(&u0, &u1, &mut zx, &mut zy);
@@ -202,9 +200,7 @@ impl<W: Weights + Copy> ReparamSampler<W> {
                     share = Some(&l.density);
                 }
             }
-            for j in 0..H {
-                g[j][i] = share.map_or(0.0, |s| s[j]);
-            }
+            wavefront::set_column(g, i, share);
         }
         let l0 = DENSITY_L0 as u32;
         dense::accumulate::<W, 2, H, CHUNK>(w, l0, CONDITION_DIM as u32, &ps, g, m);
