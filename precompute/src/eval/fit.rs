@@ -20,8 +20,8 @@ pub struct Fit {
     #[serde(default)]
     pub conditions: usize,
     /// Mean KL(p* ‖ p) in nats over the conditions (p* tabulated at `res`², p at cell
-    /// midpoints).
-    #[serde(deserialize_with = "f64_or_nan")]
+    /// midpoints). Read as `kl` too (the name in sweep summaries before they stored a `Fit`).
+    #[serde(alias = "kl", deserialize_with = "f64_or_nan")]
     pub kl_divergence: f64,
     /// Mean χ²(p* ‖ p) = ∫ p*²/p − 1 over the conditions: the render's relative variance per
     /// sample. Integrated over the whole disk up to the horizon
@@ -38,8 +38,9 @@ pub struct Fit {
     /// Mean over conditions of the mean squared difference of the disk densities.
     #[serde(deserialize_with = "f64_or_nan")]
     pub pdf_mse: f64,
-    /// Mean probability mass the sampler puts inside the disk.
-    #[serde(deserialize_with = "f64_or_nan")]
+    /// Mean probability mass the sampler puts inside the disk (NaN in sweep summaries written
+    /// before they stored a `Fit`).
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
     pub mass_in_disk: f64,
     /// Samplers whose samples are drawn with a density other than their `pdf` (their MIS
     /// density: [`samples_carry_pdf`] false, the reparameterization sampler), measured on

@@ -98,23 +98,11 @@ pub struct Summary {
 pub struct SummaryRow {
     /// Method name ([`SamplerKind::name`]).
     pub method: String,
-    /// Mean KL(p* ‖ p), nats.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub kl: Option<f64>,
-    /// Mean χ²(p* ‖ p) = ∫ p*²/p − 1 (the render's relative variance per sample).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub chi2: Option<f64>,
-    /// Largest χ²(p* ‖ p) over the conditions.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub chi2_worst: Option<f64>,
-    /// A sampler whose samples carry their own density (the reparameterization sampler)
-    /// measured on its samples: weight mean, χ² of the sampling density, the MIS density's
-    /// mismatch ([`eval::SampledFit`]).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sampled: Option<eval::SampledFit>,
-    /// Mean squared pdf difference on the disk.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub pdf_mse: Option<f64>,
+    /// The blob's fit through the runtime, its fields at the row's top level (`kl_divergence`,
+    /// `chi2`, …; summaries written before it was stored whole name the KL `kl` and lack
+    /// `conditions`, `chi2_worst_condition` and `mass_in_disk`, read as 0, 0 and NaN).
+    #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
+    pub fit: Option<eval::Fit>,
     /// Training time, seconds.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub train_seconds: Option<f64>,
@@ -158,10 +146,7 @@ pub fn sweep(material: &dyn Material, job: &SweepJob) -> Result<Summary> {
         eval_res: SWEEP_EVAL_RES,
         methods: vec![SummaryRow {
             method: SamplerKind::Cosine.name().to_string(),
-            kl: Some(fit.kl_divergence),
-            chi2: Some(fit.chi2),
-            chi2_worst: Some(fit.chi2_worst),
-            pdf_mse: Some(fit.pdf_mse),
+            fit: Some(fit),
             train_seconds: Some(0.0),
             steps: Some(0),
             ..SummaryRow::default()
@@ -182,11 +167,7 @@ pub fn sweep(material: &dyn Material, job: &SweepJob) -> Result<Summary> {
                 );
                 Ok(SummaryRow {
                     method: method.name().to_string(),
-                    kl: Some(fit.kl_divergence),
-                    chi2: Some(fit.chi2),
-                    chi2_worst: Some(fit.chi2_worst),
-                    sampled: fit.sampled,
-                    pdf_mse: Some(fit.pdf_mse),
+                    fit: Some(fit),
                     train_seconds: Some(trained.seconds),
                     steps: job.config.schedule(method).map(|s| s.steps),
                     final_loss: trained.loss_history.last().copied().map(f64::from),
@@ -210,4 +191,62 @@ pub fn sweep(material: &dyn Material, job: &SweepJob) -> Result<Summary> {
         )?;
     }
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fit() -> eval::Fit {
+        eval::Fit {
+            conditions: 8,
+            kl_divergence: 0.25,
+            chi2: 0.5,
+            chi2_worst: 2.0,
+            chi2_worst_condition: 3,
+            pdf_mse: 1e-3,
+            mass_in_disk: 0.99,
+            sampled: None,
+        }
+    }
+
+    #[test]
+    fn a_row_keeps_its_fit_at_the_top_level() {
+        let row = SummaryRow {
+            method: "flow".into(),
+            fit: Some(fit()),
+            steps: Some(100),
+            ..SummaryRow::default()
+        };
+        let v = serde_json::to_value(&row).unwrap();
+        assert_eq!(v["kl_divergence"], 0.25);
+        assert_eq!(v["chi2_worst_condition"], 3);
+        assert_eq!(v["steps"], 100);
+        assert!(v.get("fit").is_none() && v.get("error").is_none());
+        let back: SummaryRow = serde_json::from_value(v).unwrap();
+        let f = back.fit.unwrap();
+        assert_eq!(
+            (f.kl_divergence, f.chi2_worst, f.mass_in_disk),
+            (0.25, 2.0, 0.99)
+        );
+        assert_eq!(back.steps, Some(100));
+    }
+
+    #[test]
+    fn rows_of_older_summaries_and_failed_rows_read() {
+        let old = r#"{"method": "flow", "kl": 0.3, "chi2": 0.6, "chi2_worst": 1.5,
+            "pdf_mse": 0.002, "train_seconds": 12.0, "steps": 50}"#;
+        let row: SummaryRow = serde_json::from_str(old).unwrap();
+        let f = row.fit.expect("an older row's fit");
+        assert_eq!((f.kl_divergence, f.chi2, f.pdf_mse), (0.3, 0.6, 0.002));
+        assert_eq!((f.conditions, f.chi2_worst_condition), (0, 0));
+        assert!(f.mass_in_disk.is_nan());
+        assert_eq!(row.train_seconds, Some(12.0));
+        let failed: SummaryRow =
+            serde_json::from_str(r#"{"method": "flow", "error": "diverged"}"#).unwrap();
+        assert!(failed.fit.is_none());
+        assert_eq!(failed.error.as_deref(), Some("diverged"));
+        let v = serde_json::to_value(&failed).unwrap();
+        assert_eq!(v.as_object().unwrap().len(), 2);
+    }
 }

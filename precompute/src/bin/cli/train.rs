@@ -248,8 +248,8 @@ fn print_sweep(s: &neusample_precompute::jobs::sampler::Summary) -> Result<()> {
             println!(
                 "{:<18} {:>9.4} {:>11.3e} {:>9.1}",
                 r.method,
-                r.kl.unwrap_or(f64::NAN),
-                r.pdf_mse.unwrap_or(f64::NAN),
+                r.fit.as_ref().map_or(f64::NAN, |f| f.kl_divergence),
+                r.fit.as_ref().map_or(f64::NAN, |f| f.pdf_mse),
                 r.train_seconds.unwrap_or(0.0)
             );
         }
