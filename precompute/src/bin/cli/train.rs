@@ -236,22 +236,29 @@ fn print_sweep(s: &neusample_precompute::jobs::sampler::Summary) -> Result<()> {
         s.material, s.eval_conditions
     );
     println!(
-        "{:<18} {:>9} {:>11} {:>9}",
-        "method", "KL", "pdf MSE", "train s"
+        "{:<18} {:>9} {:>11} {:>11} {:>12} {:>11} {:>9}",
+        "method", "KL", "chi2", "chi2 worst", "sampled chi2", "pdf MSE", "train s"
     );
     let mut failures = 0;
     for r in &s.methods {
-        if let Some(e) = &r.error {
-            failures += 1;
-            println!("{:<18} failed: {e}", r.method);
-        } else {
-            println!(
-                "{:<18} {:>9.4} {:>11.3e} {:>9.1}",
+        match (&r.error, &r.fit) {
+            (Some(e), _) => {
+                failures += 1;
+                println!("{:<18} failed: {e}", r.method);
+            }
+            // The χ² of the density the samples are drawn with, where it is not `pdf`'s.
+            (None, Some(f)) => println!(
+                "{:<18} {:>9.4} {:>11.4} {:>11.4} {:>12} {:>11.3e} {:>9.1}",
                 r.method,
-                r.fit.as_ref().map_or(f64::NAN, |f| f.kl_divergence),
-                r.fit.as_ref().map_or(f64::NAN, |f| f.pdf_mse),
+                f.kl_divergence,
+                f.chi2,
+                f.chi2_worst,
+                f.sampled
+                    .map_or("-".to_string(), |s| format!("{:.4}", s.chi2)),
+                f.pdf_mse,
                 r.train_seconds.unwrap_or(0.0)
-            );
+            ),
+            (None, None) => println!("{:<18} (no fit)", r.method),
         }
     }
     if failures > 0 {
