@@ -1,7 +1,8 @@
 """Summarises a `neusample demo` report over measured materials against the data's own
 sampler (`measured-data`): per material, the best learned or analytic sampler by equal-time
 speed-up over the improved baseline, its equal-spp variance and equal-time speed-up relative
-to the data's sampler, and their KL / χ² to p*. On a report without the data's sampler (the
+to the data's sampler, and their KL / χ² to p* (for reparam, whose pdf is its MIS density,
+also the χ² of the density its samples are drawn with). On a report without the data's sampler (the
 neural route: the demo run on neural fits of the files) those columns read "—".
 
     python tools/measured_summary.py neusample-report/report.json
@@ -33,9 +34,15 @@ def main(path):
         v = m.get("verdict") or {}
         verdict = v.get("best", "") + (" (clear)" if v.get("clear") else
                                        " tied with " + ", ".join(v.get("tied_with", [])))
+        # KL and χ² of the method's pdf; for a sampler whose samples are drawn with another
+        # density (reparam: its pdf is the MIS density) also that density's χ², which sets
+        # the variance of BSDF sampling alone.
+        fit = f"{best['kl_divergence']:.3f}, {best['chi2']:.3g}"
+        if best.get("sampled"):
+            fit += f" (samples' χ² {best['sampled']['chi2']:.3g})"
         head = (f"| {m['material']} | {best['method']} | {among} | {s['value']:.2f}× [{s['lo']:.2f}–{s['hi']:.2f}] ")
         if data is None:
-            print(head + f"| — | — | — | {best['kl_divergence']:.3f}, {best['chi2']:.3g} | — | {verdict} |")
+            print(head + f"| — | — | — | {fit} | — | {verdict} |")
             continue
         d = data["render"]["speedup"]
         # Per-sample variance ratio at equal spp: variance_best / variance_data.
@@ -43,7 +50,7 @@ def main(path):
         print(
             head + f"| {var_ratio:.2f} | {s['value'] / d['value']:.2f} "
             f"| {d['value']:.2f}× [{d['lo']:.2f}–{d['hi']:.2f}] "
-            f"| {best['kl_divergence']:.3f}, {best['chi2']:.3g} | {data['kl_divergence']:.3f}, {data['chi2']:.3g} "
+            f"| {fit} | {data['kl_divergence']:.3f}, {data['chi2']:.3g} "
             f"| {verdict} |"
         )
 
