@@ -2,8 +2,8 @@
 sampler (`measured-data`): per material, the best learned or analytic sampler by equal-time
 speed-up over the improved baseline, its equal-spp variance and equal-time speed-up relative
 to the data's sampler, and their KL / χ² to p* (for reparam, whose pdf is its MIS density,
-also the χ² of the density its samples are drawn with). On a report without the data's sampler (the
-neural route: the demo run on neural fits of the files) those columns read "—".
+also the χ² of the density its samples are drawn with). On a report without the data's
+sampler (the neural route: the demo run on neural fits of the files) those columns read "—".
 
     python tools/measured_summary.py neusample-report/report.json
 """
@@ -13,6 +13,16 @@ import sys
 
 # The references; every other method of the report is a learned (or analytic) sampler.
 REFERENCES = {"cosine", "baseline", "measured-data", "oracle"}
+
+
+def fit_text(x):
+    """KL and χ² of a method's pdf; for a sampler whose samples are drawn with another density
+    (reparam: its pdf is the MIS density) also that density's χ², which sets the variance of
+    BSDF sampling alone."""
+    text = f"{x['kl_divergence']:.3f}, {x['chi2']:.3g}"
+    if x.get("sampled"):
+        text += f" (samples' χ² {x['sampled']['chi2']:.3g})"
+    return text
 
 
 def main(path):
@@ -34,12 +44,7 @@ def main(path):
         v = m.get("verdict") or {}
         verdict = v.get("best", "") + (" (clear)" if v.get("clear") else
                                        " tied with " + ", ".join(v.get("tied_with", [])))
-        # KL and χ² of the method's pdf; for a sampler whose samples are drawn with another
-        # density (reparam: its pdf is the MIS density) also that density's χ², which sets
-        # the variance of BSDF sampling alone.
-        fit = f"{best['kl_divergence']:.3f}, {best['chi2']:.3g}"
-        if best.get("sampled"):
-            fit += f" (samples' χ² {best['sampled']['chi2']:.3g})"
+        fit = fit_text(best)
         head = (f"| {m['material']} | {best['method']} | {among} | {s['value']:.2f}× [{s['lo']:.2f}–{s['hi']:.2f}] ")
         if data is None:
             print(head + f"| — | — | — | {fit} | — | {verdict} |")
@@ -50,7 +55,7 @@ def main(path):
         print(
             head + f"| {var_ratio:.2f} | {s['value'] / d['value']:.2f} "
             f"| {d['value']:.2f}× [{d['lo']:.2f}–{d['hi']:.2f}] "
-            f"| {fit} | {data['kl_divergence']:.3f}, {data['chi2']:.3g} "
+            f"| {fit} | {fit_text(data)} "
             f"| {verdict} |"
         )
 
