@@ -148,16 +148,23 @@ fn check(kind: SamplerKind) {
         "{method}: finite params"
     );
 
-    // The loss falls (the reparameterization sampler's history is the warp's run, then the
-    // pdf network's: the warp's is checked here).
+    // The loss falls (the reparameterization sampler's history is the warp's warm start, the
+    // warp's run, then the pdf network's: the warm start's and the warp's are checked here).
     let steps = TrainConfig::quick().schedule(kind).unwrap().steps;
-    let extra = if kind == SamplerKind::Reparam {
-        TrainConfig::quick().reparam.density_schedule.steps
+    let (before, after) = if kind == SamplerKind::Reparam {
+        let r = TrainConfig::quick().reparam;
+        (r.prefit.steps, r.density_schedule.steps)
     } else {
-        0
+        (0, 0)
     };
-    assert_eq!(t.loss_history.len(), steps + extra);
-    let h = &t.loss_history[..steps];
+    assert_eq!(t.loss_history.len(), before + steps + after);
+    if before > 0 {
+        let h = &t.loss_history[..before];
+        let (first, last) = (mean(&h[..20]), mean(&h[h.len() - 20..]));
+        eprintln!("{method}: warm start {first:.4} → {last:.4}");
+        assert!(last < 0.5 * first, "{method}: warm start {first} → {last}");
+    }
+    let h = &t.loss_history[before..before + steps];
     let k = 20;
     let (first, last) = (mean(&h[..k]), mean(&h[h.len() - k..]));
     eprintln!(
@@ -231,6 +238,24 @@ fn affine_flow_learns_and_matches_runtime() {
 #[test]
 fn direct_histogram_learns_and_matches_runtime() {
     check(SamplerKind::DirectHistogram);
+}
+
+#[test]
+fn reparam_warm_start_regresses_onto_the_target_map() {
+    let mut cfg = TrainConfig::quick();
+    cfg.reparam.prefit.steps = 120;
+    let t = train_with(&SyntheticSource, SamplerKind::Reparam, &cfg).unwrap();
+    let r = &cfg.reparam;
+    assert_eq!(
+        t.loss_history.len(),
+        r.prefit.steps + r.schedule.steps + r.density_schedule.steps
+    );
+    let h = &t.loss_history[..r.prefit.steps];
+    let (first, last) = (mean(&h[..20]), mean(&h[h.len() - 20..]));
+    eprintln!("reparam warm start: squared distance {first:.4} → {last:.4}");
+    assert!(last < 0.5 * first, "warm start {first} → {last}");
+    assert!(t.params.iter().all(|v| v.is_finite()));
+    assert!(ReparamSampler::new(t.params.as_slice()).is_some());
 }
 
 #[test]

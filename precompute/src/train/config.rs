@@ -8,6 +8,7 @@ use std::ops::{Index, IndexMut};
 
 use neusample::SamplerKind;
 
+use crate::groundtruth::TargetOptions;
 use crate::nn::OptimSettings;
 
 /// Settings every method shares.
@@ -26,7 +27,7 @@ pub struct Common {
     /// A quarter of the pool is redrawn every this many steps (0: never).
     pub pool_refresh_every: usize,
     /// Tabulate the training targets up to the horizon
-    /// ([`crate::groundtruth::TargetOptions::horizon`]) instead of the fit metrics' table
+    /// ([`TargetOptions::horizon`]) instead of the fit metrics' table
     /// (cells wholly inside the disk, the release's 0.98 cut-off).
     pub horizon_targets: bool,
     /// AdamW weight decay.
@@ -60,6 +61,16 @@ impl Common {
             pool_conditions: 32,
             pool_refresh_every: 0,
             ..Common::default()
+        }
+    }
+
+    /// The options of the training targets' tables ([`Common::horizon_targets`]).
+    #[must_use]
+    pub fn target_options(&self) -> TargetOptions {
+        if self.horizon_targets {
+            TargetOptions::horizon()
+        } else {
+            TargetOptions::default()
         }
     }
 
@@ -262,6 +273,16 @@ pub struct Reparam {
     pub schedule: Schedule,
     /// The pdf network's steps and learning rate (after the warp).
     pub density_schedule: Schedule,
+    /// Steps and learning rate of the warp's warm start (before its own loss; 0 steps, the
+    /// default, for none): regression of `T(z)` onto the tabulated target's inverse-CDF map,
+    /// so that the mode-seeking loss starts from a warp that already covers every lobe. Made
+    /// for materials without a latent (measured files), whose conditions differ only in `wi`.
+    pub prefit: Schedule,
+    /// Conditions tabulated (at [`Common::gt_res`]) for the warm start.
+    pub prefit_conditions: usize,
+    /// The warp's peak learning rate after a warm start (in place of `schedule.lr`): its loss
+    /// then refines a warp rather than searching for one.
+    pub refine_lr: f64,
     /// Conditions per batch.
     pub batch_conditions: usize,
     /// Latent points per condition (stratified; a square is best).
@@ -288,6 +309,9 @@ impl Default for Reparam {
                 steps: 1500,
                 lr: 3e-3,
             },
+            prefit: Schedule { steps: 0, lr: 3e-2 },
+            prefit_conditions: 128,
+            refine_lr: 3e-3,
             batch_conditions: 32,
             samples_per_condition: 64,
             defensive: 1e-3,
@@ -304,6 +328,7 @@ impl Reparam {
         Reparam {
             schedule: Schedule::quick(),
             density_schedule: Schedule::quick(),
+            prefit_conditions: 16,
             batch_conditions: 8,
             samples_per_condition: 64,
             ..Reparam::default()

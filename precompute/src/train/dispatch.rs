@@ -17,7 +17,6 @@ use super::method::trainer;
 use super::source::{GtCondition, MaterialSource, TargetSource};
 use super::trainer::Run;
 pub use super::trainer::Trained;
-use crate::groundtruth::TargetOptions;
 use crate::materials::Material;
 
 /// Trains `method` on `material` (ground truth from `crate::groundtruth`).
@@ -54,11 +53,7 @@ pub fn train_with(
             trainer.pool_res(c),
             c.seed,
             c.pool_refresh_every,
-            if c.horizon_targets {
-                TargetOptions::horizon()
-            } else {
-                TargetOptions::default()
-            },
+            c.target_options(),
         )?;
         let (params, tables, loss_history) = trainer.train(Run {
             pool: &mut pool,

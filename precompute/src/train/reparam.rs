@@ -10,6 +10,11 @@
 //!   material's luminance through its burn decoder, so gradients flow through `f(T(z))`).
 //!   `relu` pushes towards an orientation-preserving warp; at initialisation the output's
 //!   `b` row is negated if most of a batch has `det J < 0` (a reversed start gets no gradient).
+//! * **Warm start** ([`Reparam::prefit`], before that loss): `T(z)` regressed onto the
+//!   tabulated target's own inverse-CDF map (`target_map`). The loss above is mode seeking:
+//!   from a random start it gets no gradient from a narrow lobe its samples never reach, and
+//!   settles on the broad part of the target; from the warm start the warp covers the lobes
+//!   and the loss refines it.
 //! * **pdf network** (`dense(32,16)` ReLU, `dense(16,1)`, `p̂ = exp(o)`), trained with the warp
 //!   frozen on its samples `x = T(z)` with their exact `q(x) = N(z)/det J` (computed by the
 //!   runtime's own warp): [`DensityLoss`].
@@ -20,7 +25,7 @@ use burn::tensor::activation;
 use burn::tensor::{Device, Tensor};
 use glam::{Vec2, Vec3};
 use neusample::distrib::gaussian::box_muller;
-use neusample::nn::{encode_condition, CONDITION_DIM};
+use neusample::nn::{check_condition, encode_condition, CONDITION_DIM};
 use neusample::samplers::reparam::{
     DENSITY_L0, LOG_DENSITY_MAX, LOG_DENSITY_MIN, REPARAM_HIDDEN, REPARAM_INPUTS,
     REPARAM_PARAM_COUNT, WARP_OUTPUTS,
@@ -32,7 +37,9 @@ use rand::RngExt;
 use super::config::{Common, DensityLoss, MaxLikelihood, Reparam, Schedule, TrainConfig};
 use super::data::{encoded_condition_f64, Batch, Pool};
 use super::integrand::{ConditionRows, Integrand};
+use super::source::{GtCondition, TargetSource};
 use super::trainer::{Fitted, Run, Trained, Trainer};
+use crate::groundtruth::TargetPdf;
 use crate::nn::{log_sum_exp_last, mlp_f64, optimise, tensor2, train_device, Activation, Mlp};
 use crate::util::rng::{mix_seed, rng_for};
 
@@ -302,6 +309,87 @@ fn init_warp(pool: &Pool<'_>, seed: u64, device: &Device) -> Mlp {
     Mlp::from_flat(&WARP_SIZES, &flat, device)
 }
 
+/// `Φ(x)`, the standard normal CDF.
+fn normal_cdf(x: f32) -> f32 {
+    0.5 * libm::erfcf(-x * std::f32::consts::FRAC_1_SQRT_2)
+}
+
+/// The tabulated target's inverse-CDF map as a map of `z`: `u = (Φ(z.y), Φ(z.x))` through
+/// [`TargetPdf::sample`] (`u.x` picks the row, so `z.y` moves the point along y and `z.x`
+/// along x: the map preserves orientation, `det > 0` as the warp's loss wants).
+fn target_map(target: &TargetPdf, z: Vec2) -> Option<Vec2> {
+    let u =
+        Vec2::new(normal_cdf(z.y), normal_cdf(z.x)).min(Vec2::splat(neusample::ONE_MINUS_EPSILON));
+    target.sample(u)
+}
+
+/// One step of the warm start: per picked condition, `s` stratified `z` with the target map's
+/// point of each (where it has one).
+fn prefit_batch(
+    conds: &[GtCondition],
+    b: usize,
+    s: usize,
+    seed: u64,
+    step: usize,
+) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+    let mut pick = rng_for(mix_seed(seed, 0x9f17), step as u64, 0);
+    let (mut cond, mut zs, mut ps) = (Vec::new(), Vec::new(), Vec::new());
+    for j in 0..b {
+        let g = &conds[pick.random_range(0..conds.len())];
+        let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
+        let enc = encode_condition(&g.phi, wi);
+        let mut rng = rng_for(mix_seed(seed, 0x51c3), step as u64, j as u64);
+        for z in stratified_z(s, &mut rng) {
+            if let Some(p) = target_map(&g.target, z) {
+                cond.extend_from_slice(&enc);
+                zs.extend([z.x, z.y]);
+                ps.extend([p.x, p.y]);
+            }
+        }
+    }
+    (cond, zs, ps)
+}
+
+/// The warp's warm start ([`Reparam::prefit`]): `cfg.prefit_conditions` conditions of the
+/// source tabulated at `common.gt_res`, and `T(z)`'s point on the disk regressed onto
+/// [`target_map`] (mean squared distance). The map is exact for the table but discontinuous
+/// between its rows; the warp's own loss then takes over from a warp that covers the target.
+fn prefit_warp(
+    net: Mlp,
+    source: &dyn TargetSource,
+    common: &Common,
+    cfg: &Reparam,
+    device: &Device,
+) -> Result<(Mlp, Vec<f32>)> {
+    let conds = source.draw_with(
+        cfg.prefit_conditions.max(1),
+        common.gt_res,
+        mix_seed(common.seed, 0x7a2e),
+        &common.target_options(),
+    )?;
+    let (b, s) = (cfg.batch_conditions, cfg.samples_per_condition);
+    let (m, history) = optimise(
+        WarpModel { net },
+        &common.optim_settings("reparam warm start", &cfg.prefit),
+        |m, step| {
+            let (cond, z, p) = prefit_batch(&conds, b, s, common.seed, step);
+            let n = z.len() / 2;
+            ensure!(n > 0, "the warm start's targets have no samples");
+            let w = warp_graph(
+                &m.net,
+                tensor2(cond, n, CONDITION_DIM, device),
+                tensor2(z, n, 2, device),
+            );
+            let xy = w.wo.narrow(1, 0, 2);
+            Ok((xy - tensor2(p, n, 2, device))
+                .powi_scalar(2)
+                .sum_dim(1)
+                .mean())
+        },
+    )?;
+    Ok((m.net, history))
+}
+
 /// One step's data of the pdf network: warp samples with their log-density and uniform
 /// points of the disk.
 struct DensityBatch {
@@ -448,6 +536,7 @@ impl Trainer for ReparamTrainer {
     fn scale_steps(&self, cfg: &mut TrainConfig, scale: &dyn Fn(&mut Schedule)) {
         scale(&mut cfg.reparam.schedule);
         scale(&mut cfg.reparam.density_schedule);
+        scale(&mut cfg.reparam.prefit);
     }
     fn train(&self, run: Run<'_, '_>) -> Result<Fitted> {
         let (pool, cfg, source) = (run.pool, run.cfg, run.source);
@@ -457,7 +546,7 @@ impl Trainer for ReparamTrainer {
                  neural or measured material (or the synthetic target)"
             )
         })?;
-        let (p, h) = train(pool, &cfg.common, &cfg.reparam, integrand)?;
+        let (p, h) = train(pool, source, &cfg.common, &cfg.reparam, integrand)?;
         Ok((p, None, h))
     }
     fn pdf_f64(&self, t: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f64 {
@@ -478,6 +567,7 @@ impl Trainer for ReparamTrainer {
 /// array (warp, then pdf network) and the loss of every step of both phases.
 pub fn train(
     pool: &mut Pool<'_>,
+    source: &dyn TargetSource,
     common: &Common,
     cfg: &Reparam,
     integrand: &dyn Integrand,
@@ -490,19 +580,29 @@ pub fn train(
         bail!("the warp's defensive weight must be in [0, 1)");
     }
     let device = train_device();
-    let warp = WarpModel {
-        net: init_warp(pool, common.seed, &device),
-    };
+    let mut net = init_warp(pool, common.seed, &device);
+    let mut history = Vec::new();
+    if cfg.prefit.steps > 0 {
+        let (fitted, h) = prefit_warp(net, source, common, cfg, &device)?;
+        net = fitted;
+        history = h;
+    }
+    let warp = WarpModel { net };
     let (b, s) = (cfg.batch_conditions, cfg.samples_per_condition);
-    let (warp, mut history) = optimise(
+    let mut schedule = cfg.schedule;
+    if cfg.prefit.steps > 0 {
+        schedule.lr = cfg.refine_lr;
+    }
+    let (warp, h1) = optimise(
         warp,
-        &common.optim_settings("reparam warp", &cfg.schedule),
+        &common.optim_settings("reparam warp", &schedule),
         |m, step| {
             pool.maybe_refresh(step)?;
             let batch = warp_batch(pool, integrand, b, s, common.seed, step);
             Ok(warp_loss(m, &batch, integrand, cfg, &device))
         },
     )?;
+    history.extend(h1);
     let mut warp_params = Vec::new();
     warp.net.export(&mut warp_params);
     let frozen = with_zero_density(&warp_params);
@@ -635,4 +735,66 @@ pub fn graph_log_pdf(params: &[f32], batch: &Batch) -> Tensor<2> {
     density_graph(&net, cond, p)
         .clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX)
         .reshape([b, s])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::groundtruth::cell_midpoint;
+    use rand::SeedableRng;
+
+    /// A table with a narrow lobe off the centre and a broad floor.
+    fn lobe_table(res: usize) -> TargetPdf {
+        let mut values = Vec::with_capacity(res * res);
+        for r in 0..res {
+            for c in 0..res {
+                let p = cell_midpoint(res, r, c) - Vec2::new(0.3, -0.2);
+                values.push(0.2 + 50.0 * (-p.length_squared() / 0.004).exp());
+            }
+        }
+        TargetPdf::from_values(res, values)
+    }
+
+    #[test]
+    fn target_map_preserves_orientation_and_pushes_normals_to_the_table() {
+        let res = 32;
+        let t = lobe_table(res);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let (eps, n) = (1e-3, 40_000);
+        let mut counts = vec![0usize; res * res];
+        let mut mapped = 0;
+        for _ in 0..n {
+            let z = box_muller(Vec2::new(rng.random(), rng.random()));
+            let Some(p) = target_map(&t, z) else { continue };
+            mapped += 1;
+            counts[t.cell_of(p).expect("inside the table")] += 1;
+            // z.x moves the point within its row, z.y moves the row: det ≥ 0 everywhere.
+            if let (Some(px), Some(py)) = (
+                target_map(&t, z + Vec2::new(eps, 0.0)),
+                target_map(&t, z + Vec2::new(0.0, eps)),
+            ) {
+                let (a, b) = (px - p, py - p);
+                assert!(a.y == 0.0 && a.x >= 0.0, "z.x left its row at {z}: {a}");
+                assert!(a.x * b.y - a.y * b.x >= 0.0, "orientation at {z}: {a} {b}");
+            }
+        }
+        assert!(mapped as f64 > 0.999 * n as f64, "{mapped} of {n} mapped");
+        // Pearson's χ² of the cell counts against the table's cell masses, over the cells
+        // with an expected count of at least 5.
+        let h2 = (2.0 / res as f64).powi(2);
+        let (mut chi2, mut dof) = (0.0, 0usize);
+        for (i, &k) in counts.iter().enumerate() {
+            let e = f64::from(t.density()[i]) * h2 * mapped as f64;
+            if e >= 5.0 {
+                chi2 += (k as f64 - e).powi(2) / e;
+                dof += 1;
+            }
+        }
+        // The 99.9 % quantile of χ²(dof) is below dof + 4.5·√(2·dof) for these sizes.
+        let bound = dof as f64 + 4.5 * (2.0 * dof as f64).sqrt();
+        assert!(
+            chi2 < bound,
+            "χ² {chi2:.1} over {dof} cells (bound {bound:.1})"
+        );
+    }
 }

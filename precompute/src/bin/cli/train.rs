@@ -78,6 +78,11 @@ pub struct TrainArgs {
     /// Resolution (per side, 8 to 128) of the tabulated ground truth the methods train on.
     #[arg(long)]
     gt_res: Option<usize>,
+    /// Reparameterization sampler: steps of the warp's warm start on the tabulated target
+    /// (0, the default: the release's random start). For materials without a latent, such as
+    /// measured files; the warp's own phase then runs at a lower learning rate.
+    #[arg(long)]
+    reparam_prefit: Option<usize>,
 }
 
 /// `--method`: one method, `all`, or a comma-separated list (a sweep, like `all`).
@@ -176,6 +181,9 @@ impl TryFrom<&TrainArgs> for TrainConfig {
             }
             cfg.histogram_mixture.chi2_weight = w;
             cfg.reparam.chi2_weight = w;
+        }
+        if let Some(steps) = a.reparam_prefit {
+            cfg.reparam.prefit.steps = steps;
         }
         for flow in cfg.fine_tuned_mut() {
             if let Some(w) = a.chi2 {
