@@ -564,7 +564,8 @@ impl Trainer for ReparamTrainer {
 }
 
 /// Trains the warp, then the pdf network (module docs). Returns the runtime's parameter
-/// array (warp, then pdf network) and the loss of every step of both phases.
+/// array (warp, then pdf network) and the loss of every step: warm start (if any), warp, pdf
+/// network.
 pub fn train(
     pool: &mut Pool<'_>,
     source: &dyn TargetSource,
