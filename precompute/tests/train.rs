@@ -16,7 +16,7 @@ use neusample::SamplerKind;
 use neusample::{Prepared, Sampler, Vec2, Vec3};
 use neusample_precompute::train::{
     self, graph_log_pdf, model_pdf_disk, parse_method, train_with, SyntheticSource, TargetSource,
-    TrainConfig, Trained, METHODS,
+    TrainConfig, Trained, WarmStart, METHODS,
 };
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
@@ -148,23 +148,17 @@ fn check(kind: SamplerKind) {
         "{method}: finite params"
     );
 
-    // The loss falls (the reparameterization sampler's history is the warp's warm start, the
-    // warp's run, then the pdf network's: the warm start's and the warp's are checked here).
+    // The loss falls (the reparameterization sampler's history is the warp's run, then the
+    // pdf network's: the warp's is checked here; the synthetic target has a latent, so the
+    // default settings give the warp no warm start).
     let steps = TrainConfig::quick().schedule(kind).unwrap().steps;
-    let (before, after) = if kind == SamplerKind::Reparam {
-        let r = TrainConfig::quick().reparam;
-        (r.prefit.steps, r.density_schedule.steps)
+    let extra = if kind == SamplerKind::Reparam {
+        TrainConfig::quick().reparam.density_schedule.steps
     } else {
-        (0, 0)
+        0
     };
-    assert_eq!(t.loss_history.len(), before + steps + after);
-    if before > 0 {
-        let h = &t.loss_history[..before];
-        let (first, last) = (mean(&h[..20]), mean(&h[h.len() - 20..]));
-        eprintln!("{method}: warm start {first:.4} → {last:.4}");
-        assert!(last < 0.5 * first, "{method}: warm start {first} → {last}");
-    }
-    let h = &t.loss_history[before..before + steps];
+    assert_eq!(t.loss_history.len(), steps + extra);
+    let h = &t.loss_history[..steps];
     let k = 20;
     let (first, last) = (mean(&h[..k]), mean(&h[h.len() - k..]));
     eprintln!(
@@ -243,7 +237,7 @@ fn direct_histogram_learns_and_matches_runtime() {
 #[test]
 fn reparam_warm_start_regresses_onto_the_target_map() {
     let mut cfg = TrainConfig::quick();
-    cfg.reparam.prefit.steps = 120;
+    cfg.reparam.warm_start = WarmStart::Always;
     let t = train_with(&SyntheticSource, SamplerKind::Reparam, &cfg).unwrap();
     let r = &cfg.reparam;
     assert_eq!(

@@ -273,11 +273,12 @@ pub struct Reparam {
     pub schedule: Schedule,
     /// The pdf network's steps and learning rate (after the warp).
     pub density_schedule: Schedule,
-    /// Steps and learning rate of the warp's warm start (before its own loss; 0 steps, the
-    /// default, for none): regression of `T(z)` onto the tabulated target's inverse-CDF map,
-    /// so that the mode-seeking loss starts from a warp that already covers every lobe. Made
-    /// for materials without a latent (measured files), whose conditions differ only in `wi`.
+    /// Steps and learning rate of the warp's warm start (before its own loss): regression of
+    /// `T(z)` onto the tabulated target's inverse-CDF map, so that the mode-seeking loss
+    /// starts from a warp that already covers every lobe.
     pub prefit: Schedule,
+    /// When the warm start runs.
+    pub warm_start: WarmStart,
     /// Conditions tabulated (at [`Common::gt_res`]) for the warm start.
     pub prefit_conditions: usize,
     /// The warp's peak learning rate after a warm start (in place of `schedule.lr`): its loss
@@ -298,6 +299,20 @@ pub struct Reparam {
     pub chi2_weight: f32,
 }
 
+/// When the reparameterization sampler's warp gets its warm start ([`Reparam::prefit`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WarmStart {
+    /// Never: the release's random start.
+    Never,
+    /// When every condition of the training pool has the same features φ: a material without
+    /// a latent, such as a measured file, whose conditions differ only in `wi`, so that the
+    /// warm start's tabulated conditions cover them. (On spatially varying materials the warm
+    /// start and its lower learning rate gave mixed fits.)
+    WithoutLatent,
+    /// Always.
+    Always,
+}
+
 impl Default for Reparam {
     fn default() -> Self {
         Reparam {
@@ -309,7 +324,11 @@ impl Default for Reparam {
                 steps: 1500,
                 lr: 3e-3,
             },
-            prefit: Schedule { steps: 0, lr: 3e-2 },
+            prefit: Schedule {
+                steps: 3000,
+                lr: 3e-2,
+            },
+            warm_start: WarmStart::WithoutLatent,
             prefit_conditions: 128,
             refine_lr: 3e-3,
             batch_conditions: 32,
@@ -328,6 +347,10 @@ impl Reparam {
         Reparam {
             schedule: Schedule::quick(),
             density_schedule: Schedule::quick(),
+            prefit: Schedule {
+                lr: 3e-2,
+                ..Schedule::quick()
+            },
             prefit_conditions: 16,
             batch_conditions: 8,
             samples_per_condition: 64,

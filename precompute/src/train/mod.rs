@@ -54,6 +54,7 @@ pub mod spline;
 
 pub use config::{
     ByKind, Common, DensityLoss, HistogramMixture, MaxLikelihood, Reparam, Schedule, TrainConfig,
+    WarmStart,
 };
 pub use data::{Batch, HostBatch, PointKind, Pool};
 pub use dispatch::{

@@ -10,7 +10,8 @@
 //!   material's luminance through its burn decoder, so gradients flow through `f(T(z))`).
 //!   `relu` pushes towards an orientation-preserving warp; at initialisation the output's
 //!   `b` row is negated if most of a batch has `det J < 0` (a reversed start gets no gradient).
-//! * **Warm start** ([`Reparam::prefit`], before that loss): `T(z)` regressed onto the
+//! * **Warm start** ([`Reparam::prefit`], before that loss, by default for materials without a
+//!   latent: [`WarmStart`]): `T(z)` regressed onto the
 //!   tabulated target's own inverse-CDF map (`target_map`). The loss above is mode seeking:
 //!   from a random start it gets no gradient from a narrow lobe its samples never reach, and
 //!   settles on the broad part of the target; from the warm start the warp covers the lobes
@@ -34,7 +35,9 @@ use neusample::samplers::ReparamSampler;
 use neusample::{Sampler, SamplerKind, FEATURE_DIM};
 use rand::RngExt;
 
-use super::config::{Common, DensityLoss, MaxLikelihood, Reparam, Schedule, TrainConfig};
+use super::config::{
+    Common, DensityLoss, MaxLikelihood, Reparam, Schedule, TrainConfig, WarmStart,
+};
 use super::data::{encoded_condition_f64, Batch, Pool};
 use super::integrand::{ConditionRows, Integrand};
 use super::source::{GtCondition, TargetSource};
@@ -350,6 +353,11 @@ fn prefit_batch(
     (cond, zs, ps)
 }
 
+/// True when every condition has the same features φ ([`WarmStart::WithoutLatent`]).
+fn one_latent(conds: &[GtCondition]) -> bool {
+    conds.windows(2).all(|w| w[0].phi == w[1].phi)
+}
+
 /// The warp's warm start ([`Reparam::prefit`]): `cfg.prefit_conditions` conditions of the
 /// source tabulated at `common.gt_res`, and `T(z)`'s point on the disk regressed onto
 /// [`target_map`] (mean squared distance). The map is exact for the table but discontinuous
@@ -583,7 +591,13 @@ pub fn train(
     let device = train_device();
     let mut net = init_warp(pool, common.seed, &device);
     let mut history = Vec::new();
-    if cfg.prefit.steps > 0 {
+    let warm = cfg.prefit.steps > 0
+        && match cfg.warm_start {
+            WarmStart::Never => false,
+            WarmStart::WithoutLatent => one_latent(pool.items()),
+            WarmStart::Always => true,
+        };
+    if warm {
         let (fitted, h) = prefit_warp(net, source, common, cfg, &device)?;
         net = fitted;
         history = h;
@@ -591,7 +605,7 @@ pub fn train(
     let warp = WarpModel { net };
     let (b, s) = (cfg.batch_conditions, cfg.samples_per_condition);
     let mut schedule = cfg.schedule;
-    if cfg.prefit.steps > 0 {
+    if warm {
         schedule.lr = cfg.refine_lr;
     }
     let (warp, h1) = optimise(
@@ -754,6 +768,23 @@ mod tests {
             }
         }
         TargetPdf::from_values(res, values)
+    }
+
+    #[test]
+    fn the_default_warm_start_is_for_conditions_that_share_their_features() {
+        let cond = |phi0: f32, wi: Vec3| GtCondition {
+            phi: {
+                let mut phi = [0.0; FEATURE_DIM];
+                phi[0] = phi0;
+                phi
+            },
+            wi,
+            target: lobe_table(8),
+        };
+        let measured = [cond(0.0, Vec3::Z), cond(0.0, Vec3::new(0.6, 0.0, 0.8))];
+        assert!(one_latent(&measured));
+        let textured = [cond(0.0, Vec3::Z), cond(0.5, Vec3::Z)];
+        assert!(!one_latent(&textured));
     }
 
     #[test]

@@ -9,7 +9,7 @@ use neusample::DType;
 use neusample::SamplerKind;
 use neusample_precompute::jobs::sampler::{sweep, train_sampler, SweepJob};
 use neusample_precompute::materials;
-use neusample_precompute::train::{parse_method, TrainConfig, METHODS};
+use neusample_precompute::train::{parse_method, TrainConfig, WarmStart, METHODS};
 
 /// Options of `neusample train`.
 #[derive(Args, Clone, Debug)]
@@ -78,9 +78,10 @@ pub struct TrainArgs {
     /// Resolution (per side, 8 to 128) of the tabulated ground truth the methods train on.
     #[arg(long)]
     gt_res: Option<usize>,
-    /// Reparameterization sampler: steps of the warp's warm start on the tabulated target
-    /// (0, the default: the release's random start). For materials without a latent, such as
-    /// measured files; the warp's own phase then runs at a lower learning rate.
+    /// Reparameterization sampler: steps of the warp's warm start on the tabulated target, on
+    /// any material (0: never, the release's random start). By default 3000 steps on
+    /// materials without a latent (measured files) and none on the others; the warp's own
+    /// phase runs at a lower learning rate after it.
     #[arg(long)]
     reparam_prefit: Option<usize>,
 }
@@ -184,6 +185,11 @@ impl TryFrom<&TrainArgs> for TrainConfig {
         }
         if let Some(steps) = a.reparam_prefit {
             cfg.reparam.prefit.steps = steps;
+            cfg.reparam.warm_start = if steps > 0 {
+                WarmStart::Always
+            } else {
+                WarmStart::Never
+            };
         }
         for flow in cfg.fine_tuned_mut() {
             if let Some(w) = a.chi2 {
