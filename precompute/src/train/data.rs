@@ -66,19 +66,12 @@ impl<'a> Pool<'a> {
         })
     }
 
-    /// The conditions of training step `step`'s batch: `b` of the pool's, drawn with
-    /// replacement from the random stream `stream` (the caller's seed mixed with its salt).
+    /// The conditions of training step `step`'s batch: [`pick_from`] the pool.
     pub fn pick(&self, b: usize, stream: u64, step: usize) -> Vec<&GtCondition> {
-        let mut rng = rng_for(stream, step as u64, 0);
-        (0..b)
-            .map(|_| &self.items[rng.random_range(0..self.items.len())])
-            .collect()
+        pick_from(&self.items, b, stream, step)
     }
 
-    /// `row(rng, condition, wi)` for each condition [`Pool::pick`] draws for `step` from
-    /// `seed` mixed with `salts.0`, in parallel. Row `j` draws from its own stream (`seed`
-    /// mixed with `salts.1`, at `step` and `j`) and gets its condition's `wi` as the runtime
-    /// checks it (`+z` where the runtime refuses the condition).
+    /// [`map_picked_from`] the pool.
     pub fn map_picked<R: Send>(
         &self,
         b: usize,
@@ -87,16 +80,7 @@ impl<'a> Pool<'a> {
         step: usize,
         row: impl Fn(&mut Pcg64, &GtCondition, Vec3) -> R + Sync + Send,
     ) -> Vec<R> {
-        let chosen = self.pick(b, mix_seed(seed, salts.0), step);
-        chosen
-            .par_iter()
-            .enumerate()
-            .map(|(j, g)| {
-                let mut rng = rng_for(mix_seed(seed, salts.1), step as u64, j as u64);
-                let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
-                row(&mut rng, g, wi)
-            })
-            .collect()
+        map_picked_from(&self.items, b, seed, salts, step, row)
     }
 
     /// Replaces a quarter of the pool when `step` is a refresh step (not step 0).
@@ -122,6 +106,39 @@ impl<'a> Pool<'a> {
     pub fn items(&self) -> &[GtCondition] {
         &self.items
     }
+}
+
+/// The conditions of training step `step`'s batch: `b` of `items`, drawn with replacement
+/// from the random stream `stream` (the caller's seed mixed with its salt).
+pub fn pick_from(items: &[GtCondition], b: usize, stream: u64, step: usize) -> Vec<&GtCondition> {
+    let mut rng = rng_for(stream, step as u64, 0);
+    (0..b)
+        .map(|_| &items[rng.random_range(0..items.len())])
+        .collect()
+}
+
+/// `row(rng, condition, wi)` for each condition [`pick_from`] draws from `items` for `step`
+/// with `seed` mixed with `salts.0`, in parallel. Row `j` draws from its own stream (`seed`
+/// mixed with `salts.1`, at `step` and `j`) and gets its condition's `wi` as the runtime
+/// checks it (`+z` where the runtime refuses the condition).
+pub fn map_picked_from<R: Send>(
+    items: &[GtCondition],
+    b: usize,
+    seed: u64,
+    salts: (u64, u64),
+    step: usize,
+    row: impl Fn(&mut Pcg64, &GtCondition, Vec3) -> R + Sync + Send,
+) -> Vec<R> {
+    let chosen = pick_from(items, b, mix_seed(seed, salts.0), step);
+    chosen
+        .par_iter()
+        .enumerate()
+        .map(|(j, g)| {
+            let mut rng = rng_for(mix_seed(seed, salts.1), step as u64, j as u64);
+            let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
+            row(&mut rng, g, wi)
+        })
+        .collect()
 }
 
 /// How the points of a batch are chosen.

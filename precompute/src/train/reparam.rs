@@ -26,7 +26,7 @@ use burn::tensor::activation;
 use burn::tensor::{Device, Tensor};
 use glam::{Vec2, Vec3};
 use neusample::distrib::gaussian::box_muller;
-use neusample::nn::{check_condition, encode_condition, CONDITION_DIM};
+use neusample::nn::{encode_condition, CONDITION_DIM};
 use neusample::samplers::reparam::{
     DENSITY_L0, LOG_DENSITY_MAX, LOG_DENSITY_MIN, REPARAM_HIDDEN, REPARAM_INPUTS,
     REPARAM_PARAM_COUNT, WARP_OUTPUTS,
@@ -38,7 +38,7 @@ use rand::RngExt;
 use super::config::{
     Common, DensityLoss, MaxLikelihood, Reparam, Schedule, TrainConfig, WarmStart,
 };
-use super::data::{encoded_condition_f64, Batch, Pool};
+use super::data::{encoded_condition_f64, map_picked_from, Batch, Pool};
 use super::integrand::{ConditionRows, Integrand};
 use super::source::{GtCondition, TargetSource};
 use super::trainer::{Fitted, Run, Trained, Trainer};
@@ -335,19 +335,19 @@ fn prefit_batch(
     seed: u64,
     step: usize,
 ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
-    let mut pick = rng_for(mix_seed(seed, 0x9f17), step as u64, 0);
+    let rows = map_picked_from(conds, b, seed, (0x9f17, 0x51c3), step, |rng, g, wi| {
+        let points: Vec<(Vec2, Vec2)> = stratified_z(s, rng)
+            .into_iter()
+            .filter_map(|z| target_map(&g.target, z).map(|p| (z, p)))
+            .collect();
+        (encode_condition(&g.phi, wi), points)
+    });
     let (mut cond, mut zs, mut ps) = (Vec::new(), Vec::new(), Vec::new());
-    for j in 0..b {
-        let g = &conds[pick.random_range(0..conds.len())];
-        let wi = check_condition(&g.phi, g.wi).unwrap_or(Vec3::Z);
-        let enc = encode_condition(&g.phi, wi);
-        let mut rng = rng_for(mix_seed(seed, 0x51c3), step as u64, j as u64);
-        for z in stratified_z(s, &mut rng) {
-            if let Some(p) = target_map(&g.target, z) {
-                cond.extend_from_slice(&enc);
-                zs.extend([z.x, z.y]);
-                ps.extend([p.x, p.y]);
-            }
+    for (enc, points) in rows {
+        for (z, p) in points {
+            cond.extend_from_slice(&enc);
+            zs.extend([z.x, z.y]);
+            ps.extend([p.x, p.y]);
         }
     }
     (cond, zs, ps)
