@@ -66,11 +66,6 @@ impl<'a> Pool<'a> {
         })
     }
 
-    /// The conditions of training step `step`'s batch: [`pick_from`] the pool.
-    pub fn pick(&self, b: usize, stream: u64, step: usize) -> Vec<&GtCondition> {
-        pick_from(&self.items, b, stream, step)
-    }
-
     /// [`map_picked_from`] the pool.
     pub fn map_picked<R: Send>(
         &self,
