@@ -321,7 +321,7 @@ impl Default for Reparam {
                 lr: 1e-2,
             },
             density_schedule: Schedule {
-                steps: 1500,
+                steps: 4500,
                 lr: 3e-3,
             },
             prefit: Schedule {

@@ -84,6 +84,10 @@ pub struct TrainArgs {
     /// phase runs at a lower learning rate after it.
     #[arg(long)]
     reparam_prefit: Option<usize>,
+    /// Reparameterization sampler: steps of the pdf network's phase (after the warp's; the
+    /// network is the density MIS uses).
+    #[arg(long)]
+    reparam_pdf_steps: Option<usize>,
 }
 
 /// `--method`: one method, `all`, or a comma-separated list (a sweep, like `all`).
@@ -190,6 +194,12 @@ impl TryFrom<&TrainArgs> for TrainConfig {
             } else {
                 WarmStart::Never
             };
+        }
+        if let Some(steps) = a.reparam_pdf_steps {
+            if steps == 0 {
+                bail!("--reparam-pdf-steps must be positive");
+            }
+            cfg.reparam.density_schedule.steps = steps;
         }
         for flow in cfg.fine_tuned_mut() {
             if let Some(w) = a.chi2 {
