@@ -238,11 +238,13 @@ fn direct_histogram_learns_and_matches_runtime() {
 fn reparam_warm_start_regresses_onto_the_target_map() {
     let mut cfg = TrainConfig::quick();
     cfg.reparam.warm_start = WarmStart::Always;
+    // After the warm start the warp runs the refining schedule, not its own.
+    cfg.reparam.refine.steps = cfg.reparam.schedule.steps + 7;
     let t = train_with(&SyntheticSource, SamplerKind::Reparam, &cfg).unwrap();
     let r = &cfg.reparam;
     assert_eq!(
         t.loss_history.len(),
-        r.prefit.steps + r.schedule.steps + r.density_schedule.steps
+        r.prefit.steps + r.refine.steps + r.density_schedule.steps
     );
     let h = &t.loss_history[..r.prefit.steps];
     let (first, last) = (mean(&h[..20]), mean(&h[h.len() - 20..]));

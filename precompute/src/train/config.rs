@@ -281,9 +281,10 @@ pub struct Reparam {
     pub warm_start: WarmStart,
     /// Conditions tabulated (at [`Common::gt_res`]) for the warm start.
     pub prefit_conditions: usize,
-    /// The warp's peak learning rate after a warm start (in place of `schedule.lr`): its loss
-    /// then refines a warp rather than searching for one.
-    pub refine_lr: f64,
+    /// The warp's steps and peak learning rate after a warm start (in place of `schedule`):
+    /// its loss then refines a warp rather than searching for one, at a lower rate and for
+    /// longer.
+    pub refine: Schedule,
     /// Conditions per batch.
     pub batch_conditions: usize,
     /// Latent points per condition (stratified; a square is best).
@@ -330,7 +331,10 @@ impl Default for Reparam {
             },
             warm_start: WarmStart::WithoutLatent,
             prefit_conditions: 128,
-            refine_lr: 3e-3,
+            refine: Schedule {
+                steps: 10000,
+                lr: 3e-3,
+            },
             batch_conditions: 32,
             samples_per_condition: 64,
             defensive: 1e-3,
@@ -349,6 +353,10 @@ impl Reparam {
             density_schedule: Schedule::quick(),
             prefit: Schedule {
                 lr: 3e-2,
+                ..Schedule::quick()
+            },
+            refine: Schedule {
+                lr: 3e-3,
                 ..Schedule::quick()
             },
             prefit_conditions: 16,

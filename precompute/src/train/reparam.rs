@@ -15,7 +15,7 @@
 //!   tabulated target's own inverse-CDF map (`target_map`). The loss above is mode seeking:
 //!   from a random start it gets no gradient from a narrow lobe its samples never reach, and
 //!   settles on the broad part of the target; from the warm start the warp covers the lobes
-//!   and the loss refines it.
+//!   and the loss refines it ([`Reparam::refine`]: a lower rate, more steps).
 //! * **pdf network** (`dense(32,16)` ReLU, `dense(16,1)`, `p̂ = exp(o)`), trained with the warp
 //!   frozen on its samples `x = T(z)` with their exact `q(x) = N(z)/det J` (computed by the
 //!   runtime's own warp): [`DensityLoss`].
@@ -545,6 +545,7 @@ impl Trainer for ReparamTrainer {
         scale(&mut cfg.reparam.schedule);
         scale(&mut cfg.reparam.density_schedule);
         scale(&mut cfg.reparam.prefit);
+        scale(&mut cfg.reparam.refine);
     }
     fn train(&self, run: Run<'_, '_>) -> Result<Fitted> {
         let (pool, cfg, source) = (run.pool, run.cfg, run.source);
@@ -604,10 +605,7 @@ pub fn train(
     }
     let warp = WarpModel { net };
     let (b, s) = (cfg.batch_conditions, cfg.samples_per_condition);
-    let mut schedule = cfg.schedule;
-    if warm {
-        schedule.lr = cfg.refine_lr;
-    }
+    let schedule = if warm { cfg.refine } else { cfg.schedule };
     let (warp, h1) = optimise(
         warp,
         &common.optim_settings("reparam warp", &schedule),
@@ -627,7 +625,7 @@ pub fn train(
     let density = DensityModel {
         net: Mlp::new_with_output_bias(&DENSITY_SIZES, 0.1, &bias, &mut rng, &device),
     };
-    let offset = cfg.schedule.steps;
+    let offset = schedule.steps;
     let (density, h2) = optimise(
         density,
         &common.optim_settings("reparam pdf", &cfg.density_schedule),

@@ -81,7 +81,7 @@ pub struct TrainArgs {
     /// Reparameterization sampler: steps of the warp's warm start on the tabulated target, on
     /// any material (0: never, the release's random start). By default 3000 steps on
     /// materials without a latent (measured files) and none on the others; the warp's own
-    /// phase runs at a lower learning rate after it.
+    /// phase runs longer at a lower learning rate after it.
     #[arg(long)]
     reparam_prefit: Option<usize>,
     /// Reparameterization sampler: steps of the pdf network's phase (after the warp's; the
@@ -144,6 +144,8 @@ impl TryFrom<&TrainArgs> for TrainConfig {
                     schedule.steps = s;
                 }
             }
+            // The reparameterization warp's phase after a warm start, in place of its schedule.
+            cfg.reparam.refine.steps = s;
         }
         if let Some(t) = a.threads {
             if t == 0 {
