@@ -27,6 +27,9 @@ def fit_text(x):
 
 def main(path):
     r = json.load(open(path))
+    if not any(x.get("render") for m in r["materials"] for x in m["methods"]):
+        sys.exit(f"{path}: no renders in this report (a `demo --no-render` run): render the "
+                 "blobs with `neusample demo --blobs DIR/blobs` and summarise that report")
     print("| material | best learned | among learned and analytic | vs baseline, equal time | its variance / data's (equal spp) "
           "| its equal-time speed-up / data's | data's vs baseline | KL, χ² best learned | KL, χ² data | verdict |")
     print("|---|---|---|---:|---:|---:|---:|---:|---:|---|")
