@@ -66,18 +66,6 @@ impl<'a> Pool<'a> {
         })
     }
 
-    /// [`map_picked_from`] the pool.
-    pub fn map_picked<R: Send>(
-        &self,
-        b: usize,
-        seed: u64,
-        salts: (u64, u64),
-        step: usize,
-        row: impl Fn(&mut Pcg64, &GtCondition, Vec3) -> R + Sync + Send,
-    ) -> Vec<R> {
-        map_picked_from(&self.items, b, seed, salts, step, row)
-    }
-
     /// Replaces a quarter of the pool when `step` is a refresh step (not step 0).
     pub fn maybe_refresh(&mut self, step: usize) -> anyhow::Result<()> {
         if self.refresh_every == 0 || step == 0 || !step.is_multiple_of(self.refresh_every) {
@@ -105,15 +93,15 @@ impl<'a> Pool<'a> {
 
 /// The conditions of training step `step`'s batch: `b` of `items`, drawn with replacement
 /// from the random stream `stream` (the caller's seed mixed with its salt).
-pub fn pick_from(items: &[GtCondition], b: usize, stream: u64, step: usize) -> Vec<&GtCondition> {
+fn pick_from(items: &[GtCondition], b: usize, stream: u64, step: usize) -> Vec<&GtCondition> {
     let mut rng = rng_for(stream, step as u64, 0);
     (0..b)
         .map(|_| &items[rng.random_range(0..items.len())])
         .collect()
 }
 
-/// `row(rng, condition, wi)` for each condition [`pick_from`] draws from `items` for `step`
-/// with `seed` mixed with `salts.0`, in parallel. Row `j` draws from its own stream (`seed`
+/// `row(rng, condition, wi)` for each of `b` conditions drawn with replacement from `items`
+/// for `step` (the stream of `seed` mixed with `salts.0`), in parallel. Row `j` draws from its own stream (`seed`
 /// mixed with `salts.1`, at `step` and `j`) and gets its condition's `wi` as the runtime
 /// checks it (`+z` where the runtime refuses the condition).
 pub fn map_picked_from<R: Send>(
@@ -235,7 +223,8 @@ pub fn make_batch(
     seed: u64,
     step: usize,
 ) -> HostBatch {
-    let rows = pool.map_picked(b, seed, (0xba7c, 0x9017), step, |rng, g, wi| {
+    let items = pool.items();
+    let rows = map_picked_from(items, b, seed, (0xba7c, 0x9017), step, |rng, g, wi| {
         let cond = encode_condition(&g.phi, wi);
         let raw = raw_condition(&g.phi, wi);
         let mut xs = Vec::with_capacity(s);

@@ -56,7 +56,7 @@ pub use config::{
     ByKind, Common, DensityLoss, HistogramMixture, MaxLikelihood, Reparam, Schedule, TrainConfig,
     WarmStart,
 };
-pub use data::{map_picked_from, pick_from, Batch, HostBatch, PointKind, Pool};
+pub use data::{map_picked_from, Batch, HostBatch, PointKind, Pool};
 pub use dispatch::{
     graph_log_pdf, mean_kl, model_pdf_disk, network_mean_kl, train, train_with, Trained,
 };

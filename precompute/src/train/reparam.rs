@@ -193,7 +193,8 @@ fn warp_batch(
     seed: u64,
     step: usize,
 ) -> WarpBatch {
-    let rows = pool.map_picked(b, seed, (0x7e9a, 0x2a7b), step, |rng, g, wi| {
+    let items = pool.items();
+    let rows = map_picked_from(items, b, seed, (0x7e9a, 0x2a7b), step, |rng, g, wi| {
         let z = stratified_z(s, rng);
         let fixed: Vec<f32> = z
             .iter()
@@ -420,7 +421,8 @@ fn density_batch(
     seed: u64,
     step: usize,
 ) -> DensityBatch {
-    let rows = pool.map_picked(b, seed, (0xde75, 0x9d3e), step, |rng, g, wi| {
+    let items = pool.items();
+    let rows = map_picked_from(items, b, seed, (0xde75, 0x9d3e), step, |rng, g, wi| {
         let enc = encode_condition(&g.phi, wi);
         let mut xs = Vec::with_capacity(s);
         if let Some(p) = warp.prepare(&g.phi, wi) {
