@@ -119,6 +119,15 @@ impl TrainConfig {
         Some(super::method::trainer(method)?.schedule_mut(self))
     }
 
+    /// Sets the steps of `method`'s main phase (its schedule; for the reparameterization
+    /// sampler the warp's, with or without a warm start); nothing for the kinds that are not
+    /// trained.
+    pub fn set_steps(&mut self, method: SamplerKind, steps: usize) {
+        if let Some(t) = super::method::trainer(method) {
+            t.set_steps(self, steps);
+        }
+    }
+
     /// Every method's step count multiplied by `factor` (rounded, at least 1).
     #[must_use]
     pub fn with_steps_scaled(mut self, factor: f64) -> Self {

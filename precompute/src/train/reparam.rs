@@ -542,6 +542,11 @@ impl Trainer for ReparamTrainer {
     fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
         &mut cfg.reparam.schedule
     }
+    /// The warp's phase, from a random start or after a warm start.
+    fn set_steps(&self, cfg: &mut TrainConfig, steps: usize) {
+        cfg.reparam.schedule.steps = steps;
+        cfg.reparam.refine.steps = steps;
+    }
     /// The warp's schedule and the pdf network's.
     fn scale_steps(&self, cfg: &mut TrainConfig, scale: &dyn Fn(&mut Schedule)) {
         scale(&mut cfg.reparam.schedule);

@@ -98,6 +98,10 @@ pub(crate) trait Trainer: Sync {
     fn schedule_mut<'c>(&self, cfg: &'c mut TrainConfig) -> &'c mut Schedule {
         &mut cfg.max_likelihood[self.kind()].schedule
     }
+    /// Sets the steps of the method's main phase in `cfg` (by default, its schedule's).
+    fn set_steps(&self, cfg: &mut TrainConfig, steps: usize) {
+        self.schedule_mut(cfg).steps = steps;
+    }
     /// `scale` applied to every step count of the method in `cfg` (by default, its schedule).
     fn scale_steps(&self, cfg: &mut TrainConfig, scale: &dyn Fn(&mut Schedule)) {
         scale(self.schedule_mut(cfg));

@@ -140,12 +140,8 @@ impl TryFrom<&TrainArgs> for TrainConfig {
                 bail!("--steps must be positive");
             }
             for m in METHODS {
-                if let Some(schedule) = cfg.schedule_mut(m) {
-                    schedule.steps = s;
-                }
+                cfg.set_steps(m, s);
             }
-            // The reparameterization warp's phase after a warm start, in place of its schedule.
-            cfg.reparam.refine.steps = s;
         }
         if let Some(t) = a.threads {
             if t == 0 {
