@@ -10,6 +10,7 @@ use neusample::{Blob, BlobKind, BlobWriter, SamplerKind, TensorRole};
 use neusample::{DType, Error, Vec2, Vec3};
 use neusample_host_tests::rng;
 use proptest::prelude::*;
+use proptest::test_runner::RngSeed;
 use rand::RngExt;
 
 /// A `w × h` texture whose texel (i, j) channel c holds `100 j + 10 i + c`.
@@ -398,7 +399,12 @@ fn corrupted_blobs_give_typed_errors() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig {
+        cases: 128,
+        rng_seed: RngSeed::Fixed(0x4e55),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
 
     /// Any single bit flip of a neural-material blob is detected.
     #[test]

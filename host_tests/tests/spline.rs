@@ -5,6 +5,7 @@
 use neusample::distrib::spline::{Knots, MIN_BIN_HEIGHT, MIN_BIN_WIDTH, MIN_DERIVATIVE, RAW_LIMIT};
 use neusample_host_tests::TestRng;
 use proptest::prelude::*;
+use proptest::test_runner::RngSeed;
 use rand::RngExt;
 
 const K: usize = 20;
@@ -184,6 +185,16 @@ fn assert_inverse_brackets(s: &Spline, y: f32, x: f32) {
     );
 }
 
+/// `ln |dx/dy| = ldi` reported by `inv(y) = x` is the negated forward log-det at a point
+/// within one ulp of `x`, up to 1e-3: in a steep, narrow bin `x` itself is only known to an
+/// ulp, and the log-det can change by more than 1e-3 across it.
+fn log_dets_agree(s: &Spline, x: f32, ldi: f32) -> bool {
+    let lds = [x.next_down(), x, x.next_up()].map(|v| s.forward(v).1);
+    let lo = lds.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = lds.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    lo - 1e-3 <= -ldi && -ldi <= hi + 1e-3
+}
+
 /// Round trips at raw-output scale `scale`: (max |Δx|, max |Δy|, max |ld_f + ld_i|, max of
 /// the errors relative to the conditioned tolerances).
 fn round_trips(rng: &mut TestRng, scale: f32, splines: usize) -> (f32, f32, f32, f32) {
@@ -207,6 +218,34 @@ fn round_trips(rng: &mut TestRng, scale: f32, splines: usize) -> (f32, f32, f32,
         }
     }
     (dx, dy, ld, ratio)
+}
+
+/// A bin of near-minimal width and slope ~400 (a case proptest once drew): the log-det
+/// changes by ~0.01 per ulp of `x` there, so the round trip's log-dets differ by more than
+/// 1e-3, yet the inverse's is the forward's within an ulp of `x`.
+#[test]
+fn steep_narrow_bin_log_dets() {
+    // Widths, heights and the first derivatives; the rest stay 0.
+    #[rustfmt::skip]
+    let head: [f32; 40] = [
+        0.0, 0.0, 3.0524864, 0.0, 0.0, 0.0, 0.0, 0.0,
+        0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.1274137, 0.0,
+        0.0, 0.0, -4.461288, 0.0, -3.2076871, 2.9105496, -0.4915614, -5.7487106,
+        3.4772983, 4.0314574, 2.5300918, -3.3845882, 1.1643997, 2.12361, -2.0954177, 0.9299914,
+        0.5552089, 2.6171186, -0.38142702, -4.846855, -2.9174314, 2.271703, 5.4478717, 3.7453835,
+    ];
+    let mut raw = [0.0f32; RAW];
+    raw[..head.len()].copy_from_slice(&head);
+    let s = Spline::from_raw(&raw, 1.0);
+    let y = 0.807_265_7;
+    let (x, ldi) = s.inverse(y);
+    let (y2, ldf) = s.forward(x);
+    assert!((y2 - y).abs() <= 1e-4, "{y} → {x} → {y2}");
+    assert!(
+        (ldf + ldi).abs() > 1e-3,
+        "no longer a steep case: {ldf} {ldi}"
+    );
+    assert!(log_dets_agree(&s, x, ldi), "{ldf} {ldi}");
 }
 
 #[test]
@@ -395,7 +434,12 @@ fn raw_strategy() -> impl Strategy<Value = [f32; RAW]> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig {
+        cases: 512,
+        rng_seed: RngSeed::Fixed(0x5b1e),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn prop_inverse_of_forward(raw in raw_strategy(), x in -1.5f32..1.5) {
@@ -411,7 +455,7 @@ proptest! {
         let (x, ldi) = s.inverse(y);
         let (y2, ldf) = s.forward(x);
         prop_assert!((y2 - y).abs() <= 1e-4);
-        prop_assert!((ldf + ldi).abs() <= 1e-3, "{} {}", ldf, ldi);
+        prop_assert!(log_dets_agree(&s, x, ldi), "{} {}", ldf, ldi);
     }
 
     #[test]

@@ -8,6 +8,7 @@ use neusample::warp::{self, Frame};
 use neusample::{Prepared, Sampler, Vec2, Vec3};
 use neusample_host_tests::{chi2_test, disk_integral, rng, uniform2};
 use proptest::prelude::*;
+use proptest::test_runner::RngSeed;
 
 #[test]
 fn concentric_disk_invert_of_sample_is_identity_on_a_stratified_grid() {
@@ -145,6 +146,12 @@ fn encodings_have_golden_values() {
 }
 
 proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 256,
+        rng_seed: RngSeed::Fixed(0xa4b),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
     /// The cosine sampler and the warps are total: no panic, no NaN, for any input.
     #[test]
     fn cosine_sampler_is_total(

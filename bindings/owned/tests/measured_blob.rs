@@ -14,6 +14,7 @@ use neusample::{
 use neusample_owned::measured::OwnedMeasured;
 use neusample_owned::{OwnedBlob, OwnedMeasuredBlob};
 use proptest::prelude::*;
+use proptest::test_runner::RngSeed;
 use rand::{RngExt, SeedableRng};
 
 type Rng = rand_pcg::Pcg64Mcg;
@@ -511,7 +512,12 @@ fn data_start(bytes: &[u8]) -> usize {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(400))]
+    #![proptest_config(ProptestConfig {
+        cases: 400,
+        rng_seed: RngSeed::Fixed(0x3ea5),
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
 
     /// Any flipped bytes: an error (the checksum) or, resealed, an error or a material
     /// that evaluates and samples without panicking.
