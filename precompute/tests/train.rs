@@ -158,6 +158,7 @@ fn check(kind: SamplerKind) {
         0
     };
     assert_eq!(t.loss_history.len(), steps + extra);
+    assert_eq!(t.steps, steps, "{method}: main phase steps");
     let h = &t.loss_history[..steps];
     let k = 20;
     let (first, last) = (mean(&h[..k]), mean(&h[h.len() - k..]));
@@ -245,6 +246,10 @@ fn reparam_warm_start_regresses_onto_the_target_map() {
     assert_eq!(
         t.loss_history.len(),
         r.prefit.steps + r.refine.steps + r.density_schedule.steps
+    );
+    assert_eq!(
+        t.steps, r.refine.steps,
+        "the steps reported are the refining run's"
     );
     let h = &t.loss_history[..r.prefit.steps];
     let (first, last) = (mean(&h[..20]), mean(&h[h.len() - 20..]));

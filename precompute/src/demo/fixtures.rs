@@ -228,7 +228,7 @@ fn fixture_samplers(
         let trained = train::train(m, method, &cfg)?;
         let label = format!(
             "fixture material={name} method={method_name} steps={} seed=1",
-            cfg.schedule(method).map_or(0, |s| s.steps)
+            trained.steps
         );
         let (bytes, _) = bake::checked_blob_bytes(&trained, DType::F32, &label, m, 8, 7)
             .with_context(|| format!("fixture {name}/{method_name}"))?;

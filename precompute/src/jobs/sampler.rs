@@ -34,7 +34,7 @@ pub fn train_sampler(
         "material={} method={} steps={} seed={} dtype={:?}",
         material.name(),
         method.name(),
-        cfg.schedule(method).map_or(0, |s| s.steps),
+        trained.steps,
         cfg.common.seed,
         dtype
     );
@@ -169,7 +169,7 @@ pub fn sweep(material: &dyn Material, job: &SweepJob) -> Result<Summary> {
                     method: method.name().to_string(),
                     fit: Some(fit),
                     train_seconds: Some(trained.seconds),
-                    steps: job.config.schedule(method).map(|s| s.steps),
+                    steps: Some(trained.steps),
                     final_loss: trained.loss_history.last().copied().map(f64::from),
                     blob_bytes: Some(bytes.len()),
                     blob_vs_model: Some(v.max_relative),

@@ -55,6 +55,7 @@ pub fn train_with(
             c.pool_refresh_every,
             c.target_options(),
         )?;
+        let steps = trainer.main_steps(cfg, &pool);
         let (params, tables, loss_history) = trainer.train(Run {
             pool: &mut pool,
             cfg,
@@ -65,6 +66,7 @@ pub fn train_with(
             params,
             tables,
             loss_history,
+            steps,
             seconds: start.elapsed().as_secs_f64(),
         })
     })

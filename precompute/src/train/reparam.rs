@@ -359,6 +359,17 @@ fn one_latent(conds: &[GtCondition]) -> bool {
     conds.windows(2).all(|w| w[0].phi == w[1].phi)
 }
 
+/// Whether the warp starts from [`Reparam::prefit`]'s fit on `pool` (then it refines with
+/// [`Reparam::refine`]) rather than from random weights.
+fn warm_starts(cfg: &Reparam, pool: &Pool<'_>) -> bool {
+    cfg.prefit.steps > 0
+        && match cfg.warm_start {
+            WarmStart::Never => false,
+            WarmStart::WithoutLatent => one_latent(pool.items()),
+            WarmStart::Always => true,
+        }
+}
+
 /// The warp's warm start ([`Reparam::prefit`]): `cfg.prefit_conditions` conditions of the
 /// source tabulated at `common.gt_res`, and `T(z)`'s point on the disk regressed onto
 /// [`target_map`] (mean squared distance). The map is exact for the table but discontinuous
@@ -547,6 +558,15 @@ impl Trainer for ReparamTrainer {
         cfg.reparam.schedule.steps = steps;
         cfg.reparam.refine.steps = steps;
     }
+    /// The warp's refining schedule after a warm start, else its schedule.
+    fn main_steps(&self, cfg: &TrainConfig, pool: &Pool<'_>) -> usize {
+        let r = &cfg.reparam;
+        if warm_starts(r, pool) {
+            r.refine.steps
+        } else {
+            r.schedule.steps
+        }
+    }
     /// The warp's schedule and the pdf network's.
     fn scale_steps(&self, cfg: &mut TrainConfig, scale: &dyn Fn(&mut Schedule)) {
         scale(&mut cfg.reparam.schedule);
@@ -599,12 +619,7 @@ pub fn train(
     let device = train_device();
     let mut net = init_warp(pool, common.seed, &device);
     let mut history = Vec::new();
-    let warm = cfg.prefit.steps > 0
-        && match cfg.warm_start {
-            WarmStart::Never => false,
-            WarmStart::WithoutLatent => one_latent(pool.items()),
-            WarmStart::Always => true,
-        };
+    let warm = warm_starts(cfg, pool);
     if warm {
         let (fitted, h) = prefit_warp(net, source, common, cfg, &device)?;
         net = fitted;

@@ -27,6 +27,8 @@ pub struct Trained {
     pub tables: Option<BakedTables>,
     /// The loss of every step.
     pub loss_history: Vec<f32>,
+    /// Steps of the main phase as it ran (the trainer's `main_steps`), for labels and summaries.
+    pub steps: usize,
     /// Wall-clock training time (including ground truth and baking), seconds.
     pub seconds: f64,
 }
@@ -105,6 +107,10 @@ pub(crate) trait Trainer: Sync {
     /// `scale` applied to every step count of the method in `cfg` (by default, its schedule).
     fn scale_steps(&self, cfg: &mut TrainConfig, scale: &dyn Fn(&mut Schedule)) {
         scale(self.schedule_mut(cfg));
+    }
+    /// The steps its main phase runs on `pool` (by default, its schedule's).
+    fn main_steps(&self, cfg: &TrainConfig, _pool: &Pool<'_>) -> usize {
+        self.schedule_mut(&mut cfg.clone()).steps
     }
     /// Trains on `run`'s pool.
     fn train(&self, run: Run<'_, '_>) -> Result<Fitted>;
