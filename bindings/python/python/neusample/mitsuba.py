@@ -33,7 +33,9 @@ Properties:
     mode, on the LLVM and CUDA variants (on LLVM, inside Mitsuba's symbolic calls, the
     networks take their weights as literal constants: one compiled callable per instance).
     ``"evaluated"``: whole wavefronts leave the kernel for the Rust runtime (numpy round
-    trip, any sampler kind); it needs :func:`evaluated_mode`. The symbolic plugin works
+    trip, any sampler kind); it needs :func:`evaluated_mode`. Traced in a symbolic render
+    (Dr.Jit traces every live BSDF of the variant, whichever scene holds it) it returns
+    zeros with a warning, so symbolic renders of other scenes still run. The symbolic plugin works
     under those flags too, and on the LLVM backend that is the fastest configuration:
     :func:`render` renders a scene that way (``docs/mitsuba_speed.md``).
 ``precision`` (string, optional; symbolic mode)
@@ -49,6 +51,8 @@ per ray (there is no kernel to trace into).
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
@@ -176,6 +180,26 @@ def bsdf_class():
             self.m_flags = flags
 
         # -- conversions: one numpy round trip per call -----------------------------------
+        def _traced(self) -> bool:
+            """Whether Dr.Jit is tracing this call symbolically, where arrays cannot be read.
+
+            A symbolic call traces every live BSDF of the variant, not only those of the
+            scene it renders: a symbolic render of another scene must not fail because this
+            one exists. The call then returns zeros and warns once (its code runs only for
+            lanes that hit this BSDF: if it is in the scene, those lanes render black)."""
+            if not (jit and dr.flag(dr.JitFlag.SymbolicScope)):
+                return False
+            warnings.warn(
+                f"neusample: the evaluated plugin (sampler {self.sampler_path!r}) was traced in "
+                "Mitsuba's "
+                "symbolic mode, where it returns zeros; if it is in the scene being rendered, "
+                "render with neusample.mitsuba.render(...) or call evaluated_mode() first "
+                "(otherwise Dr.Jit only traced it as a live BSDF of the variant: ignore this)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+            return True
+
         def _inputs(self, si, n: int):
             wi = np.stack([_flat(si.wi.x, n), _flat(si.wi.y, n), _flat(si.wi.z, n)])
             if self.material is None:
@@ -203,6 +227,8 @@ def bsdf_class():
 
         # -- the BSDF interface -----------------------------------------------------------
         def sample(self, ctx, si, sample1, sample2, active=True):
+            if self._traced():
+                return dr.zeros(mi.BSDFSample3f), mi.Color3f(0.0)
             n = _width(si.wi, si.uv, sample2)
             phi, wi = self._inputs(si, n)
             u = np.stack([_flat(sample2.x, n), _flat(sample2.y, n)])
@@ -224,6 +250,8 @@ def bsdf_class():
             return bs, dr.select(valid, to_color(weight), 0.0)
 
         def eval(self, ctx, si, wo, active=True):
+            if self._traced():
+                return mi.Color3f(0.0)
             n = _width(si.wi, si.uv, wo)
             phi, wi = self._inputs(si, n)
             value = to_color(self._f_cos(ctx, si, phi, wi, self._vec3(wo, n)).astype(np.float32))
@@ -231,6 +259,8 @@ def bsdf_class():
             return dr.select(active & enabled, value, 0.0)
 
         def pdf(self, ctx, si, wo, active=True):
+            if self._traced():
+                return mi.Float(0.0)
             n = _width(si.wi, si.uv, wo)
             phi, wi = self._inputs(si, n)
             value = to_float(self._pdf(phi, wi, self._vec3(wo, n)))
@@ -238,6 +268,8 @@ def bsdf_class():
             return dr.select(active & enabled, value, 0.0)
 
         def eval_pdf(self, ctx, si, wo, active=True):
+            if self._traced():
+                return mi.Color3f(0.0), mi.Float(0.0)
             n = _width(si.wi, si.uv, wo)
             phi, wi = self._inputs(si, n)
             w = self._vec3(wo, n)
