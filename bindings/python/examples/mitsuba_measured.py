@@ -7,8 +7,10 @@ with a sun of `mitsuba_scene.py`, `path` integrator (MIS), max depth 3, `llvm_ad
 plain BSDF renders with `mi.render` (Mitsuba's default symbolic mode, its fastest path for a
 built-in BSDF), the wrapped ones with `neusample.mitsuba.render` (evaluated flags, the
 plugin's fastest path on a CPU). Each configuration gets the same wall-clock budget (its spp
-from the median of three timed renders); errors against a reference rendered with the
-data's own sampler at --ref-spp: the error of a render against it is its own variance plus
+from the median of --timing-rounds timed renders, interleaved with the other
+configurations', each scene alive only for its render), and is compared by relMSE × its
+renders' own seconds; errors against a
+reference rendered with the data's own sampler at --ref-spp: the error of a render against it is its own variance plus
 the reference's, so the reference needs many times the spp of any configuration (the table
 prints the ratio) or it levels the comparison.
 
@@ -41,6 +43,8 @@ ROOT = ms.ROOT
 # The default --methods: the baseline and the learned samplers (the paper's comparison
 # baselines, affine flow and direct histogram, on request).
 METHODS = ["baseline", "analytic", "flow", "disk-flow", "histogram-mixture", "reparam"]
+# Samples per pixel of a timing render.
+TIMING_SPP = 16
 
 
 def scene_dict(bsdf, light, res):
@@ -87,24 +91,50 @@ def relmse(img, ref):
     return float((((img - ref) ** 2) / (ref ** 2 + 1e-2)).mean())
 
 
+def rotated(n, r):
+    """`range(n)` starting at `r mod n`: each round visits the configurations in another order."""
+    return [(r + i) % n for i in range(n)]
+
+
 def run_file(path, light, a):
+    """Each configuration's (name, spp, seconds per spp, relMSEs, render seconds), one per seed.
+
+    The timing renders and the seeds' renders go round the configurations in turn (a rotated
+    order each round), so that a shared machine's changing load falls on all of them alike.
+    Each render loads its scene and drops it after: a symbolic render traces every live BSDF
+    of the variant, so another configuration's scene alive beside it would slow it."""
     cfgs = configs(path, a.blobs, a.methods)
-    sc = mi.load_dict(scene_dict(cfgs[0][1], light, a.res))
-    render(sc, 4, 0, mi.render)  # compile
-    ref, ref_secs = render(sc, a.ref_spp, 12345, mi.render)
-    del sc
-    gc.collect()
-    rows = []
-    for name, bsdf, fn in cfgs:
-        sc = mi.load_dict(scene_dict(bsdf, light, a.res))
-        render(sc, 4, 0, fn)  # compile
-        cost = statistics.median(render(sc, 4, 100 + r, fn)[1] / 4 for r in range(3))
-        spp = max(1, int(a.budget / cost))
-        errs = [relmse(render(sc, spp, 7 + 1000 * k + a.seed, fn)[0], ref) for k in range(a.seeds)]
+    n = len(cfgs)
+
+    def alone(i, spp, seed):
+        sc = mi.load_dict(scene_dict(cfgs[i][1], light, a.res))
+        out = render(sc, spp, seed, cfgs[i][2])
         del sc
         gc.collect()
-        rows.append((name, spp, cost, errs))
-        print(f"{path.name} {light} {name:<26} spp {spp:>5} relMSE {errs}", flush=True)
+        return out
+
+    alone(0, 4, 0)  # compile
+    ref, ref_secs = alone(0, a.ref_spp, 12345)
+    for i in range(1, n):
+        alone(i, 4, 0)  # compile
+    costs = [[] for _ in cfgs]
+    for r in range(a.timing_rounds):
+        for i in rotated(n, r):
+            costs[i].append(alone(i, TIMING_SPP, 100 + r)[1] / TIMING_SPP)
+    spps = [max(1, int(a.budget / statistics.median(c))) for c in costs]
+    for i in range(n):
+        alone(i, spps[i], 1)  # untimed: the evaluated flags' kernels compile again for a new spp
+    errs, secs = [[] for _ in cfgs], [[] for _ in cfgs]
+    for k in range(a.seeds):
+        for i in rotated(n, k):
+            img, t = alone(i, spps[i], 7 + 1000 * k + a.seed)
+            errs[i].append(relmse(img, ref))
+            secs[i].append(t)
+    rows = []
+    for i, (name, _, _) in enumerate(cfgs):
+        rows.append((name, spps[i], statistics.median(costs[i]), errs[i], secs[i]))
+        print(f"{path.name} {light} {name:<26} spp {spps[i]:>5} relMSE {errs[i]} s {secs[i]}",
+              flush=True)
     return rows, ref_secs
 
 
@@ -120,6 +150,8 @@ def main():
     ap.add_argument("--res", type=int, default=96)
     ap.add_argument("--ref-spp", type=int, default=8192)
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--timing-rounds", type=int, default=5,
+                    help="timing renders per configuration (median), interleaved")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--lights", default="uniform,sky")
     ap.add_argument("--methods", default=",".join(METHODS),
@@ -128,8 +160,8 @@ def main():
                     default=sorted((ROOT / "fixtures" / "measured").glob("*_rgb.bsdf")))
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "measured" / "mitsuba_equal_time.md")
     a = ap.parse_args()
-    if a.budget <= 0 or a.res < 8 or a.ref_spp < 1 or a.seeds < 1:
-        ap.error("--budget, --res, --ref-spp and --seeds must be positive (res ≥ 8)")
+    if a.budget <= 0 or a.res < 8 or a.ref_spp < 1 or a.seeds < 1 or a.timing_rounds < 1:
+        ap.error("--budget, --res, --ref-spp, --seeds and --timing-rounds must be positive (res ≥ 8)")
     a.methods = [m for m in a.methods.split(",") if m]
     if "baseline" not in a.methods:
         ap.error("--methods must include baseline (every speed-up is against it)")
@@ -146,38 +178,50 @@ def main():
         "BSDF with its own sampler (`mi.render`, symbolic) against the same BSDF wrapped by the",
         "neusample plugin and sampled by a blob trained on the file (`neusample.mitsuba.render`).",
         f"{a.res}×{a.res * 3 // 4}, budget {a.budget:g} s per render, {ms.machine()}; relMSE = mean",
-        "of (image − reference)² / (reference² + 0.01); median of",
-        f"{a.seeds} seeds [min–max]; reference: the data's sampler at {a.ref_spp} spp. Speed-up = the",
-        "other configuration's median relMSE ÷ this one's (the bracket divides it by this one's max",
-        "and min). Equal spp: the same against the data's sampler with each relMSE times its spp (the",
-        "error of one sample per pixel, which the timings do not move; a verdict near a threshold at",
-        "equal time can be read against it, as timings on a shared machine vary between runs).",
+        "of (image − reference)² / (reference² + 0.01); reference: the data's sampler at",
+        f"{a.ref_spp} spp. Each configuration's spp: the budget over its median time per spp in",
+        f"{a.timing_rounds} timing renders of {TIMING_SPP} spp; then {a.seeds} seeds' renders. Timing and",
+        "seeds' renders go round the configurations in turn (a rotated order each round; each",
+        "scene loaded for its render alone), so that the shared machine's load falls on all of",
+        "them alike. Speed-up at equal time = the other",
+        "configuration's median of relMSE × the render's seconds ÷ this one's (the work each needs",
+        "for an error, from the renders' own times; the bracket divides by this one's max and",
+        "min). Equal spp: the same against the data's sampler with each relMSE times its spp (the",
+        "error of one sample per pixel, which the timings do not move).",
         "",
     ]
     lines_ref = []
     for light in lights:
         lines += [f"## {'uniform white light' if light == 'uniform' else 'sky with a sun'}", "",
-                  "| file | configuration | spp | ms/spp | relMSE | vs baseline | vs data's sampler "
-                  "| vs data's sampler, equal spp |",
-                  "|---|---|---:|---:|---:|---:|---:|---:|"]
+                  "| file | configuration | spp | ms/spp | s/render | relMSE | vs baseline "
+                  "| vs data's sampler | vs data's sampler, equal spp |",
+                  "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
         for f in a.files:
             rows, _ = run_file(f, light, a)
             most = max(r[1] for r in rows)
             lines_ref.append(f"{f.name.removesuffix('_rgb.bsdf')} ({light}): {a.ref_spp / most:.1f}×")
             by = {r[0]: r for r in rows}
-            base = statistics.median(by["baseline"][3])
+
+            def work(row):
+                return [e * t for e, t in zip(row[3], row[4])]
+
+            base = statistics.median(work(by["baseline"]))
             data_row = by["measured (data's sampler)"]
-            data = statistics.median(data_row[3])
-            for name, spp, cost, errs in rows:
+            data = statistics.median(work(data_row))
+            data_spp = statistics.median(data_row[3]) * data_row[1]
+            for row in rows:
+                name, spp, cost, errs, secs = row
                 med = statistics.median(errs)
                 lines.append(f"| {f.name.removesuffix('_rgb.bsdf')} | {name} | {spp} | {cost * 1e3:.1f} | "
-                             f"{med:.2e} [{min(errs):.2e}–{max(errs):.2e}] | {fmt_ratio(base, errs)} | "
-                             f"{fmt_ratio(data, errs)} | "
-                             f"{fmt_ratio(data * data_row[1], [e * spp for e in errs])} |")
+                             f"{statistics.median(secs):.2f} | "
+                             f"{med:.2e} [{min(errs):.2e}–{max(errs):.2e}] | {fmt_ratio(base, work(row))} | "
+                             f"{fmt_ratio(data, work(row))} | "
+                             f"{fmt_ratio(data_spp, [e * spp for e in errs])} |")
         lines.append("")
     lines += ["The reference's spp over the most any configuration got: " + ", ".join(lines_ref) + ".", ""]
     cmd = (f"python bindings/python/examples/mitsuba_measured.py --blobs <dir> --budget {a.budget:g} "
-           f"--res {a.res} --ref-spp {a.ref_spp} --seeds {a.seeds} --lights {a.lights} "
+           f"--res {a.res} --ref-spp {a.ref_spp} --seeds {a.seeds} --timing-rounds {a.timing_rounds} "
+           f"--lights {a.lights} "
            f"--methods {','.join(a.methods)}")
     lines += ["Reproduce (blobs: the module doc's `neusample train` loop):", "", "```sh", cmd, "```", ""]
     text = "\n".join(lines)
