@@ -332,7 +332,7 @@ impl Default for Reparam {
             warm_start: WarmStart::WithoutLatent,
             prefit_conditions: 128,
             refine: Schedule {
-                steps: 10000,
+                steps: 20000,
                 lr: 3e-3,
             },
             batch_conditions: 32,
