@@ -9,10 +9,10 @@ built-in BSDF), the wrapped ones with `neusample.mitsuba.render` (evaluated flag
 plugin's fastest path on a CPU). Each configuration gets the same wall-clock budget (its spp
 from the median of --timing-rounds timed renders, interleaved with the other
 configurations', each scene alive only for its render), and is compared by relMSE × its
-renders' own seconds; errors against a
-reference rendered with the data's own sampler at --ref-spp: the error of a render against it is its own variance plus
-the reference's, so the reference needs many times the spp of any configuration (the table
-prints the ratio) or it levels the comparison.
+renders' own seconds; errors against a reference rendered with the data's own sampler at
+--ref-spp: the error of a render against it is its own variance plus the reference's, so the
+reference needs many times the spp of any configuration (the table prints the ratio) or it
+levels the comparison.
 
     # blobs: <dir>/<file stem without _rgb>/<method>.nsb, e.g. for each material file
     neusample train --material fixtures/measured/chm_mint.toml \\

@@ -101,9 +101,9 @@ fn pick_from(items: &[GtCondition], b: usize, stream: u64, step: usize) -> Vec<&
 }
 
 /// `row(rng, condition, wi)` for each of `b` conditions drawn with replacement from `items`
-/// for `step` (the stream of `seed` mixed with `salts.0`), in parallel. Row `j` draws from its own stream (`seed`
-/// mixed with `salts.1`, at `step` and `j`) and gets its condition's `wi` as the runtime
-/// checks it (`+z` where the runtime refuses the condition).
+/// for `step` (the stream of `seed` mixed with `salts.0`), in parallel. Row `j` draws from
+/// its own stream (`seed` mixed with `salts.1`, at `step` and `j`) and gets its condition's
+/// `wi` as the runtime checks it (`+z` where the runtime refuses the condition).
 pub fn map_picked_from<R: Send>(
     items: &[GtCondition],
     b: usize,

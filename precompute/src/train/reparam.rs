@@ -370,6 +370,15 @@ fn warm_starts(cfg: &Reparam, pool: &Pool<'_>) -> bool {
         }
 }
 
+/// The warp's schedule: [`Reparam::refine`] after a warm start, else [`Reparam::schedule`].
+fn warp_schedule(cfg: &Reparam, warm: bool) -> Schedule {
+    if warm {
+        cfg.refine
+    } else {
+        cfg.schedule
+    }
+}
+
 /// The warp's warm start ([`Reparam::prefit`]): `cfg.prefit_conditions` conditions of the
 /// source tabulated at `common.gt_res`, and `T(z)`'s point on the disk regressed onto
 /// [`target_map`] (mean squared distance). The map is exact for the table but discontinuous
@@ -560,12 +569,7 @@ impl Trainer for ReparamTrainer {
     }
     /// The warp's refining schedule after a warm start, else its schedule.
     fn main_steps(&self, cfg: &TrainConfig, pool: &Pool<'_>) -> usize {
-        let r = &cfg.reparam;
-        if warm_starts(r, pool) {
-            r.refine.steps
-        } else {
-            r.schedule.steps
-        }
+        warp_schedule(&cfg.reparam, warm_starts(&cfg.reparam, pool)).steps
     }
     /// The warp's schedule and the pdf network's.
     fn scale_steps(&self, cfg: &mut TrainConfig, scale: &dyn Fn(&mut Schedule)) {
@@ -627,7 +631,7 @@ pub fn train(
     }
     let warp = WarpModel { net };
     let (b, s) = (cfg.batch_conditions, cfg.samples_per_condition);
-    let schedule = if warm { cfg.refine } else { cfg.schedule };
+    let schedule = warp_schedule(cfg, warm);
     let (warp, h1) = optimise(
         warp,
         &common.optim_settings("reparam warp", &schedule),

@@ -110,7 +110,7 @@ pub(crate) trait Trainer: Sync {
     }
     /// The steps its main phase runs on `pool` (by default, its schedule's).
     fn main_steps(&self, cfg: &TrainConfig, _pool: &Pool<'_>) -> usize {
-        self.schedule_mut(&mut cfg.clone()).steps
+        cfg.schedule(self.kind()).map_or(0, |s| s.steps)
     }
     /// Trains on `run`'s pool.
     fn train(&self, run: Run<'_, '_>) -> Result<Fitted>;

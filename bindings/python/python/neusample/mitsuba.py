@@ -35,8 +35,8 @@ Properties:
     ``"evaluated"``: whole wavefronts leave the kernel for the Rust runtime (numpy round
     trip, any sampler kind); it needs :func:`evaluated_mode`. Traced in a symbolic render
     (Dr.Jit traces every live BSDF of the variant, whichever scene holds it) it returns
-    zeros with a warning, so symbolic renders of other scenes still run. The symbolic plugin works
-    under those flags too, and on the LLVM backend that is the fastest configuration:
+    zeros with a warning, so symbolic renders of other scenes still run. The symbolic
+    plugin works under those flags too, and on the LLVM backend that is the fastest configuration:
     :func:`render` renders a scene that way (``docs/mitsuba_speed.md``).
 ``precision`` (string, optional; symbolic mode)
     The networks' arithmetic: ``"f32"`` (default on LLVM) or ``"f16"`` (default on CUDA,
@@ -191,8 +191,8 @@ def bsdf_class():
                 return False
             warnings.warn(
                 f"neusample: the evaluated plugin (sampler {self.sampler_path!r}) was traced in "
-                "Mitsuba's "
-                "symbolic mode, where it returns zeros; if it is in the scene being rendered, "
+                "Mitsuba's symbolic mode, where it returns zeros; if it is in the scene being "
+                "rendered, "
                 "render with neusample.mitsuba.render(...) or call evaluated_mode() first "
                 "(otherwise Dr.Jit only traced it as a live BSDF of the variant: ignore this)",
                 RuntimeWarning,
