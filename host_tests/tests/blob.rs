@@ -148,12 +148,12 @@ fn wrong_magic_version_and_kind() {
     b[0] = b'X';
     assert_eq!(Blob::open(&b).unwrap_err(), Error::BadMagic);
     let mut b = bytes.clone();
-    b[8] = 3;
+    b[8] = 4;
     assert_eq!(
         Blob::open(&b).unwrap_err(),
         Error::UnsupportedVersion {
-            found: 3,
-            supported: 2
+            found: 4,
+            supported: 3
         }
     );
     let mut b = bytes.clone();
@@ -162,7 +162,7 @@ fn wrong_magic_version_and_kind() {
         Blob::open(&b).unwrap_err(),
         Error::UnsupportedVersion {
             found: 0,
-            supported: 2
+            supported: 3
         }
     );
     let blob = Blob::open(&bytes).unwrap();

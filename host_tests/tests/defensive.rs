@@ -1,6 +1,6 @@
 //! The defensive mixture `(1 − α)·p_learned + α·cos/π`: blob versions, validation of α, its
 //! exact density (χ² against its samples, with a failing control), the weight bound, and
-//! α = 0 as a pass-through.
+//! α = 0 as a pass-through; isotropic blobs (the learned part sees `wi` at azimuth 0).
 
 use neusample::{
     Blob, BlobWriter, DType, Defensive, Error, Prepared, Sample, Sampler, SamplerKind, TensorRole,
@@ -185,5 +185,99 @@ fn writer_keeps_alpha_for_every_kind() {
         let bytes = w.to_bytes();
         let b = Blob::open(&bytes).unwrap_or_else(|e| panic!("{}: {e}", kind.name()));
         assert_eq!(b.sampler().unwrap().alpha(), 0.05, "{}", kind.name());
+    }
+}
+
+/// `v` turned about the normal by `a` radians.
+fn turned(v: Vec3, a: f32) -> Vec3 {
+    let (s, c) = a.sin_cos();
+    Vec3::new(c * v.x - s * v.y, s * v.x + c * v.y, v.z)
+}
+
+#[test]
+fn isotropic_blobs_turn_the_condition_to_azimuth_zero() {
+    let rel = "brushed_metal_neural/analytic.nsb";
+    let bytes = fixture(rel);
+    let plain_blob = Blob::open(&bytes).unwrap();
+    assert!(!plain_blob.isotropic());
+    let iso = |alpha: f32| {
+        BlobWriter::from_blob(&plain_blob)
+            .defensive(alpha)
+            .isotropic(true)
+            .to_bytes()
+    };
+    // Version 3 whatever α; the flag and α read back; every truncation is an error.
+    for alpha in [0.0, 0.2] {
+        let v3 = iso(alpha);
+        assert_eq!(u32::from_le_bytes(v3[8..12].try_into().unwrap()), 3);
+        let b = Blob::open(&v3).unwrap();
+        assert_eq!(
+            (b.version(), b.defensive(), b.isotropic()),
+            (3, alpha, true)
+        );
+        assert!(b.sampler().unwrap().is_isotropic());
+        assert_eq!(BlobWriter::from_blob(&b).to_bytes(), v3);
+        for n in 0..v3.len() {
+            assert!(Blob::open(&v3[..n]).is_err());
+        }
+    }
+    // A neural material is never isotropic.
+    let m = std::fs::read(fixture_blobs_dir().join("../materials/neural/goat_leather_neural.nsb"))
+        .unwrap();
+    let w = BlobWriter::from_blob(&Blob::open(&m).unwrap()).isotropic(true);
+    assert_eq!(Blob::open(&w.to_bytes()).unwrap_err(), Error::HeaderInvalid);
+
+    let conds = fixture_conditions(&fixture_blobs_dir().join("brushed_metal_neural"));
+    let mut r = rng(31);
+    let level = bonferroni(0.01, 4);
+    for alpha in [0.0, 0.2] {
+        let bytes = iso(alpha);
+        let blob = Blob::open(&bytes).unwrap();
+        let s = blob.sampler().unwrap();
+        let local = Defensive::new(*s.inner(), alpha).unwrap();
+        for (k, (phi, wi)) in conds.iter().take(2).enumerate() {
+            // The learned part at `wi` turned to azimuth 0, the directions turned back.
+            let a = wi.y.atan2(wi.x);
+            let wi0 = neusample::samplers::Turn::aligning(*wi).1;
+            assert!((wi0 - Vec3::new(wi.x.hypot(wi.y), 0.0, wi.z)).length() <= 1e-6);
+            let p = s.prepare(phi, *wi).unwrap();
+            let l = local.prepare(phi, wi0).unwrap();
+            let pv = chi2_checked(&format!("{rel} isotropic α = {alpha}"), &p, &mut r, 200_000);
+            assert!(pv >= level, "{rel} isotropic α = {alpha}: χ² p-value {pv}");
+            // The same condition seen from another azimuth: the same densities there.
+            let b = 1.0 + k as f32;
+            let q = s.prepare(phi, turned(*wi, b)).unwrap();
+            for _ in 0..5000 {
+                let u = uniform2(&mut r);
+                match (p.sample(u), l.sample(u)) {
+                    (Some(x), Some(y)) => {
+                        assert!((x.wo - turned(y.wo, a)).length() <= 1e-5, "{x:?} {y:?}");
+                        assert_eq!((x.pdf, x.mis_pdf), (y.pdf, y.mis_pdf));
+                        // Turned back and forth, the direction moves by rounding only.
+                        let back = p.pdf(x.wo);
+                        assert!((x.pdf - back).abs() <= 1e-4 * x.pdf, "{x:?}: {back}");
+                    }
+                    (x, y) => assert_eq!(x.is_none(), y.is_none()),
+                }
+                let wo = Vec3::new(2.0 * u.x - 1.0, 2.0 * u.y - 1.0, 0.3).normalize();
+                let want = l.pdf(turned(wo, -a));
+                let got = p.pdf(wo);
+                assert!(
+                    (got - want).abs() <= 1e-4 * want.max(1e-3),
+                    "{got} vs {want}"
+                );
+                let there = q.pdf(turned(wo, b));
+                assert!(
+                    (got - there).abs() <= 1e-4 * got.max(1e-3),
+                    "{got} vs {there}"
+                );
+                if alpha == 0.0 {
+                    if let Some(v) = p.invert(wo) {
+                        let back = p.sample(v).map(|x| x.wo).unwrap_or(Vec3::ZERO);
+                        assert!((back - wo).length() <= 1e-3, "{wo} → {v} → {back}");
+                    }
+                }
+            }
+        }
     }
 }

@@ -238,7 +238,7 @@ fn run_batched<S: BatchSampler>(
     }
 }
 
-fn check_sampler<S>(s: &S, lanes: &[Lane], what: &str) -> Deviation
+fn check_sampler<S>(s: &S, lanes: &[Lane], what: &str, turned: bool) -> Deviation
 where
     S: Sampler + BatchSampler,
 {
@@ -302,8 +302,13 @@ where
         );
         assert!(mis[i] >= 0.0 && mis[i].is_finite(), "mis_pdf {}", ctx());
         if out.pdf[i] > 0.0 {
-            // Every kind's MIS density is its pdf at the sample.
-            assert_eq!(bits(again[i]), bits(mis[i]), "pdf at the sample {}", ctx());
+            // Every kind's MIS density is its pdf at the sample, bit for bit. An isotropic
+            // blob's turn there and back rounds the direction, which a sharp lobe turns into
+            // a visible density change: `defensive.rs` bounds that on a real blob; here the
+            // batched sample is held to the scalar sample below.
+            if !turned {
+                assert_eq!(bits(again[i]), bits(mis[i]), "pdf at the sample {}", ctx());
+            }
             let len = got[..3].iter().map(|v| f64::from(*v).powi(2)).sum::<f64>();
             assert!(
                 (len - 1.0).abs() < 1e-5 && got[2] > 0.0,
@@ -336,7 +341,11 @@ where
                 // conditioned wherever the density is continuous. A density other than the
                 // MIS density (the reparameterization sampler's warp) exists only at its own
                 // draws: the scalar sample's, where the two samples coincide.
-                let r = if x.pdf == x.mis_pdf {
+                let r = if turned && edge {
+                    0.0
+                } else if turned {
+                    rel(got[3], x.pdf).max(rel(mis[i], x.mis_pdf))
+                } else if x.pdf == x.mis_pdf {
                     rel(got[3], p.pdf(wo))
                 } else if edge {
                     0.0
@@ -348,7 +357,11 @@ where
                     .fold(0.0, f64::max);
                 // The MIS density of the batched sample is the scalar `pdf` there, for every
                 // kind.
-                let r = r.max(rel(mis[i], p.pdf(wo)));
+                let r = if turned {
+                    r
+                } else {
+                    r.max(rel(mis[i], p.pdf(wo)))
+                };
                 if r > PDF_RTOL || (!edge && d > DIR_ATOL) {
                     dev.discrete
                         .push(format!("sample {got:?} vs {x:?} {}", ctx()));
@@ -447,7 +460,7 @@ fn for_each_isa(mut f: impl FnMut(Isa)) {
 
 /// Runs the checks of one sampler through [`AnySampler`] and its concrete type.
 fn check_both(s: &BlobSampler<'_>, ls: &[Lane], what: &str) -> Deviation {
-    let mut d = check_sampler(s, ls, &format!("{what} AnySampler"));
+    let mut d = check_sampler(s, ls, &format!("{what} AnySampler"), s.is_isotropic());
     d.add(check_concrete(s, ls, what));
     d
 }
@@ -481,6 +494,8 @@ fn every_fixture_sampler_batched_equals_scalar() {
     let blobs = fixture_samplers();
     for_each_isa(|isa| {
         let mut r = rng(7);
+        // The isotropic variants' own stream: the other checks see the lanes they always saw.
+        let mut ri = rng(9);
         let mut total = Deviation::default();
         for (path, bytes, conds) in &blobs {
             let blob = Blob::open(bytes).unwrap();
@@ -500,6 +515,18 @@ fn every_fixture_sampler_batched_equals_scalar() {
             let ls = lanes(&mut r, conds, 97);
             let what = format!("{} α = 0.25 ({})", path.display(), isa.name());
             dev.add(check_both(&sampler, &ls, &what));
+            // Isotropic, with and without α: the lanes' turns around the learned part.
+            for alpha in [0.0, 0.25] {
+                let iso = BlobWriter::from_blob(&blob)
+                    .defensive(alpha)
+                    .isotropic(true)
+                    .to_bytes();
+                let blob = Blob::open(&iso).unwrap();
+                let sampler = blob.sampler().unwrap();
+                let ls = lanes(&mut ri, conds, 37);
+                let what = format!("{} isotropic α = {alpha} ({})", path.display(), isa.name());
+                dev.add(check_both(&sampler, &ls, &what));
+            }
             assert_within(isa, &dev, &path.display().to_string());
             total.add(dev);
         }
@@ -515,7 +542,8 @@ fn every_fixture_sampler_batched_equals_scalar() {
 fn check_concrete(s: &BlobSampler<'_>, ls: &[Lane], what: &str) -> Deviation {
     match *s.inner() {
         AnySampler::DirectHistogram(x) => {
-            check_sampler(&Defensive::new_unchecked(x, s.alpha()), ls, what)
+            let d = Defensive::new_unchecked(x, s.alpha()).with_isotropic(s.is_isotropic());
+            check_sampler(&d, ls, what, s.is_isotropic())
         }
         _ => Deviation::default(),
     }
@@ -785,7 +813,11 @@ fn lane_results_do_not_depend_on_the_batch_size() {
         for (path, bytes, conds) in &blobs {
             let blob = Blob::open(bytes).unwrap();
             let defended = BlobWriter::from_blob(&blob).defensive(0.25).to_bytes();
-            for b in [bytes, &defended] {
+            let isotropic = BlobWriter::from_blob(&blob)
+                .defensive(0.25)
+                .isotropic(true)
+                .to_bytes();
+            for b in [bytes, &defended, &isotropic] {
                 let blob = Blob::open(b).unwrap();
                 let s = blob.sampler().unwrap();
                 let ls = lanes(&mut r, conds, SPLITS.iter().sum());

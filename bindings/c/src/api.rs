@@ -4,7 +4,8 @@
 use std::path::Path;
 
 use neusample::wavefront::{
-    AnyLane, BatchSampler, Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut,
+    BatchSampler, BlobLane, Features, FeaturesMut, LaneState, RgbMut, SamplesMut, Vec2s, Vec3s,
+    Vec3sMut,
 };
 use neusample::{BlobWriter, Prepared, Sampler, Vec2, Vec3, FEATURE_DIM};
 use neusample_owned::measured::OwnedMeasured;
@@ -110,14 +111,15 @@ pub(crate) fn prepare(
     let channels = one(phi);
     let w = [wi.x, wi.y, wi.z];
     let [x, y, z] = one(&w);
-    let mut lane = [AnyLane::default()];
+    let mut lane = [BlobLane::default()];
     s.0.get()
         .prepare_batch(Features { channels }, Vec3s { x, y, z }, &mut lane)?;
     p.lane = lane[0];
     p.owner = sampler_id(s);
-    match p.lane {
-        AnyLane::Refused => Err(CallError::Refused),
-        _ => Ok(()),
+    if p.lane.is_prepared() {
+        Ok(())
+    } else {
+        Err(CallError::Refused)
     }
 }
 

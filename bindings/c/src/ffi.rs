@@ -15,7 +15,7 @@
 use std::ffi::{c_char, CStr};
 use std::path::Path;
 
-use neusample::wavefront::AnyLane;
+use neusample::wavefront::BlobLane;
 use neusample::wavefront::{Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec3s, Vec3sMut};
 use neusample::FEATURE_DIM;
 use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedMeasuredBlob, OwnedSampler};
@@ -509,7 +509,7 @@ pub unsafe extern "C" fn ns_prepared_new(out: *mut *mut NsPrepared) -> NsStatus 
         put(
             out,
             NsPrepared {
-                lane: AnyLane::default(),
+                lane: BlobLane::default(),
                 owner: 0,
             },
         );
@@ -546,7 +546,7 @@ pub unsafe extern "C" fn ns_prepare(
         let s = unsafe { get(sampler, "sampler") }?;
         // SAFETY: exclusive or NULL (contract).
         let p = unsafe { get_mut(prepared, "prepared") }?;
-        p.lane = AnyLane::default();
+        p.lane = BlobLane::default();
         p.owner = 0;
         // SAFETY: readable or NULL (contract).
         let phi = api::phi(unsafe { get(phi, "phi") }?)?;

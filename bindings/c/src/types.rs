@@ -1,7 +1,7 @@
 //! The `#[repr(C)]` types of the ABI: status codes, kinds, vectors, structure-of-arrays
 //! views, and the opaque handles.
 
-use neusample::wavefront::AnyLane;
+use neusample::wavefront::BlobLane;
 use neusample::{BlobKind, DType, Interpolation, SamplerKind, FEATURE_DIM};
 use neusample_owned::{OwnedBlob, OwnedMaterial, OwnedMeasuredBlob, OwnedSampler};
 
@@ -339,7 +339,7 @@ pub struct NsMeasured(pub(crate) OwnedMeasuredBlob);
 /// each shading point, then call `ns_prepared_sample` / `ns_prepared_pdf` as often as needed.
 /// Opaque.
 pub struct NsPrepared {
-    pub(crate) lane: AnyLane,
+    pub(crate) lane: BlobLane,
     /// Address of the sampler that prepared it (0: none yet).
     pub(crate) owner: usize,
 }

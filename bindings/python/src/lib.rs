@@ -166,6 +166,7 @@ fn header_dict<'py>(py: Python<'py>, blob: &OwnedBlob) -> PyResult<Bound<'py, Py
     d.set_item("label", h.label)?;
     d.set_item("format_version", blob.blob().version())?;
     d.set_item("defensive", blob.blob().defensive())?;
+    d.set_item("isotropic", blob.blob().isotropic())?;
     d.set_item("tensor_count", h.tensor_count)?;
     Ok(d)
 }

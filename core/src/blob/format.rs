@@ -9,9 +9,10 @@ use crate::kind::{BlobKind, Interpolation};
 /// The 8 bytes every blob starts with.
 pub const MAGIC: [u8; 8] = *b"NEUSAMP\0";
 /// The newest format version this build reads and writes. Version 2 adds the
-/// [`Extension`] (the defensive weight α) after the header; the writer uses it only when α is
-/// not 0, so blobs without a defensive part are still written, byte for byte, as version 1.
-pub const FORMAT_VERSION: u32 = 2;
+/// [`Extension`] (the defensive weight α) after the header, version 3 its `isotropic` flag;
+/// the writer uses the oldest version that holds the content, so blobs without a defensive
+/// part are still written, byte for byte, as version 1.
+pub const FORMAT_VERSION: u32 = 3;
 /// The oldest format version this build reads.
 pub const MIN_FORMAT_VERSION: u32 = 1;
 /// Bytes before the header: magic, version, total length, header length.
@@ -125,13 +126,33 @@ pub struct Header<'a> {
     pub tensor_count: u32,
 }
 
-/// What version 2 adds after the header (postcard-encoded, before the tensor directory).
+/// What versions 2 and 3 add after the header (postcard-encoded, before the tensor
+/// directory): version 2 the field `defensive`, version 3 both fields in order.
 #[derive(Copy, Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
 pub struct Extension {
     /// The defensive weight α ∈ [0, 1) of a sampler blob: the runtime samples
     /// `p = (1 − α)·p_learned + α·p_cosine` ([`Defensive`](crate::samplers::Defensive)).
     /// 0 for version-1 blobs and for neural materials.
     pub defensive: f32,
+    /// Whether the sampler was trained on an isotropic material with `wi` at azimuth 0: the
+    /// runtime turns every condition there and the directions with it
+    /// ([`Defensive::with_isotropic`](crate::samplers::Defensive::with_isotropic)). False
+    /// before version 3 and for neural materials.
+    pub isotropic: bool,
+}
+
+impl Extension {
+    /// The oldest format version that holds this extension.
+    #[must_use]
+    pub fn version(&self) -> u32 {
+        if self.isotropic {
+            3
+        } else if self.defensive.to_bits() != 0 {
+            2
+        } else {
+            MIN_FORMAT_VERSION
+        }
+    }
 }
 
 /// One entry of the tensor directory.

@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! magic "NEUSAMP\0" | version u32 | total_len u32 | header_len u32 | header (postcard)
-//! | version 2 only: extension (postcard: the defensive weight α)
+//! | from version 2: extension (postcard: the defensive weight α; version 3: isotropic)
 //! | tensor directory (postcard, one entry per tensor) | zero padding to 16
 //! | tensor data, each tensor 16-byte aligned | CRC-32 of everything before it (u32)
 //! ```

@@ -97,7 +97,7 @@ impl<'a> Blob<'a> {
         self.header.kind
     }
 
-    /// The format version the blob was written in (1 or 2).
+    /// The format version the blob was written in (1, 2 or 3).
     #[must_use]
     pub fn version(&self) -> u32 {
         self.version
@@ -109,6 +109,13 @@ impl<'a> Blob<'a> {
         self.extension.defensive
     }
 
+    /// Whether the sampler sees `wi` at azimuth 0 ([`Defensive::with_isotropic`]): false
+    /// before version 3.
+    #[must_use]
+    pub fn isotropic(&self) -> bool {
+        self.extension.isotropic
+    }
+
     /// Every tensor the blob holds, in role order, with its stored bytes.
     #[cfg(feature = "alloc")]
     pub(crate) fn stored_tensors(&self) -> impl Iterator<Item = (TensorEntry, &'a [u8])> + '_ {
@@ -117,6 +124,7 @@ impl<'a> Blob<'a> {
 
     fn defend<S>(&self, s: S) -> Defensive<S> {
         Defensive::new_unchecked(s, self.extension.defensive)
+            .with_isotropic(self.extension.isotropic)
     }
 
     /// The directory entry of a tensor, if the blob has it.
@@ -316,10 +324,19 @@ fn decode_header<'a>(
     check_dims(&header)?;
     let mut extension = Extension::default();
     if version >= 2 {
-        let (e, r): (Extension, &'a [u8]) =
+        let (alpha, r): (f32, &'a [u8]) =
             postcard::take_from_bytes(rest).map_err(|_| Error::HeaderDecode)?;
-        check_defensive(header.kind, e.defensive)?;
-        extension = e;
+        check_defensive(header.kind, alpha)?;
+        extension.defensive = alpha;
+        rest = r;
+    }
+    if version >= 3 {
+        let (isotropic, r): (bool, &'a [u8]) =
+            postcard::take_from_bytes(rest).map_err(|_| Error::HeaderDecode)?;
+        if isotropic && header.kind.sampler().is_none() {
+            return Err(Error::HeaderInvalid);
+        }
+        extension.isotropic = isotropic;
         rest = r;
     }
     Ok((header, extension, rest, header_end))

@@ -7,8 +7,7 @@ use crate::nn::FEATURE_DIM;
 use crate::samplers::{direct_histogram, histogram_mixture};
 
 use super::format::{
-    Extension, Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, MAGIC,
-    MIN_FORMAT_VERSION, PREAMBLE_LEN,
+    Extension, Header, TensorEntry, TensorRole, CHECKSUM_LEN, DATA_ALIGN, MAGIC, PREAMBLE_LEN,
 };
 
 /// Builds blobs (needs the `alloc` feature). The trainer in `neusample-precompute` and the
@@ -63,6 +62,7 @@ impl<'l> BlobWriter<'l> {
             header: *blob.header(),
             extension: Extension {
                 defensive: blob.defensive(),
+                isotropic: blob.isotropic(),
             },
             tensors: blob
                 .stored_tensors()
@@ -130,6 +130,15 @@ impl<'l> BlobWriter<'l> {
         self
     }
 
+    /// Marks a sampler trained on an isotropic material with `wi` at azimuth 0
+    /// ([`Defensive::with_isotropic`](crate::samplers::Defensive::with_isotropic)); such a
+    /// blob is written as format version 3.
+    #[must_use]
+    pub fn isotropic(mut self, isotropic: bool) -> Self {
+        self.extension.isotropic = isotropic;
+        self
+    }
+
     /// Overrides a header field for tests of the validator (wrong dimensions and the like).
     #[doc(hidden)]
     #[must_use]
@@ -191,11 +200,7 @@ impl<'l> BlobWriter<'l> {
         let mut header = self.header;
         header.tensor_count = tensors.len() as u32;
         // The oldest version that holds the content (bit-identical version-1 blobs when α = 0).
-        let version: u32 = if self.extension.defensive.to_bits() == 0 {
-            MIN_FORMAT_VERSION
-        } else {
-            2
-        };
+        let version = self.extension.version();
 
         // Header and directory sizes do not depend on the offsets' values only through
         // varint lengths, so lay out with a first pass and fix up until stable.
@@ -203,7 +208,12 @@ impl<'l> BlobWriter<'l> {
         loop {
             let mut head = postcard::to_allocvec(&header).unwrap_or_default();
             if version >= 2 {
-                head.extend_from_slice(&postcard::to_allocvec(&self.extension).unwrap_or_default());
+                let alpha = self.extension.defensive;
+                head.extend_from_slice(&postcard::to_allocvec(&alpha).unwrap_or_default());
+            }
+            if version >= 3 {
+                let isotropic = self.extension.isotropic;
+                head.extend_from_slice(&postcard::to_allocvec(&isotropic).unwrap_or_default());
             }
             for (i, (role, dtype, bytes)) in tensors.iter().enumerate() {
                 let e = TensorEntry {

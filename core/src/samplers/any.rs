@@ -350,13 +350,16 @@ impl Prepared for AnyPrepared<'_, '_> {
             }
 
             impl BlobSampler<'_> {
-                /// Runs `v` on the concrete sampler inside, with the same defensive weight: a
+                /// Runs `v` on the concrete sampler inside, with the same defensive weight and
+                /// turn: a
                 /// renderer's wavefront then holds that sampler's own lanes, as one that
                 /// knows its material's sampler kind would, not [`AnyLane`]s.
                 pub fn visit<V: SamplerVisitor>(&self, v: V) -> V::Output {
-                    let alpha = self.alpha();
+                    let (alpha, iso) = (self.alpha(), self.is_isotropic());
                     match *self.inner() {
-                        $(AnySampler::$variant(x) => v.visit(Defensive::new_unchecked(x, alpha)),)*
+                        $(AnySampler::$variant(x) => v.visit(
+                            Defensive::new_unchecked(x, alpha).with_isotropic(iso)
+                        ),)*
                     }
                 }
             }

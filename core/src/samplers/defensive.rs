@@ -31,6 +31,12 @@
 //!
 //! and every sample's MIS density is `pdf(wo) = (1 − α)·p̂ + α·cos θo/π`. Where the learned
 //! part's samples carry their `pdf` (`p̂ = q`) both are `(1 − α)·q + α·cos θo/π`.
+//!
+//! **Isotropic blobs.** A sampler trained on an isotropic material sees only `wi`'s elevation:
+//! its conditions were rotated about the normal to azimuth 0. The wrapper does the same at
+//! run time ([`Turn`]): `prepare` turns `wi` to `(|wi⊥|, 0, wi.z)` and remembers the turn,
+//! samples are turned back and queried directions turned forward. A rotation about the normal
+//! preserves solid angle and projected-disk area, so every density is unchanged.
 
 use glam::{Vec2, Vec3};
 
@@ -40,18 +46,132 @@ use crate::warp;
 
 use super::{Prepared, Sample, Sampler};
 
-/// A sampler `S` mixed with cosine sampling at weight α (module docs).
+/// A sampler `S` mixed with cosine sampling at weight α, for isotropic blobs in the frame of
+/// `wi`'s azimuth (module docs).
 #[derive(Copy, Clone, Debug)]
 pub struct Defensive<S> {
     inner: S,
     alpha: f32,
+    isotropic: bool,
 }
 
-/// The prepared state of a [`Defensive`] sampler: the learned part's state and α.
+/// The prepared state of a [`Defensive`] sampler: the learned part's state, α and the turn
+/// from the frame the learned part was prepared in to the shading frame.
 #[derive(Copy, Clone, Debug)]
 pub struct DefensivePrepared<P> {
     inner: P,
     alpha: f32,
+    turn: Turn,
+}
+
+/// A [`Defensive`] sampler's lane of the batched API: the learned part's lane and the turn
+/// into its frame.
+#[derive(Copy, Clone, Debug, Default)]
+pub struct DefensiveLane<L> {
+    inner: L,
+    turn: Turn,
+}
+
+impl<L> DefensiveLane<L> {
+    /// The learned part's lane.
+    #[inline]
+    #[must_use]
+    pub fn inner(&self) -> &L {
+        &self.inner
+    }
+
+    /// The turn from the learned part's frame to the shading frame.
+    #[inline]
+    #[must_use]
+    pub fn turn(&self) -> Turn {
+        self.turn
+    }
+}
+
+/// A rotation about the normal, by `(cos, sin)` of an angle: [`Turn::to_world`] turns by it,
+/// [`Turn::to_local`] back. The identity leaves every value bit for bit.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Turn {
+    cos: f32,
+    sin: f32,
+}
+
+impl Turn {
+    /// No rotation.
+    pub const IDENTITY: Turn = Turn { cos: 1.0, sin: 0.0 };
+
+    /// The turn that carries `(|wi⊥|, 0, wi.z)` to `wi`, with that direction: `wi` at
+    /// azimuth 0. The identity and `wi` itself where the azimuth is undefined (on the pole,
+    /// or a non-finite `wi`, which the learned part then refuses).
+    #[inline]
+    #[must_use]
+    pub fn aligning(wi: Vec3) -> (Turn, Vec3) {
+        let r = math::sqrt(wi.x * wi.x + wi.y * wi.y);
+        if r > 1e-20 && r < f32::INFINITY {
+            let turn = Turn {
+                cos: wi.x / r,
+                sin: wi.y / r,
+            };
+            (turn, Vec3::new(r, 0.0, wi.z))
+        } else {
+            (Turn::IDENTITY, wi)
+        }
+    }
+
+    /// Whether this is the identity.
+    #[inline(always)]
+    fn is_identity(self) -> bool {
+        self.sin == 0.0 && self.cos == 1.0
+    }
+
+    /// `v` turned by the angle (local frame → shading frame).
+    #[inline(always)]
+    #[must_use]
+    pub fn to_world(self, v: Vec3) -> Vec3 {
+        let p = self.to_world_2d(Vec2::new(v.x, v.y));
+        Vec3::new(p.x, p.y, v.z)
+    }
+
+    /// `v` turned back (shading frame → local frame).
+    #[inline(always)]
+    #[must_use]
+    pub fn to_local(self, v: Vec3) -> Vec3 {
+        let p = self.to_local_2d(Vec2::new(v.x, v.y));
+        Vec3::new(p.x, p.y, v.z)
+    }
+
+    /// A projected-disk point turned by the angle.
+    #[inline(always)]
+    #[must_use]
+    pub fn to_world_2d(self, p: Vec2) -> Vec2 {
+        if self.is_identity() {
+            return p;
+        }
+        Vec2::new(
+            self.cos * p.x - self.sin * p.y,
+            self.sin * p.x + self.cos * p.y,
+        )
+    }
+
+    /// A projected-disk point turned back.
+    #[inline(always)]
+    #[must_use]
+    pub fn to_local_2d(self, p: Vec2) -> Vec2 {
+        if self.is_identity() {
+            return p;
+        }
+        Vec2::new(
+            self.cos * p.x + self.sin * p.y,
+            self.cos * p.y - self.sin * p.x,
+        )
+    }
+}
+
+impl Default for Turn {
+    #[inline]
+    fn default() -> Self {
+        Turn::IDENTITY
+    }
 }
 
 impl<S> Defensive<S> {
@@ -72,7 +192,27 @@ impl<S> Defensive<S> {
     #[inline]
     #[must_use]
     pub const fn new_unchecked(inner: S, alpha: f32) -> Self {
-        Self { inner, alpha }
+        Self {
+            inner,
+            alpha,
+            isotropic: false,
+        }
+    }
+
+    /// The same sampler, whose learned part was trained on conditions at azimuth 0 where
+    /// `isotropic` (module docs).
+    #[inline]
+    #[must_use]
+    pub const fn with_isotropic(mut self, isotropic: bool) -> Self {
+        self.isotropic = isotropic;
+        self
+    }
+
+    /// Whether the learned part sees `wi` at azimuth 0 (module docs).
+    #[inline]
+    #[must_use]
+    pub fn is_isotropic(&self) -> bool {
+        self.isotropic
     }
 
     /// `inner` alone (α = 0).
@@ -177,9 +317,15 @@ impl<S: Sampler> Sampler for Defensive<S> {
 
     #[inline]
     fn prepare<'s>(&'s self, phi: &[f32; FEATURE_DIM], wi: Vec3) -> Option<Self::Prepared<'s>> {
+        let (turn, wi) = if self.isotropic {
+            Turn::aligning(wi)
+        } else {
+            (Turn::IDENTITY, wi)
+        };
         Some(DefensivePrepared {
             inner: self.inner.prepare(phi, wi)?,
             alpha: self.alpha,
+            turn,
         })
     }
 }
@@ -191,11 +337,17 @@ impl<P: Prepared> DefensivePrepared<P> {
     pub fn inner(&self) -> &P {
         &self.inner
     }
-}
 
-impl<P: Prepared> Prepared for DefensivePrepared<P> {
+    /// The turn from the learned part's frame to the shading frame.
     #[inline]
-    fn sample(&self, u: Vec2) -> Option<Sample> {
+    #[must_use]
+    pub fn turn(&self) -> Turn {
+        self.turn
+    }
+
+    /// The mixture's sample in the learned part's frame.
+    #[inline]
+    fn sample_local(&self, u: Vec2) -> Option<Sample> {
         if !(self.alpha > 0.0) {
             return self.inner.sample(u);
         }
@@ -210,8 +362,9 @@ impl<P: Prepared> Prepared for DefensivePrepared<P> {
         }
     }
 
+    /// The mixture's density at `p` in the learned part's frame (projected-disk area).
     #[inline]
-    fn pdf_disk(&self, p: Vec2) -> f32 {
+    fn pdf_disk_local(&self, p: Vec2) -> f32 {
         if !(self.alpha > 0.0) {
             return self.inner.pdf_disk(p);
         }
@@ -221,8 +374,9 @@ impl<P: Prepared> Prepared for DefensivePrepared<P> {
         (1.0 - self.alpha) * self.inner.pdf_disk(p) + self.alpha * INV_PI
     }
 
+    /// The mixture's density at `wo` in the learned part's frame (solid angle).
     #[inline]
-    fn pdf(&self, wo: Vec3) -> f32 {
+    fn pdf_local(&self, wo: Vec3) -> f32 {
         if !(self.alpha > 0.0) {
             return self.inner.pdf(wo);
         }
@@ -231,13 +385,34 @@ impl<P: Prepared> Prepared for DefensivePrepared<P> {
             None => 0.0,
         }
     }
+}
+
+impl<P: Prepared> Prepared for DefensivePrepared<P> {
+    #[inline]
+    fn sample(&self, u: Vec2) -> Option<Sample> {
+        let s = self.sample_local(u)?;
+        Some(Sample {
+            wo: self.turn.to_world(s.wo),
+            ..s
+        })
+    }
+
+    #[inline]
+    fn pdf_disk(&self, p: Vec2) -> f32 {
+        self.pdf_disk_local(self.turn.to_local_2d(p))
+    }
+
+    #[inline]
+    fn pdf(&self, wo: Vec3) -> f32 {
+        self.pdf_local(self.turn.to_local(wo))
+    }
 
     /// The learned part's inverse when α = 0; `None` otherwise (a mixture has no unique
     /// inverse: either part may have drawn a direction).
     #[inline]
     fn invert(&self, wo: Vec3) -> Option<Vec2> {
         if !(self.alpha > 0.0) {
-            return self.inner.invert(wo);
+            return self.inner.invert(self.turn.to_local(wo));
         }
         None
     }

@@ -49,7 +49,7 @@ pub use analytic_mixture::{AnalyticMixturePrepared, AnalyticMixtureSampler};
 pub use any::{AnyLane, AnyScratch, SamplerVisitor};
 pub use any::{AnyPrepared, AnySampler};
 pub use cosine::{CosinePrepared, CosineSampler};
-pub use defensive::{BlobSampler, Defensive, DefensivePrepared};
+pub use defensive::{BlobSampler, Defensive, DefensiveLane, DefensivePrepared, Turn};
 pub use direct_histogram::{DirectHistogramPrepared, DirectHistogramSampler};
 pub use disk_flow::{DiskFlowLane, DiskFlowPrepared, DiskFlowSampler};
 pub use histogram_mixture::{

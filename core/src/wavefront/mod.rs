@@ -66,6 +66,10 @@ pub use views::{Features, FeaturesMut, RgbMut, SamplesMut, Vec2s, Vec2sMut, Vec3
 
 pub use crate::samplers::{AnyLane, AnyScratch, SamplerVisitor};
 
+/// The lane of a [`BlobSampler`](crate::samplers::BlobSampler): whichever kind the blob holds,
+/// with the turn of an isotropic blob.
+pub type BlobLane = crate::samplers::DefensiveLane<AnyLane>;
+
 /// One dense layer `dense(I, O)` at `offset` of `w` (`core/ARCHITECTURES.md`: weights
 /// input-major `W[i][o]`, then the bias) over a chunk of `B` lanes in structure-of-arrays
 /// form (`x[i][b]` is input `i` of lane `b`; `B` a multiple of 16, checked when compiled), for

@@ -18,11 +18,14 @@ pub struct Inspection {
     pub file: String,
     /// File size in bytes.
     pub bytes: usize,
-    /// The blob's format version (1, or 2 with a defensive weight).
+    /// The blob's format version (1; 2 with a defensive weight; 3 when isotropic).
     pub format_version: u32,
     /// The sampler's defensive weight α (`Defensive`; 0 in version-1 blobs).
     #[serde(default)]
     pub defensive: f32,
+    /// Whether the sampler sees `wi` at azimuth 0 (`Defensive::with_isotropic`).
+    #[serde(default)]
+    pub isotropic: bool,
     /// Kind name ([`neusample::BlobKind::name`]).
     pub kind: String,
     /// Storage type of the parameters (`f32`, `f16`).
@@ -148,6 +151,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         bytes: bytes.len(),
         format_version: blob.version(),
         defensive: blob.defensive(),
+        isotropic: blob.isotropic(),
         kind: h.kind.name().to_string(),
         dtype: lower(&h.dtype),
         feature_dim: h.feature_dim,
@@ -188,6 +192,9 @@ impl Inspection {
                 "  defensive mixture: (1 − α)·p + α·cos/π with α = {}",
                 self.defensive
             );
+        }
+        if self.isotropic {
+            let _ = writeln!(s, "  isotropic: conditions turned to wi's azimuth 0");
         }
         if self.measured.is_none() {
             let _ = writeln!(

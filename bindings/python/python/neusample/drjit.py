@@ -220,6 +220,30 @@ def upper_hemisphere(w):
     return (x, y, z), ok
 
 
+def align_azimuth(wi):
+    """``Turn::aligning``: ``((cos, sin), wi')`` with ``wi' = (|wi⊥|, 0, wi.z)``, the turn
+    that carries ``wi'`` back to ``wi``; the identity and ``wi`` where the azimuth is undefined
+    (on the pole, non-finite ``wi``)."""
+    x, y, z = wi
+    r = dr.sqrt(x * x + y * y)
+    good = (r > 1e-20) & (r < float("inf"))
+    rs = dr.select(good, r, 1.0)
+    turn = (dr.select(good, x / rs, 1.0), dr.select(good, y / rs, 0.0))
+    return turn, (dr.select(good, r, x), dr.select(good, 0.0, y), z)
+
+
+def turn_to_world(turn, px, py):
+    """``Turn::to_world_2d``: a disk point of the learned part's frame in the shading frame."""
+    c, s = turn
+    return c * px - s * py, s * px + c * py
+
+
+def turn_to_local(turn, px, py):
+    """``Turn::to_local_2d``: a shading-frame disk point in the learned part's frame."""
+    c, s = turn
+    return c * px + s * py, c * py - s * px
+
+
 def check_condition(phi, wi):
     wi, ok = upper_hemisphere(wi)
     for p in phi:
@@ -1007,7 +1031,8 @@ KINDS = tuple(KIND_CLASSES)
 
 class Sampler:
     """A sampler blob (or cosine) in Dr.Jit: the kind with the blob's defensive weight α
-    (``p = (1 − α)·p_kind + α·cos θ/π``; α = 0 is the kind itself)."""
+    (``p = (1 − α)·p_kind + α·cos θ/π``; α = 0 is the kind itself); an isotropic blob's kind
+    sees ``wi`` turned to azimuth 0, its directions turned back (``samplers/defensive.rs``)."""
 
     def __init__(self, path=None, Float=None, precision=None, blob=None):
         if Float is None:
@@ -1018,6 +1043,7 @@ class Sampler:
         if blob is None and path is not None:
             blob = Blob(str(path))
         self.path = None if path is None else str(path)
+        self.isotropic = False
         if blob is None:
             self.kind = Cosine(t)
             self.alpha = 0.0
@@ -1025,6 +1051,7 @@ class Sampler:
             return
         kind = blob.kind
         self.alpha = float(blob.header["defensive"])
+        self.isotropic = bool(blob.header.get("isotropic", False))
         # α as an opaque value, so that samplers differing only in α share compiled kernels.
         self._alpha = dr.opaque(t.Float, self.alpha)
         if kind == "neural-material" or kind not in KINDS:
@@ -1038,8 +1065,14 @@ class Sampler:
         return self.kind.name
 
     def prepare(self, phi, wi):
-        """The per-condition state and a validity mask."""
-        return self.kind.prepare(list(phi), _vec3(wi))
+        """The per-condition state (the kind's and the turn of an isotropic blob, else
+        ``None``) and a validity mask."""
+        wi = _vec3(wi)
+        turn = None
+        if self.isotropic:
+            turn, wi = align_azimuth(wi)
+        st, ok = self.kind.prepare(list(phi), wi)
+        return (st, turn), ok
 
     def sample_prepared(self, st, ok, u):
         """``(wo, pdf, valid)`` from a prepared state: ``wo`` a tuple of 3 Floats, ``pdf``
@@ -1054,6 +1087,7 @@ class Sampler:
         differ only for kinds whose samples carry their own density (``Kind.exact`` false,
         the reparameterization sampler); with a defensive weight such a kind is combined
         with cosine by one-sample MIS over its ``pdf_disk`` (``samplers/defensive.rs``)."""
+        st, turn = st
         u0, ok0 = sanitize_u(u[0])
         u1, ok1 = sanitize_u(u[1])
         valid = ok & ok0 & ok1
@@ -1093,14 +1127,20 @@ class Sampler:
             mis = p_disk * z
             pdf = mis if exact else q * z
         valid = valid & (pdf > 0) & is_finite(pdf)
+        if turn is not None:
+            px, py = turn_to_world(turn, px, py)
         zero = 0.0
         wo = (dr.select(valid, px, zero), dr.select(valid, py, zero), dr.select(valid, z, zero))
         return wo, dr.select(valid, pdf, zero), valid, dr.select(valid, mis, zero)
 
     def pdf_prepared(self, st, ok, wo):
         """The solid-angle density of ``wo`` (0 below the horizon and for refused lanes)."""
+        st, turn = st
         w, wok = upper_hemisphere(_vec3(wo))
-        p = self.kind.pdf_disk(st, w[0], w[1])
+        px, py = w[0], w[1]
+        if turn is not None:
+            px, py = turn_to_local(turn, px, py)
+        p = self.kind.pdf_disk(st, px, py)
         if self.alpha > 0:
             pdf = (1.0 - self._alpha) * (p * w[2]) + self._alpha * (w[2] * INV_PI)
         else:
@@ -1118,8 +1158,11 @@ class Sampler:
     def pdf_disk(self, phi, wi, p):
         """The density of disk point ``p`` with respect to projected-disk area (the
         defensive mixture included)."""
-        st, ok = self.prepare(phi, wi)
-        d = self.kind.pdf_disk(st, p[0], p[1])
+        (st, turn), ok = self.prepare(phi, wi)
+        px, py = p[0], p[1]
+        if turn is not None:
+            px, py = turn_to_local(turn, px, py)
+        d = self.kind.pdf_disk(st, px, py)
         if self.alpha > 0:
             d = dr.select(inside_disk(p[0], p[1]), (1.0 - self._alpha) * d + self._alpha * INV_PI, 0.0)
         return dr.select(ok, d, 0.0)

@@ -681,7 +681,7 @@ fn sampler_costs(
             variants[0].0 = format!("{method} α={}", s.alpha());
             variants.push((
                 format!("{method} α=0"),
-                neusample::Defensive::plain(*s.inner()),
+                neusample::Defensive::plain(*s.inner()).with_isotropic(s.is_isotropic()),
             ));
         }
         for (name, s) in variants {
