@@ -52,7 +52,7 @@ pub fn blob_bytes_with(
     layout: TableLayout,
     label: &str,
 ) -> Result<Vec<u8>> {
-    let mut w = BlobWriter::new(trained.method, dtype, label);
+    let mut w = BlobWriter::new(trained.method, dtype, label).isotropic(trained.isotropic);
     if let Some(t) = &trained.tables {
         let b = &t.baked;
         w = w.histogram_dims(b.t_levels, b.resolution, t.interpolation);
@@ -170,7 +170,8 @@ pub fn compact_blob(bytes: &[u8]) -> Result<Vec<u8>> {
         .map_err(|e| anyhow::anyhow!("baking compact tables: {e}"))?;
     let mut w = BlobWriter::new(h.kind, h.dtype, h.label)
         .histogram_dims(h.t_levels, h.resolution, h.interpolation)
-        .defensive(blob.defensive());
+        .defensive(blob.defensive())
+        .isotropic(blob.isotropic());
     write_compact(&mut w, &c);
     w.tensor(TensorRole::Params, &params);
     let out = w.to_bytes();
@@ -204,8 +205,10 @@ pub fn verify(
     seed: u64,
 ) -> Result<Verification> {
     let blob = Blob::open(bytes).context("the written blob does not open")?;
-    // The learned part: a defensive weight is not part of the trained model.
-    let sampler = *blob.sampler()?.inner();
+    // The learned part (a defensive weight is not part of the trained model), turned as the
+    // runtime turns it where the model was trained with `wi` at azimuth 0.
+    let sampler =
+        neusample::Defensive::plain(*blob.sampler()?.inner()).with_isotropic(blob.isotropic());
     let tolerance = match blob.header().dtype {
         DType::F16 => F16_TOLERANCE,
         _ if blob.is_compact() => COMPACT_TOLERANCE,

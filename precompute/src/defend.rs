@@ -81,7 +81,13 @@ pub fn choose_alpha(
 ) -> Result<AlphaChoice> {
     let blob = Blob::open(bytes).context("the blob does not open")?;
     let sampler = *blob.sampler()?.inner();
-    let conds = groundtruth::conditions(material, conditions, seed);
+    let mut conds = groundtruth::conditions(material, conditions, seed);
+    if blob.isotropic() {
+        // The learned part sees `wi` at azimuth 0; the material looks the same from there.
+        for c in &mut conds {
+            c.wi = neusample::samplers::Turn::aligning(c.wi).1;
+        }
+    }
     let nodes = rim_quadrature(radial, RIM_ANGULAR);
     let carries_pdf = conds.iter().all(|c| {
         sampler

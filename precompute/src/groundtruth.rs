@@ -97,6 +97,16 @@ pub fn random_condition(m: &dyn Material, rng: &mut impl rand::Rng) -> Condition
     }
 }
 
+/// A training condition: [`random_condition`], with `wi` turned to azimuth 0 on an
+/// isotropic material ([`Material::isotropic`]), where samplers see only its elevation.
+pub fn training_condition(m: &dyn Material, rng: &mut impl rand::Rng) -> Condition {
+    let mut c = random_condition(m, rng);
+    if m.isotropic() {
+        c.wi = neusample::samplers::Turn::aligning(c.wi).1;
+    }
+    c
+}
+
 /// Options of [`TargetPdf::with_options`].
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct TargetOptions {

@@ -579,3 +579,44 @@ fn histogram_mixture_falls_back_to_value_tables() {
     })
     .is_err());
 }
+
+#[test]
+fn isotropic_materials_train_at_azimuth_zero_and_blobs_turn_back() {
+    use neusample::Blob;
+    use neusample_precompute::{bake, groundtruth, materials};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/measured");
+    let m = materials::load(&dir.join("paper_white.toml")).unwrap();
+    assert!(m.isotropic());
+    let mut rng = Pcg64::seed_from_u64(3);
+    for _ in 0..64 {
+        let c = groundtruth::training_condition(m.as_ref(), &mut rng);
+        let r = groundtruth::random_condition(m.as_ref(), &mut rng);
+        assert_eq!(c.wi.y, 0.0);
+        assert!(c.wi.x >= 0.0 && (c.wi.length() - 1.0).abs() < 1e-5);
+        assert_ne!(r.wi.y, 0.0);
+    }
+    let t = train::train(
+        m.as_ref(),
+        SamplerKind::AnalyticMixture,
+        &TrainConfig::quick(),
+    )
+    .unwrap();
+    assert!(t.isotropic);
+    let bytes = bake::blob_bytes(&t, neusample::DType::F32, "iso").unwrap();
+    let blob = Blob::open(&bytes).unwrap();
+    assert_eq!((blob.version(), blob.isotropic()), (3, true));
+    // The runtime turns conditions at any azimuth as the f64 mirror does (random `wi`).
+    let v = bake::verify(&t, &bytes, m.as_ref(), 16, 5).unwrap();
+    eprintln!("isotropic analytic mixture: {v:?}");
+    // The same model read without the turn differs away from azimuth 0: the check can fail.
+    let plain = neusample::BlobWriter::from_blob(&blob)
+        .isotropic(false)
+        .to_bytes();
+    assert!(bake::verify(&t, &plain, m.as_ref(), 16, 5).is_err());
+    // A material that is not isotropic trains and writes as before.
+    let t = quick(SamplerKind::AnalyticMixture);
+    assert!(!t.isotropic);
+    let bytes = bake::blob_bytes(&t, neusample::DType::F32, "plain").unwrap();
+    let blob = Blob::open(&bytes).unwrap();
+    assert_eq!((blob.version(), blob.isotropic()), (1, false));
+}

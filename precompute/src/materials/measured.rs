@@ -89,6 +89,10 @@ impl Material for Measured {
         false
     }
 
+    fn isotropic(&self) -> bool {
+        self.data.material().isotropic()
+    }
+
     fn measured(&self) -> Option<&OwnedMeasured> {
         Some(&self.data)
     }

@@ -29,6 +29,14 @@ pub trait Material: Send + Sync {
         true
     }
 
+    /// Whether `f(φ, wi, wo)` is unchanged when `wi` and `wo` turn together about the normal,
+    /// by construction: samplers are then trained with `wi` at azimuth 0, and the runtime
+    /// turns every condition there ([`neusample::samplers::Defensive::with_isotropic`]).
+    /// False unless a model knows it (isotropic measured data).
+    fn isotropic(&self) -> bool {
+        false
+    }
+
     /// The runtime's view of the material when it is a neural material (feature texture +
     /// decoder): the reparameterization sampler trains through its decoder. `None` for every
     /// other model.

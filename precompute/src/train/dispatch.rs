@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use glam::{Vec2, Vec3};
 use neusample::nn::check_condition;
+use neusample::samplers::Turn;
 use neusample::SamplerKind;
 use neusample::FEATURE_DIM;
 use rayon::prelude::*;
@@ -67,6 +68,7 @@ pub fn train_with(
             tables,
             loss_history,
             steps,
+            isotropic: source.isotropic(),
             seconds: start.elapsed().as_secs_f64(),
         })
     })
@@ -75,12 +77,19 @@ pub fn train_with(
 /// The trained model's density at disk point `p` for condition `(phi, wi)`, with respect to
 /// **area on the projected disk**, evaluated in f64 from `trained.params` (plain Rust
 /// mirroring the training graph). `wi` is normalised here; 0 for an unusable condition and
-/// outside the open unit disk.
+/// outside the open unit disk. A model trained with `wi` at azimuth 0 is evaluated as the
+/// runtime does: `wi` and `p` turned there.
 ///
 /// For the histogram mixture this is the *baked* model (condition network + tables), which
 /// is what the runtime evaluates; it is 0 when `trained.tables` is `None`.
 #[must_use]
 pub fn model_pdf_disk(trained: &Trained, phi: &[f32; FEATURE_DIM], wi: Vec3, p: Vec2) -> f32 {
+    let (wi, p) = if trained.isotropic {
+        let (turn, wi) = Turn::aligning(wi);
+        (wi, turn.to_local_2d(p))
+    } else {
+        (wi, p)
+    };
     let Some(wi) = check_condition(phi, wi) else {
         return 0.0;
     };

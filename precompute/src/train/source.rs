@@ -57,9 +57,16 @@ pub trait TargetSource: Sync {
     fn integrand(&self) -> Option<&dyn Integrand> {
         None
     }
+
+    /// Whether the conditions' `wi` lie at azimuth 0 (an isotropic material, see
+    /// [`Material::isotropic`]): the trained sampler's blob says so, and the runtime turns
+    /// every condition there.
+    fn isotropic(&self) -> bool {
+        false
+    }
 }
 
-/// Draws training conditions of a material as [`groundtruth::batch_with`] does.
+/// Draws training conditions of a material ([`groundtruth::training_condition`]).
 pub struct MaterialSource<'a> {
     material: &'a dyn Material,
     integrand: Option<Box<dyn Integrand + 'a>>,
@@ -97,7 +104,7 @@ pub fn has_integrand(material: &dyn Material) -> bool {
 
 impl TargetSource for MaterialSource<'_> {
     fn draw_one(&self, i: usize, res: usize, seed: u64, opts: &TargetOptions) -> GtCondition {
-        let c = groundtruth::random_condition(self.material, &mut indexed_rng(seed, i));
+        let c = groundtruth::training_condition(self.material, &mut indexed_rng(seed, i));
         GtCondition {
             phi: c.phi,
             wi: c.wi,
@@ -107,6 +114,10 @@ impl TargetSource for MaterialSource<'_> {
 
     fn integrand(&self) -> Option<&dyn Integrand> {
         self.integrand.as_deref()
+    }
+
+    fn isotropic(&self) -> bool {
+        self.material.isotropic()
     }
 }
 

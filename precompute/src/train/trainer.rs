@@ -29,6 +29,9 @@ pub struct Trained {
     pub loss_history: Vec<f32>,
     /// Steps of the main phase as it ran (the trainer's `main_steps`), for labels and summaries.
     pub steps: usize,
+    /// Whether it was trained with `wi` at azimuth 0 ([`TargetSource::isotropic`](super::TargetSource::isotropic)):
+    /// its densities at any other `wi` are those at `wi` turned there.
+    pub isotropic: bool,
     /// Wall-clock training time (including ground truth and baking), seconds.
     pub seconds: f64,
 }
