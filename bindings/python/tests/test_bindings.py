@@ -202,6 +202,11 @@ def test_inspect_and_header():
     assert info["format_version"] == 1 and info["defensive"] == 0.0
     flow = neusample.inspect(sampler_path("goat_leather_neural", "flow"))
     assert flow["format_version"] == 2 and 0.0 < flow["defensive"] < 1.0
+    assert not info["isotropic"] and not flow["isotropic"]
+    # A sampler trained on an isotropic measured file: version 3, turned to wi's azimuth.
+    mint = sampler_path("../measured/blobs/chm_mint", "analytic")
+    iso = neusample.inspect(mint)
+    assert iso["format_version"] == 3 and iso["isotropic"] and iso["defensive"] == 0.0
     assert neusample.Sampler(sampler_path("goat_leather_neural", "flow")).alpha == flow["defensive"]
     assert neusample.Sampler.cosine().alpha == 0.0
 
