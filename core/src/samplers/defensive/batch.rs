@@ -54,6 +54,29 @@ fn to_local<'b, L>(
     }
 }
 
+/// Runs `f(learned lanes, directions in their frames, a, b)` on chunks `a..b` of `lanes` and
+/// `wo` (turned into the lanes' frames where `turned`).
+#[inline(always)]
+fn local_chunks<L: LaneState>(
+    lanes: &[DefensiveLane<L>],
+    wo: Vec3s<'_>,
+    turned: bool,
+    mut f: impl FnMut(&[L], Vec3s<'_>, usize, usize) -> Result<()>,
+) -> Result<()> {
+    let mut buf = [L::default(); FUSED_CHUNK];
+    let mut w = [[0.0f32; FUSED_CHUNK]; 2];
+    for (a, b) in chunks(lanes.len(), FUSED_CHUNK) {
+        let inner = inner_lanes(lanes, a, b, &mut buf);
+        let local = if turned {
+            to_local(lanes, wo, a, b, &mut w)
+        } else {
+            wo.range(a, b)
+        };
+        f(inner, local, a, b)?;
+    }
+    Ok(())
+}
+
 impl<S: BatchSampler> BatchSampler for Defensive<S> {
     type Lane = DefensiveLane<S::Lane>;
     type Scratch = S::Scratch;
@@ -128,19 +151,10 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
         pdf: &mut [f32],
         scratch: &mut S::Scratch,
     ) -> Result<()> {
-        let n = check_pdf_args(lanes, &wo, pdf)?;
-        let mut buf = [S::Lane::default(); FUSED_CHUNK];
-        let mut w = [[0.0f32; FUSED_CHUNK]; 2];
-        for (a, b) in chunks(n, FUSED_CHUNK) {
-            let inner = inner_lanes(lanes, a, b, &mut buf);
-            let local = if self.isotropic {
-                to_local(lanes, wo, a, b, &mut w)
-            } else {
-                wo.range(a, b)
-            };
-            self.pdf_local(inner, local, &mut pdf[a..b], scratch)?;
-        }
-        Ok(())
+        check_pdf_args(lanes, &wo, pdf)?;
+        local_chunks(lanes, wo, self.isotropic, |inner, local, a, b| {
+            self.pdf_local(inner, local, &mut pdf[a..b], scratch)
+        })
     }
 
     fn invert_batch(
@@ -150,24 +164,15 @@ impl<S: BatchSampler> BatchSampler for Defensive<S> {
         mut u: Vec2sMut<'_>,
         ok: &mut [bool],
     ) -> Result<()> {
-        let n = check_invert_args(lanes, &wo, &u, ok)?;
+        check_invert_args(lanes, &wo, &u, ok)?;
         if self.is_mixed() {
             ok.fill(false);
             return Ok(());
         }
-        let mut buf = [S::Lane::default(); FUSED_CHUNK];
-        let mut w = [[0.0f32; FUSED_CHUNK]; 2];
-        for (a, b) in chunks(n, FUSED_CHUNK) {
-            let inner = inner_lanes(lanes, a, b, &mut buf);
-            let local = if self.isotropic {
-                to_local(lanes, wo, a, b, &mut w)
-            } else {
-                wo.range(a, b)
-            };
+        local_chunks(lanes, wo, self.isotropic, |inner, local, a, b| {
             self.inner
-                .invert_batch(inner, local, u.range(a, b), &mut ok[a..b])?;
-        }
-        Ok(())
+                .invert_batch(inner, local, u.range(a, b), &mut ok[a..b])
+        })
     }
 
     fn sample_fused(
