@@ -298,6 +298,12 @@ pub struct Reparam {
     /// log of `1 + χ²(p* ‖ q)` estimated on the batch's samples: the render's variance, which
     /// the KL term (mode seeking) lets grow where the warp under-covers the integrand.
     pub chi2_weight: f32,
+    /// Weight λ of the generalised χ² `∫ q²/p̂ − 2q + p̂` (also minimised by `p̂ = q`) added
+    /// to [`DensityLoss::GeneralizedKl`] (0: the KL alone): MIS weights a light sample's
+    /// contribution by `p_light²/(p̂² + p_light²)`, so where `p̂ ≪ q` it carries `f/p_light`
+    /// unweighted; `E_q[q/p̂]` is that term's variance, which the KL penalises only by
+    /// `ln(q/p̂)`.
+    pub density_chi2_weight: f32,
 }
 
 /// When the reparameterization sampler's warp gets its warm start ([`Reparam::prefit`]).
@@ -340,6 +346,7 @@ impl Default for Reparam {
             defensive: 1e-3,
             density_loss: DensityLoss::GeneralizedKl,
             chi2_weight: 0.1,
+            density_chi2_weight: 1.0,
         }
     }
 }

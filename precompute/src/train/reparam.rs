@@ -18,7 +18,8 @@
 //!   and the loss refines it ([`Reparam::refine`]: a lower rate, more steps).
 //! * **pdf network** (`dense(32,16)` ReLU, `dense(16,1)`, `p̂ = exp(o)`), trained with the warp
 //!   frozen on its samples `x = T(z)` with their exact `q(x) = N(z)/det J` (computed by the
-//!   runtime's own warp): [`DensityLoss`].
+//!   runtime's own warp): [`DensityLoss`], with the generalised χ² of
+//!   [`Reparam::density_chi2_weight`] beside its KL.
 
 use anyhow::{bail, ensure, Result};
 use burn::module::Module;
@@ -487,11 +488,16 @@ fn density_batch(
     out
 }
 
-/// The pdf network's loss of a batch ([`DensityLoss`]).
+/// Largest `ln(q/p̂)` of one sample in the pdf network's χ² term.
+const DENSITY_RATIO_EXP_MAX: f32 = 30.0;
+
+/// The pdf network's loss of a batch ([`DensityLoss`]; with [`GeneralizedKl`](DensityLoss::GeneralizedKl),
+/// `chi2_weight` λ of [`Reparam::density_chi2_weight`]).
 fn density_loss(
     m: &DensityModel,
     b: &DensityBatch,
     kind: DensityLoss,
+    chi2_weight: f32,
     device: &Device,
 ) -> Tensor<1> {
     let nq = b.log_q.len();
@@ -513,9 +519,6 @@ fn density_loss(
         DensityLoss::LogL1 => (lp - lq).abs().mean(),
         DensityLoss::LogL1Mass => (lp - lq).abs().mean() + uniform_mass(),
         DensityLoss::GeneralizedKl => {
-            // Per condition: −E_q[ln p̂] + ∫p̂, with ∫p̂ estimated half from the warp's own
-            // samples (E_q[p̂/q]) and half from uniform points (π·E_u[p̂]), averaged over the
-            // batch's conditions.
             let nu = b.u.len() / 2;
             let cu = tensor2(b.cond_u.clone(), nu, CONDITION_DIM, device);
             let u = tensor2(b.u.clone(), nu, 2, device);
@@ -534,11 +537,33 @@ fn density_loss(
                 .map(|&o| 1.0 / (counts[o].max(1) as f32 * c))
                 .collect();
             let wq = tensor2(wq, nq, 1, device);
-            let nll = (lp.clone().neg() * wq.clone()).sum();
-            let ratio = ((lp - lq).exp() * wq).sum() * 0.5;
-            let uniform = pu.mean() * (0.5 * std::f32::consts::PI);
-            nll + ratio + uniform
+            generalized_kl_chi2(lp, lq, wq, pu.mean() * std::f32::consts::PI, chi2_weight)
         }
+    }
+}
+
+/// The pdf network's generalised divergences from the warp's density: `−E_q[ln p̂] + ∫p̂`
+/// (KL) plus `λ·(E_q[q/p̂] + ∫p̂)` (χ²), with `∫p̂` estimated half from the warp's own samples
+/// (`E_q[p̂/q]`) and half from uniform points (`uniform_mass`, `π·E_u[p̂]`). `lp`, `lq`: `ln p̂`
+/// and `ln q` at the warp's samples (`[n, 1]`), `wq` their weights (summing to 1 over a
+/// batch: `1/(samples of its condition · conditions)`). Per point, minimised by `p̂ = q`.
+fn generalized_kl_chi2(
+    lp: Tensor<2>,
+    lq: Tensor<2>,
+    wq: Tensor<2>,
+    uniform_mass: Tensor<1>,
+    chi2_weight: f32,
+) -> Tensor<1> {
+    let nll = (lp.clone().neg() * wq.clone()).sum();
+    let ratio = ((lp.clone() - lq.clone()).exp() * wq.clone()).sum();
+    let mass = (ratio + uniform_mass) * 0.5;
+    if chi2_weight > 0.0 {
+        // `E_q[q/p̂]`, the exponent capped so that one sample far outside `p̂` cannot
+        // overflow the batch.
+        let over = ((lq - lp).clamp_max(DENSITY_RATIO_EXP_MAX).exp() * wq).sum();
+        nll + mass * (1.0 + chi2_weight) + over * chi2_weight
+    } else {
+        nll + mass
     }
 }
 
@@ -658,7 +683,13 @@ pub fn train(
         |m, step| {
             pool.maybe_refresh(offset + step)?;
             let batch = density_batch(pool, &sampler, b, s, common.seed, offset + step);
-            Ok(density_loss(m, &batch, cfg.density_loss, &device))
+            Ok(density_loss(
+                m,
+                &batch,
+                cfg.density_loss,
+                cfg.density_chi2_weight,
+                &device,
+            ))
         },
     )?;
     history.extend(h2);
@@ -792,6 +823,31 @@ mod tests {
             }
         }
         TargetPdf::from_values(res, values)
+    }
+
+    #[test]
+    fn the_pdf_networks_loss_is_least_where_it_equals_the_warps_density() {
+        // `p̂ = e^s·q` with `∫q = 1`: the loss is `−E[ln q] − s + (1 + λ)·e^s + λ·e^−s`
+        // (up to the estimates), least at `s = 0` for every λ.
+        let device = train_device();
+        let lq = [0.3f32, -1.2, 2.0, 0.7];
+        let loss = |s: f32, lambda: f32| -> f32 {
+            let lp: Vec<f32> = lq.iter().map(|l| l + s).collect();
+            let t = |v: Vec<f32>| tensor2(v, lq.len(), 1, &device);
+            let mass = Tensor::<1>::from_floats([s.exp()], &device);
+            let l = generalized_kl_chi2(t(lp), t(lq.to_vec()), t(vec![0.25; 4]), mass, lambda);
+            l.into_scalar()
+        };
+        for lambda in [0.0, 1.0, 5.0] {
+            let at = |s: f32| loss(s, lambda);
+            for s in [-0.2, -0.02, 0.02, 0.2] {
+                let (l, l0) = (at(s), at(0.0));
+                assert!(l > l0 + 1e-6, "λ {lambda}, s {s}: {l} ≤ {l0}");
+            }
+            let mean_lq = lq.iter().sum::<f32>() / 4.0;
+            let expected = -mean_lq + 1.0 + 2.0 * lambda;
+            assert!((at(0.0) - expected).abs() < 1e-5, "λ {lambda}: {}", at(0.0));
+        }
     }
 
     #[test]

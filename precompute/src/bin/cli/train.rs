@@ -88,6 +88,11 @@ pub struct TrainArgs {
     /// network is the density MIS uses).
     #[arg(long)]
     reparam_pdf_steps: Option<usize>,
+    /// Reparameterization sampler: weight λ of the generalised χ² `∫ q²/p̂ − 2q + p̂` in the
+    /// pdf network's loss, beside its KL (0: the KL alone): how far the MIS density may fall
+    /// below the warp's where the warp samples.
+    #[arg(long)]
+    reparam_pdf_chi2: Option<f32>,
 }
 
 /// `--method`: one method, `all`, or a comma-separated list (a sweep, like `all`).
@@ -198,6 +203,12 @@ impl TryFrom<&TrainArgs> for TrainConfig {
                 bail!("--reparam-pdf-steps must be positive");
             }
             cfg.reparam.density_schedule.steps = steps;
+        }
+        if let Some(w) = a.reparam_pdf_chi2 {
+            if !(w >= 0.0 && w.is_finite()) {
+                bail!("--reparam-pdf-chi2 must be a non-negative number");
+            }
+            cfg.reparam.density_chi2_weight = w;
         }
         for flow in cfg.fine_tuned_mut() {
             if let Some(w) = a.chi2 {
