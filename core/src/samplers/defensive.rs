@@ -157,13 +157,11 @@ impl Turn {
     #[inline(always)]
     #[must_use]
     pub fn to_local_2d(self, p: Vec2) -> Vec2 {
-        if self.is_identity() {
-            return p;
+        Turn {
+            cos: self.cos,
+            sin: -self.sin,
         }
-        Vec2::new(
-            self.cos * p.x + self.sin * p.y,
-            self.cos * p.y - self.sin * p.x,
-        )
+        .to_world_2d(p)
     }
 }
 

@@ -519,12 +519,6 @@ fn density_loss(
         DensityLoss::LogL1 => (lp - lq).abs().mean(),
         DensityLoss::LogL1Mass => (lp - lq).abs().mean() + uniform_mass(),
         DensityLoss::GeneralizedKl => {
-            let nu = b.u.len() / 2;
-            let cu = tensor2(b.cond_u.clone(), nu, CONDITION_DIM, device);
-            let u = tensor2(b.u.clone(), nu, 2, device);
-            let pu = density_graph(&m.net, cu, u)
-                .clamp(LOG_DENSITY_MIN, LOG_DENSITY_MAX)
-                .exp();
             let c = b.conditions.max(1) as f32;
             let mut counts = vec![0usize; b.conditions];
             for &o in &b.owner {
@@ -537,7 +531,7 @@ fn density_loss(
                 .map(|&o| 1.0 / (counts[o].max(1) as f32 * c))
                 .collect();
             let wq = tensor2(wq, nq, 1, device);
-            generalized_kl_chi2(lp, lq, wq, pu.mean() * std::f32::consts::PI, chi2_weight)
+            generalized_kl_chi2(lp, lq, wq, uniform_mass(), chi2_weight)
         }
     }
 }
